@@ -1,0 +1,51 @@
+"""The point record every stage after ray casting passes around.
+
+A point cloud is one numpy structured array of ``POINT_DTYPE``:
+
+x, y, z     float64  metres, sensor frame (+X forward, +Y left, +Z up) unless stated
+range       float64  metres along the ray (for ghosts: the total path a + b)
+intensity   float32  0..1
+ring        uint16   vendor channel index
+time        float64  seconds since the start of the frame's sweep
+label       uint32   semantic class id (see ``labels``)
+instance    uint32   stable per-object id (0 = none)
+ghost       uint8    1 for a ghost point from a specular bounce
+"""
+
+import numpy as np
+
+POINT_FIELDS = ("x", "y", "z", "range", "intensity", "ring", "time", "label", "instance", "ghost")
+
+POINT_DTYPE = np.dtype(
+    [
+        ("x", np.float64),
+        ("y", np.float64),
+        ("z", np.float64),
+        ("range", np.float64),
+        ("intensity", np.float32),
+        ("ring", np.uint16),
+        ("time", np.float64),
+        ("label", np.uint32),
+        ("instance", np.uint32),
+        ("ghost", np.uint8),
+    ]
+)
+
+
+def empty_points(n=0):
+    """Return a zeroed point array of length ``n``."""
+    return np.zeros(int(n), dtype=POINT_DTYPE)
+
+
+def xyz(points):
+    """(N, 3) float64 copy of the coordinates of ``points``."""
+    return np.stack([points["x"], points["y"], points["z"]], axis=1)
+
+
+def transform_points(points, matrix):
+    """Return a copy of ``points`` with x, y, z mapped by the 4x4 ``matrix``."""
+    out = points.copy()
+    m = np.asarray(matrix, dtype=np.float64)
+    p = xyz(points) @ m[:3, :3].T + m[:3, 3]
+    out["x"], out["y"], out["z"] = p[:, 0], p[:, 1], p[:, 2]
+    return out
