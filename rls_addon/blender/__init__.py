@@ -1,0 +1,1 @@
+"""Adapters between Blender data and the bpy-free core."""

@@ -1,0 +1,55 @@
+"""LiDAR objects: recognising them and turning their settings into core inputs."""
+
+import numpy as np
+
+from ..core.engine import ScanSettings
+from ..core.errors import SceneError
+from ..core.presets import get_preset
+
+DEFAULT_PRESET = "generic_uniform32"
+
+
+def lidar_settings(obj):
+    """The ``rls_lidar`` property group of an object, or None."""
+    return getattr(obj, "rls_lidar", None)
+
+
+def is_lidar(obj):
+    s = lidar_settings(obj)
+    return bool(s is not None and s.is_lidar)
+
+
+def lidar_objects(scene):
+    """LiDAR objects of a scene, sorted by name."""
+    return sorted((o for o in scene.objects if is_lidar(o)), key=lambda o: o.name)
+
+
+def find_lidar(scene, name):
+    """The LiDAR object called ``name``, with an error that lists the LiDARs there are."""
+    obj = scene.objects.get(name)
+    names = [o.name for o in lidar_objects(scene)]
+    if obj is None:
+        raise SceneError(f"no object named '{name}' in scene '{scene.name}'; "
+                         f"LiDAR objects: {', '.join(names) or 'none'}")
+    if not is_lidar(obj):
+        raise SceneError(f"object '{name}' is not a LiDAR; LiDAR objects: {', '.join(names) or 'none'}")
+    return obj
+
+
+def scan_inputs(obj):
+    """(DevicePreset, ScanSettings) from a LiDAR object's properties."""
+    s = lidar_settings(obj)
+    preset = get_preset(s.preset)
+    settings = ScanSettings(
+        seed=int(s.seed),
+        frame_space=s.frame_space.lower(),
+        noise=bool(s.noise),
+        dropout=bool(s.dropout),
+        max_range_m=float(s.max_range) if s.use_max_range else None,
+    )
+    return preset, settings
+
+
+def sensor_pose(obj):
+    """4x4 float64 world pose of the (evaluated) sensor object."""
+    return np.array(obj.matrix_world, dtype=np.float64)

@@ -1,0 +1,55 @@
+"""Sensor effects applied to hit records: range limits, noise, intensity, dropout.
+
+Every function takes and returns plain arrays; randomness comes from the scan's
+seeded ``numpy.random.Generator`` passed in by the caller.
+"""
+
+import zlib
+
+import numpy as np
+
+
+def scan_rng(seed, sensor, frame):
+    """The one generator of a scan, derived from (seed, sensor name, frame)."""
+    key = zlib.crc32(str(sensor).encode("utf-8"))
+    return np.random.default_rng([int(seed) & 0xFFFFFFFF, key, int(frame) & 0xFFFFFFFF])
+
+
+def incidence_cosine(directions, normals):
+    """|cos| of the angle between each ray and the surface normal it hit."""
+    return np.abs(np.einsum("ij,ij->i", directions, normals))
+
+
+def intensity(reflectivity, cos_incidence, distance, attenuation_per_m=0.0):
+    """Lambertian return: reflectivity * cos(incidence) * exp(-a * d), clipped to 0..1.
+
+    With reflectivity 1 and cos 1 this is CARLA's distance-only intensity exp(-a*d)."""
+    i = np.asarray(reflectivity) * np.asarray(cos_incidence)
+    if attenuation_per_m:
+        i = i * np.exp(-float(attenuation_per_m) * np.asarray(distance))
+    return np.clip(i, 0.0, 1.0)
+
+
+def range_noise(rng, n, sigma):
+    """Gaussian range noise along the ray (zeros when sigma is 0; draws nothing then)."""
+    if sigma <= 0:
+        return np.zeros(n)
+    return rng.normal(0.0, sigma, n)
+
+
+def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
+    """CARLA's dropout: drop a random ``general_rate`` share of points; then a point with
+    intensity I <= limit survives with probability (zero / limit) * I + (1 - zero).
+
+    Always draws the same number of values for a given input length, so the stream
+    stays aligned whatever the settings.
+    """
+    n = intensities.shape[0]
+    keep = np.ones(n, dtype=bool)
+    if general_rate > 0:
+        keep &= rng.random(n) >= general_rate
+    if intensity_limit > 0 and intensity_zero > 0:
+        p = (intensity_zero / intensity_limit) * intensities + (1.0 - intensity_zero)
+        low = intensities <= intensity_limit
+        keep &= ~low | (rng.random(n) < p)
+    return keep
