@@ -27,3 +27,7 @@ class RegionError(RLSError):
 
 class CancelledError(RLSError):
     """The user cancelled a running scan."""
+
+
+class InputError(RLSError):
+    """An input file (point cloud, sidecar, polygon) is missing or malformed."""
