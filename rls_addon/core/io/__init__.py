@@ -1,0 +1,28 @@
+"""Point-cloud files: PCD (ascii, binary, binary_compressed) and PLY (ascii,
+binary_little_endian) that PCL, Open3D and plyfile read; atomic writes;
+output file names from templates; JSON sidecars. Pure numpy + stdlib.
+"""
+
+from .atomic import atomic_write_bytes, ensure_directory
+from .cloud import encode_cloud, read_cloud, read_records, write_cloud
+from .fields import DEFAULT_FIELDS, FILE_TYPES, FORMAT_EXT, FORMATS
+from .paths import output_path, sanitize_name
+from .sidecar import read_sidecar, sidecar_path, write_sidecar
+
+__all__ = [
+    "DEFAULT_FIELDS",
+    "FILE_TYPES",
+    "FORMATS",
+    "FORMAT_EXT",
+    "atomic_write_bytes",
+    "encode_cloud",
+    "ensure_directory",
+    "output_path",
+    "read_cloud",
+    "read_records",
+    "read_sidecar",
+    "sanitize_name",
+    "sidecar_path",
+    "write_cloud",
+    "write_sidecar",
+]

@@ -1,0 +1,96 @@
+"""Which point fields a cloud file may hold, and their on-disk types.
+
+Files store what point-cloud tools expect, not our in-memory ``POINT_DTYPE``:
+x, y, z, intensity as float32, ring uint16, time float64 (float32 on request),
+label and instance uint32, ghost uint8; ``range`` is optional (float32).
+All on-disk types are little-endian.
+"""
+
+import numpy as np
+
+from ..errors import OutputError
+from ..points import POINT_DTYPE
+
+FORMATS = ("pcd_ascii", "pcd_binary", "pcd_binary_compressed", "ply_ascii", "ply_binary")
+FORMAT_EXT = {
+    "pcd_ascii": ".pcd",
+    "pcd_binary": ".pcd",
+    "pcd_binary_compressed": ".pcd",
+    "ply_ascii": ".ply",
+    "ply_binary": ".ply",
+}
+
+DEFAULT_FIELDS = ("x", "y", "z", "intensity", "ring", "time", "label", "instance", "ghost")
+REQUIRED_FIELDS = ("x", "y", "z")
+
+FILE_TYPES = {
+    "x": "<f4",
+    "y": "<f4",
+    "z": "<f4",
+    "range": "<f4",
+    "intensity": "<f4",
+    "ring": "<u2",
+    "time": "<f8",
+    "label": "<u4",
+    "instance": "<u4",
+    "ghost": "u1",
+}
+TIME_DTYPES = ("float64", "float32")
+
+
+def check_format(fmt):
+    if fmt not in FORMATS:
+        raise OutputError(f"unknown cloud format {fmt!r}; choose one of {', '.join(FORMATS)}")
+    return fmt
+
+
+def resolve_fields(fields):
+    """Validated field tuple in file order; x, y, z always first."""
+    if fields is None:
+        return DEFAULT_FIELDS
+    if isinstance(fields, str):
+        fields = [f.strip() for f in fields.split(",") if f.strip()]
+    wanted = set(fields)
+    unknown = sorted(wanted - set(FILE_TYPES))
+    if unknown:
+        raise OutputError(
+            f"unknown point field(s) {', '.join(unknown)}; known: {', '.join(FILE_TYPES)}"
+        )
+    order = REQUIRED_FIELDS + tuple(f for f in FILE_TYPES if f not in REQUIRED_FIELDS)
+    return tuple(f for f in order if f in REQUIRED_FIELDS or f in wanted)
+
+
+def file_dtype(fields, time_dtype="float64"):
+    """Packed little-endian structured dtype of the given fields."""
+    if time_dtype not in TIME_DTYPES:
+        raise OutputError(f"time_dtype must be one of {', '.join(TIME_DTYPES)}, got {time_dtype!r}")
+    types = dict(FILE_TYPES, time="<f8" if time_dtype == "float64" else "<f4")
+    return np.dtype([(f, types[f]) for f in fields])
+
+
+def pack(points, fields, time_dtype="float64"):
+    """Copy ``points`` into the on-disk record layout (one packed array)."""
+    names = points.dtype.names or ()
+    missing = [f for f in fields if f not in names]
+    if missing:
+        raise OutputError(f"points lack field(s) {', '.join(missing)} requested for output")
+    dt = file_dtype(fields, time_dtype)
+    out = np.empty(len(points), dtype=dt)
+    for f in fields:
+        out[f] = points[f]
+    return out
+
+
+def unpack(records):
+    """Map a structured array read from a file onto ``POINT_DTYPE``.
+
+    Fields the file lacks are zero; fields we do not know are dropped.
+    """
+    out = np.zeros(len(records), dtype=POINT_DTYPE)
+    for f in records.dtype.names or ():
+        if f in POINT_DTYPE.names:
+            col = records[f]
+            if col.ndim > 1:
+                col = col[:, 0]
+            out[f] = col
+    return out
