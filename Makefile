@@ -1,0 +1,51 @@
+# RLS: realistic LiDAR simulation for Blender.
+#   make demo    set up .venv, scan the sample street scene, print where the output is
+#   make test    set up .venv and system tools, build the extension, run all tests
+#   make build   build and validate dist/rls_addon-<version>.zip with Blender's tooling
+
+PYTHON ?= python3.11
+VENV   := .venv
+PY     := $(VENV)/bin/python
+RUNTIME_STAMP := $(VENV)/.runtime-installed
+TEST_STAMP    := $(VENV)/.test-installed
+VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
+ZIP     := dist/rls_addon-$(VERSION).zip
+
+.PHONY: venv demo test build system-deps clean
+
+venv: $(RUNTIME_STAMP)
+
+$(RUNTIME_STAMP): requirements.txt
+	@command -v $(PYTHON) >/dev/null 2>&1 || { \
+	  echo "make: error: Python 3.11 not found (looked for '$(PYTHON)'). The bpy 5.0.1 wheel exists only for CPython 3.11: install Python 3.11, or run 'make PYTHON=/path/to/python3.11'." >&2; exit 1; }
+	@$(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info[:2] == (3, 11) else 1)' || { \
+	  echo "make: error: '$(PYTHON)' is Python $$($(PYTHON) -c 'import sys; print("%d.%d" % sys.version_info[:2])'), but bpy 5.0.1 needs Python 3.11: run 'make PYTHON=/path/to/python3.11'." >&2; exit 1; }
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	@touch $@
+
+$(TEST_STAMP): $(RUNTIME_STAMP) requirements-test.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-test.txt
+	@touch $@
+
+# PCL's command-line tools judge our PCD files in the tests (Debian package pcl-tools).
+system-deps:
+	@command -v pcl_pcd2ply >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" = 0 ]; then \
+	    echo "make: installing Debian package pcl-tools (PCL command-line tools)"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends pcl-tools >/dev/null; \
+	  else \
+	    echo "make: error: PCL's command-line tools are missing: run 'sudo apt-get install pcl-tools'" >&2; exit 1; \
+	  fi; }
+
+build: $(RUNTIME_STAMP)
+	$(PY) tools/build_extension.py --out dist
+
+demo: $(RUNTIME_STAMP)
+	$(PY) -m rls_addon demo --out out/demo
+
+test: $(TEST_STAMP) system-deps build
+	$(PY) -m pytest
+
+clean:
+	rm -rf build dist out .pytest_cache

@@ -1,0 +1,125 @@
+"""``rls scan``: scan frames of LiDAR objects in a .blend and write point clouds."""
+
+import json
+import sys
+import time
+
+from ..core.errors import OutputError, SceneError
+from ..core.io import FORMATS
+
+DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
+
+
+def add_parser(sub):
+    p = sub.add_parser("scan", help="scan frames of LiDAR objects and write point clouds",
+                       description="Scan frames of LiDAR objects and write point clouds "
+                                   "with a JSON sidecar each; prints a JSON summary.")
+    p.add_argument("blend", nargs="?", help="scene file (omit inside 'blender -b scene.blend -c rls')")
+    p.add_argument("--sensor", action="append", default=[],
+                   help="LiDAR object name (repeatable; default: every LiDAR in the scene)")
+    p.add_argument("--frames", default=None,
+                   help="frame or range: 5, 1-10 or 1-10:2 (default: the current frame)")
+    p.add_argument("--out", required=True, help="output directory")
+    p.add_argument("--format", choices=FORMATS, default="pcd_binary")
+    p.add_argument("--template", default=DEFAULT_TEMPLATE,
+                   help="file name template with {scene}, {sensor}, {frame:06d}")
+    p.add_argument("--seed", type=int, default=None, help="override each LiDAR's seed")
+    p.add_argument("--frame-space", choices=("sensor", "world"), default=None)
+    p.add_argument("--overwrite", action="store_true", help="replace existing files")
+    p.set_defaults(func=run)
+
+
+def parse_frames(text, current):
+    """'5' -> [5]; '1-10' -> 1..10; '1-10:2' -> 1,3,..,9; None -> [current]."""
+    if text is None:
+        return [current]
+    try:
+        rng, _, step = text.partition(":")
+        a, sep, b = rng.partition("-")
+        start, end = int(a), int(b) if sep else int(a)
+        step = int(step) if step else 1
+    except ValueError:
+        raise SceneError(f"--frames: expected N, A-B or A-B:STEP, got '{text}'") from None
+    if end < start or step < 1:
+        raise SceneError(f"--frames: empty range '{text}'")
+    return list(range(start, end + 1, step))
+
+
+def open_scene(path):
+    """Load a .blend (or keep the loaded one when path is None) and make sure the
+    extension's properties are registered."""
+    import os
+
+    import bpy
+
+    if path is not None:
+        if not os.path.isfile(path):
+            raise SceneError(f"scene file not found: {path}")
+        try:
+            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+        except RuntimeError as exc:
+            raise SceneError(f"cannot open scene {path}: {str(exc).strip()}") from None
+    if not hasattr(bpy.types.Object, "rls_lidar"):
+        from .. import register
+
+        register()
+    return bpy.context.scene
+
+
+def check_output_dir(path):
+    import os
+
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise OutputError(f"output path is not a directory: {path}")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create output directory {path}: {exc.strerror}") from None
+    if not os.access(path, os.W_OK):
+        raise OutputError(f"output directory is not writable: {path}")
+
+
+def run(args):
+    import dataclasses
+
+    import bpy
+
+    from ..blender.scan import save_scan, scan_lidar
+    from ..blender.sensor import find_lidar, lidar_objects, scan_inputs
+
+    scene = open_scene(args.blend)
+    sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)
+    if not sensors:
+        raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > LiDAR)")
+    frames = parse_frames(args.frames, scene.frame_current)
+    check_output_dir(args.out)
+    outputs, total_points, t_start = [], 0, time.perf_counter()
+    jobs = len(frames) * len(sensors)
+    done = 0
+    for frame in frames:
+        scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        for obj in sensors:
+            _, settings = scan_inputs(obj)
+            if args.seed is not None:
+                settings = dataclasses.replace(settings, seed=args.seed)
+            if args.frame_space is not None:
+                settings = dataclasses.replace(settings, frame_space=args.frame_space)
+            result, info = scan_lidar(depsgraph, obj, frame, settings=settings)
+            path = save_scan(result, info, args.out, args.template, args.format, scene.name,
+                             overwrite=args.overwrite)
+            done += 1
+            total_points += len(result.points)
+            outputs.append({"sensor": obj.name, "frame": frame, "points": len(result.points),
+                            "seconds": round(result.seconds, 4), "file": str(path)})
+            elapsed = time.perf_counter() - t_start
+            eta = elapsed / done * (jobs - done)
+            print(f"[{done}/{jobs}] frame {frame} {obj.name}: {len(result.points)} points in "
+                  f"{result.seconds:.2f} s, about {eta:.1f} s left", file=sys.stderr)
+            for w in result.warnings:
+                print(f"rls: warning: {obj.name} frame {frame}: {w}", file=sys.stderr)
+    summary = {"scene": scene.name, "frames": frames, "sensors": [o.name for o in sensors],
+               "points": total_points, "seconds": round(time.perf_counter() - t_start, 3),
+               "outputs": outputs}
+    print(json.dumps(summary, indent=2))
+    return 0

@@ -1,0 +1,70 @@
+"""The test that counts: install the built zip the way users do (Install from Disk)
+into a temporary Blender user directory, enable it, and scan through its operator.
+
+Runs in a subprocess so the installed copy (``bl_ext.user_default.rls_addon``) never
+meets the source-tree copy the other Blender tests register.
+"""
+
+import json
+import os
+import subprocess
+import sys
+import tomllib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+SCRIPT = r"""
+import json, sys
+import bpy
+zip_path, out_dir = sys.argv[1], sys.argv[2]
+res = bpy.ops.extensions.package_install_files(filepath=zip_path, repo='user_default',
+                                               enable_on_install=True)
+assert res == {'FINISHED'}, res
+mods = [m for m in bpy.context.preferences.addons.keys() if m.endswith('rls_addon')]
+scene = bpy.context.scene
+for ob in list(scene.objects):
+    bpy.data.objects.remove(ob)
+mesh = bpy.data.meshes.new('Ground')
+mesh.from_pydata([(-50, -50, 0), (50, -50, 0), (50, 50, 0), (-50, 50, 0)], [], [(0, 1, 2, 3)])
+ground = bpy.data.objects.new('Ground', mesh)
+scene.collection.objects.link(ground)
+scene.cursor.location = (0.0, 0.0, 2.0)
+assert bpy.ops.object.rls_add_lidar(preset='generic_uniform32') == {'FINISHED'}
+lidar = bpy.context.active_object
+lidar.rls_lidar.noise = False
+lidar.rls_lidar.output_dir = out_dir
+assert bpy.ops.rls.scan_frame() == {'FINISHED'}
+preview = bpy.data.objects[lidar.name + ' points']
+import rls_addon  # must NOT be importable: the installed copy lives under bl_ext
+print(json.dumps({'modules': mods, 'preview_points': len(preview.data.vertices),
+                  'package': type(lidar.rls_lidar).__module__}))
+"""
+
+
+def test_install_zip_and_scan_through_installed_operator(tmp_path):
+    manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
+    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}.zip"
+    if not zip_path.exists():
+        pytest.fail(f"{zip_path} is missing: run 'make build' (make test does)")
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
+    out = tmp_path / "out"
+    # Run from an empty directory so the source tree's rls_addon is not importable.
+    script = SCRIPT.replace("import rls_addon  # must NOT be importable: the installed copy lives under bl_ext\n",
+                            "assert 'rls_addon' not in sys.modules\n")
+    proc = subprocess.run([sys.executable, "-c", script, str(zip_path), str(out)],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    info = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert info["modules"] == ["bl_ext.user_default.rls_addon"]
+    assert info["package"].startswith("bl_ext.user_default.rls_addon")
+    files = sorted(p.name for p in out.iterdir())
+    clouds = [f for f in files if f.endswith(".pcd")]
+    assert len(clouds) == 1 and clouds[0].replace(".pcd", ".json") in files
+    from rls_addon.core.io import read_cloud
+
+    points = read_cloud(out / clouds[0])
+    assert len(points) == info["preview_points"] > 1000
+    assert (tmp_path / "user" / "extensions" / "user_default" / "rls_addon").is_dir()

@@ -1,0 +1,37 @@
+"""Command-line tier: run ``python -m rls_addon`` as a user does, in a subprocess."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def rls(*args, cwd=None, timeout=600):
+    """Run ``python -m rls_addon ARGS``; return the CompletedProcess (text mode)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.run([sys.executable, "-m", "rls_addon", *map(str, args)], cwd=cwd or ROOT,
+                          env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def one_line_error(proc):
+    """Assert a failed run printed exactly one error line on stderr; return it."""
+    assert proc.returncode != 0, proc.stdout
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("rls: error: "), lines[0]
+    return lines[0]
+
+
+@pytest.fixture(scope="session")
+def demo_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo")
+    proc = rls("demo", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    start = proc.stdout.index("{")
+    summary, _ = json.JSONDecoder().raw_decode(proc.stdout[start:])
+    return out, summary, proc
