@@ -20,6 +20,7 @@ def add_parser(sub):
 def run(args):
     import bpy
 
+    from ..blender.quiet import blender_output_silenced
     from ..blender.sample_scene import build_street
     from ..blender.scan import save_scan, scan_lidar
     from ..core.presets import get_preset
@@ -48,7 +49,8 @@ def run(args):
     path = save_scan(result, info, args.out, "{scene}_{sensor}_{frame:06d}", "pcd_binary",
                      scene.name, overwrite=True)
     seconds = time.perf_counter() - t0
-    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    with blender_output_silenced():
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
     summary = {"device": preset.name, "points": len(result.points), "rays": result.rays,
                "triangles": result.triangles, "seconds": round(seconds, 3),
                "point_cloud": str(os.path.abspath(path)), "scene": blend}

@@ -55,8 +55,11 @@ def open_scene(path):
     if path is not None:
         if not os.path.isfile(path):
             raise SceneError(f"scene file not found: {path}")
+        from ..blender.quiet import blender_output_silenced
+
         try:
-            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+            with blender_output_silenced():
+                bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
         except RuntimeError as exc:
             raise SceneError(f"cannot open scene {path}: {str(exc).strip()}") from None
     if not hasattr(bpy.types.Object, "rls_lidar"):
