@@ -1,0 +1,219 @@
+"""Atomic writes, overwrite protection, output templates, sidecars, clear errors."""
+
+import json
+import os
+import pathlib
+
+import numpy as np
+import pytest
+
+from rls_addon.core.errors import InputError, OutputError
+from rls_addon.core.io import (
+    FORMAT_EXT,
+    FORMATS,
+    atomic_write_bytes,
+    output_path,
+    read_cloud,
+    read_sidecar,
+    write_cloud,
+    write_sidecar,
+)
+from rls_addon.core.io import atomic as atomic_mod
+
+from .cloud_samples import sample_cloud
+
+
+def _leftovers(directory):
+    return sorted(p.name for p in pathlib.Path(directory).iterdir() if p.name.endswith(".tmp"))
+
+
+def test_writes_create_parent_directories(tmp_path):
+    path = write_cloud(tmp_path / "a" / "b" / "c.pcd", sample_cloud(5))
+    assert path.is_file() and len(read_cloud(path)) == 5
+
+
+def test_failure_mid_write_leaves_no_file_and_no_temp(tmp_path):
+    target = tmp_path / "out.pcd"
+
+    def writer(fh):
+        fh.write(b"half a file")
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        atomic_write_bytes(target, writer)
+    assert not target.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_keyboard_interrupt_mid_write_cleans_up(tmp_path):
+    target = tmp_path / "out.ply"
+
+    def writer(fh):
+        fh.write(b"x" * 1000)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_bytes(target, writer)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failed_rewrite_keeps_the_old_file(tmp_path):
+    target = tmp_path / "out.pcd"
+    write_cloud(target, sample_cloud(3))
+    before = target.read_bytes()
+
+    def writer(fh):
+        fh.write(b"garbage")
+        raise RuntimeError("boom")
+
+    with pytest.raises(RuntimeError):
+        atomic_write_bytes(target, writer, overwrite=True)
+    assert target.read_bytes() == before
+    assert _leftovers(tmp_path) == []
+
+
+def test_no_overwrite_without_permission(tmp_path):
+    target = tmp_path / "f.ply"
+    write_cloud(target, sample_cloud(3), "ply_binary")
+    before = target.read_bytes()
+    with pytest.raises(OutputError, match="--overwrite") as info:
+        write_cloud(target, sample_cloud(4), "ply_binary")
+    assert str(target) in str(info.value)
+    assert target.read_bytes() == before
+    write_cloud(target, sample_cloud(4), "ply_binary", overwrite=True)
+    assert len(read_cloud(target)) == 4
+    assert _leftovers(tmp_path) == []
+
+
+def test_target_appearing_during_write_is_not_clobbered(tmp_path):
+    target = tmp_path / "race.pcd"
+
+    def writer(fh):
+        target.write_bytes(b"someone else")
+        fh.write(b"ours")
+
+    with pytest.raises(OutputError, match="already exists"):
+        atomic_write_bytes(target, writer)
+    assert target.read_bytes() == b"someone else"
+    assert _leftovers(tmp_path) == []
+
+
+def test_directory_under_a_regular_file_is_a_clear_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    with pytest.raises(OutputError, match="cannot create directory"):
+        write_cloud(blocker / "sub" / "c.pcd", sample_cloud(2))
+
+
+def test_unwritable_location_is_a_clear_error():
+    with pytest.raises(OutputError, match="cannot"):
+        write_cloud("/proc/rls-test/c.pcd", sample_cloud(2))
+
+
+def test_disk_full_is_reported(tmp_path, monkeypatch):
+    def full(*a, **k):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(atomic_mod.os, "fsync", full)
+    with pytest.raises(OutputError, match="disk full"):
+        write_cloud(tmp_path / "c.pcd", sample_cloud(2))
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_dev_full_gives_disk_full_error(tmp_path, monkeypatch):
+    real_fdopen = os.fdopen
+
+    def fdopen_full(fd, mode="r", *a, **k):
+        os.close(fd)
+        return open("/dev/full", mode, buffering=0)
+
+    monkeypatch.setattr(atomic_mod.os, "fdopen", fdopen_full)
+    with pytest.raises(OutputError, match="disk full"):
+        atomic_write_bytes(tmp_path / "c.bin", b"x" * 100)
+    monkeypatch.setattr(atomic_mod.os, "fdopen", real_fdopen)
+    assert _leftovers(tmp_path) == []
+
+
+def test_writing_onto_a_directory_is_refused(tmp_path):
+    (tmp_path / "d.pcd").mkdir()
+    with pytest.raises(OutputError, match="directory"):
+        write_cloud(tmp_path / "d.pcd", sample_cloud(1), overwrite=True)
+
+
+def test_unknown_format_and_field_are_output_errors(tmp_path):
+    with pytest.raises(OutputError, match="unknown cloud format"):
+        write_cloud(tmp_path / "c.las", sample_cloud(1), "las")
+    with pytest.raises(OutputError, match="unknown point field"):
+        write_cloud(tmp_path / "c.pcd", sample_cloud(1), fields=["x", "colour"])
+
+
+def test_reading_garbage_is_input_error(tmp_path):
+    bad = tmp_path / "bad.pcd"
+    bad.write_bytes(b"hello")
+    with pytest.raises(InputError, match="bad.pcd"):
+        read_cloud(bad)
+    with pytest.raises(InputError, match="cannot read"):
+        read_cloud(tmp_path / "missing.ply")
+    truncated = tmp_path / "t.ply"
+    truncated.write_bytes(write_cloud(tmp_path / "ok.ply", sample_cloud(10), "ply_binary").read_bytes()[:-5])
+    with pytest.raises(InputError):
+        read_cloud(truncated)
+
+
+# ---- output templates -------------------------------------------------------
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_output_path_renders_and_appends_extension(tmp_path, fmt):
+    p = output_path(tmp_path, "{scene}/{sensor}/{frame:06d}", scene="Street 1", sensor="Pandar64.L", frame=7, fmt=fmt)
+    assert p == tmp_path / "Street_1" / "Pandar64.L" / f"000007{FORMAT_EXT[fmt]}"
+
+
+def test_output_path_keeps_matching_extension(tmp_path):
+    p = output_path(tmp_path, "{frame}.pcd", scene="s", sensor="l", frame=3, fmt="pcd_binary")
+    assert p.name == "3.pcd"
+    with pytest.raises(OutputError, match="writes .pcd"):
+        output_path(tmp_path, "{frame}.ply", scene="s", sensor="l", frame=3, fmt="pcd_binary")
+
+
+@pytest.mark.parametrize("name", ["..", "../..", "a/../../b", "..\\x", "/etc/passwd", "~"])
+def test_names_cannot_escape(tmp_path, name):
+    p = output_path(tmp_path, "{scene}_{sensor}/{frame}", scene=name, sensor=name, frame=0, fmt="ply_binary")
+    assert os.path.commonpath([tmp_path, p]) == str(tmp_path)
+    assert len(p.relative_to(tmp_path).parts) == 2
+
+
+@pytest.mark.parametrize("template", ["../{frame}", "{scene}/../../{frame}", "/tmp/{frame}", "a/../../{frame}", "..", "C:\\x\\{frame}"])
+def test_templates_escaping_the_directory_are_rejected(tmp_path, template):
+    with pytest.raises(OutputError):
+        output_path(tmp_path, template, scene="s", sensor="l", frame=1, fmt="pcd_ascii")
+
+
+@pytest.mark.parametrize("template", ["{frames}", "{scene", "{0}", "", "dir/"])
+def test_bad_templates_are_output_errors(tmp_path, template):
+    with pytest.raises(OutputError):
+        output_path(tmp_path, template, scene="s", sensor="l", frame=1, fmt="pcd_ascii")
+
+
+# ---- sidecars -----------------------------------------------------------------
+
+
+def test_sidecar_round_trip_with_numpy_values(tmp_path):
+    cloud = write_cloud(tmp_path / "000001.pcd", sample_cloud(3))
+    info = {"frame": "sensor", "sensor_to_world": np.eye(4), "seed": np.int64(5), "nan": float("nan")}
+    side = write_sidecar(cloud, info)
+    assert side == tmp_path / "000001.json"
+    data = json.loads(side.read_text())
+    assert data["sensor_to_world"][0] == [1.0, 0.0, 0.0, 0.0]
+    assert data["seed"] == 5 and data["nan"] is None
+    assert read_sidecar(cloud) == data
+    with pytest.raises(OutputError, match="--overwrite"):
+        write_sidecar(cloud, info)
+    assert read_sidecar(tmp_path / "other.pcd") is None
+
+
+def test_sidecar_rejects_unserialisable(tmp_path):
+    with pytest.raises(OutputError, match="JSON"):
+        write_sidecar(tmp_path / "c.pcd", {"x": object()})
+    assert list(tmp_path.iterdir()) == []
