@@ -312,7 +312,15 @@ def get_preset(name, user_dir=None):
     for p in presets.values():
         if key in (p.id.lower(), p.name.lower()):
             return p
+    norm = _alnum(key)  # lenient: 'vlp-16', 'VLP16', 'pandar 64'
+    for p in presets.values():
+        if norm and norm in (_alnum(p.id), _alnum(p.name), _alnum(p.name.partition(" ")[2])):
+            return p
     raise PresetError(f"unknown device preset '{name}'; known: {', '.join(presets)}")
+
+
+def _alnum(text):
+    return "".join(ch for ch in text.lower() if ch.isalnum())
 
 
 def pattern_span(preset, duration_s):
