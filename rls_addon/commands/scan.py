@@ -87,7 +87,7 @@ def run(args):
 
     import bpy
 
-    from ..blender.scan import save_scan, scan_lidar
+    from ..blender.scan import ScanSession, save_scan
     from ..blender.sensor import find_lidar, lidar_objects, scan_inputs
 
     scene = open_scene(args.blend)
@@ -97,6 +97,7 @@ def run(args):
     frames = parse_frames(args.frames, scene.frame_current)
     check_output_dir(args.out)
     outputs, total_points, t_start = [], 0, time.perf_counter()
+    session = ScanSession()
     jobs = len(frames) * len(sensors)
     done = 0
     for frame in frames:
@@ -108,7 +109,7 @@ def run(args):
                 settings = dataclasses.replace(settings, seed=args.seed)
             if args.frame_space is not None:
                 settings = dataclasses.replace(settings, frame_space=args.frame_space)
-            result, info = scan_lidar(depsgraph, obj, frame, settings=settings)
+            result, info = session.scan(depsgraph, obj, frame, settings=settings)
             path = save_scan(result, info, args.out, args.template, args.format, scene.name,
                              overwrite=args.overwrite)
             done += 1
@@ -122,6 +123,7 @@ def run(args):
             for w in result.warnings:
                 print(f"rls: warning: {obj.name} frame {frame}: {w}", file=sys.stderr)
     summary = {"scene": scene.name, "frames": frames, "sensors": [o.name for o in sensors],
+               "structure_builds": session.builds,
                "points": total_points, "seconds": round(time.perf_counter() - t_start, 3),
                "outputs": outputs}
     print(json.dumps(summary, indent=2))

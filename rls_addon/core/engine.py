@@ -1,6 +1,8 @@
 """The scan engine: one frame of one sensor, from triangles and a pattern to points.
 
 Pure numpy around a ray-casting backend handed in by the caller (see ``raycast``).
+Static geometry is prepared once (``PreparedScene``: centred, culled, caster built)
+and reused for every frame and sensor it covers.
 """
 
 import time
@@ -39,6 +41,37 @@ class ScanResult:
     warnings: list = field(default_factory=list)
 
 
+class PreparedScene:
+    """Triangles ready for casting around ``centre``: shifted to centre-relative float64
+    coordinates (so scenes far from the origin keep their precision in float32
+    backends), degenerate triangles dropped, everything farther than ``reach`` from
+    ``centre`` culled, and the caster built once."""
+
+    def __init__(self, geometry, centre, reach, caster_factory):
+        self.geometry = geometry
+        self.centre = np.asarray(centre, dtype=np.float64).copy()
+        self.reach = float(reach)
+        self.vertices, self.triangles, self.kept, self.warnings = clean_for_casting(
+            geometry, self.centre, self.reach)
+        self.caster = caster_factory(self.vertices, self.triangles) if len(self.triangles) else None
+        self.backend = getattr(self.caster, "name", "none")
+
+    def covers(self, origin, max_range):
+        """True when every ray of a sensor at ``origin`` stays inside the culled region."""
+        gap = np.linalg.norm(np.asarray(origin, np.float64) - self.centre)
+        return gap + max_range <= self.reach * (1 + 1e-12)
+
+    def cast(self, origin, directions, max_range):
+        """(dist, triangle index into the prepared triangles, unit normals) per ray."""
+        n = directions.shape[0]
+        if self.caster is None:
+            return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
+        o = (np.asarray(origin, np.float64) - self.centre).reshape(1, 3)
+        dist, tri = self.caster.cast(o, directions, max_range)
+        dist, normals = refine_hits(self.vertices, self.triangles, o, directions, dist, tri)
+        return dist, tri, normals
+
+
 def sensor_axes(sensor_to_world):
     """Origin and orthonormal rotation of a 4x4 pose (scale and shear are removed)."""
     m = np.asarray(sensor_to_world, dtype=np.float64)
@@ -50,56 +83,61 @@ def sensor_axes(sensor_to_world):
     return m[:3, 3].copy(), r
 
 
-def scan_frame(geometry, pattern, sensor_to_world, preset, settings, caster_factory,
+def resolve_range(preset, settings):
+    """(min, max) range in metres after the settings' overrides."""
+    rmin = preset.range.min_m if settings.min_range_m is None else settings.min_range_m
+    rmax = preset.range.max_m if settings.max_range_m is None else settings.max_range_m
+    return rmin, rmax
+
+
+def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
                frame=0, sensor="sensor"):
     """Scan one frame.
 
-    geometry         SceneGeometry in world coordinates
+    scene            PreparedScene covering the sensor, or a SceneGeometry (world
+                     coordinates), prepared here around the sensor with caster_factory
     pattern          ScanPattern (directions in the sensor frame)
     sensor_to_world  4x4 pose of the sensor
     preset           DevicePreset (range, dropout, attenuation)
-    caster_factory   callable(vertices, triangles) -> caster (see ``raycast``)
     Returns a ScanResult whose points follow ``POINT_DTYPE``.
     """
     t0 = time.perf_counter()
     s = settings
-    rmin = preset.range.min_m if s.min_range_m is None else s.min_range_m
-    rmax = preset.range.max_m if s.max_range_m is None else s.max_range_m
+    rmin, rmax = resolve_range(preset, s)
     sigma = preset.range.noise_sigma_m if s.noise_sigma_m is None else s.noise_sigma_m
     atten = preset.attenuation_per_m if s.attenuation_per_m is None else s.attenuation_per_m
     rng = effects.scan_rng(s.seed, sensor, frame)
 
     origin, rot = sensor_axes(sensor_to_world)
-    dirs_sensor = pattern.directions
-    dirs = dirs_sensor @ rot.T
-    local, tris, kept, warnings = clean_for_casting(geometry, origin, rmax)
-    n = len(pattern)
+    if not isinstance(scene, PreparedScene):
+        scene = PreparedScene(scene, origin, rmax, caster_factory)
+    elif not scene.covers(origin, rmax):
+        raise ValueError("the prepared scene does not cover this sensor's range")
+    geometry = scene.geometry
+    warnings = list(scene.warnings)
     if geometry.triangle_count == 0:
         warnings.append("the scene has no geometry to scan")
-    elif len(tris) == 0:
+    elif len(scene.triangles) == 0:
         warnings.append(f"no geometry within {rmax:g} m of the sensor")
 
-    zero = np.zeros((1, 3))
-    if len(tris):
-        caster = caster_factory(local, tris)
-        dist, tri = caster.cast(zero, dirs, rmax)
-        dist, normals = refine_hits(local, tris, zero, dirs, dist, tri)
-    else:
-        dist, tri, normals = np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
+    dirs_sensor = pattern.directions
+    dirs = dirs_sensor @ rot.T
+    dist, tri, normals = scene.cast(origin, dirs, rmax)
 
     hit = (tri >= 0) & (dist >= rmin) & (dist <= rmax)
     idx = np.nonzero(hit)[0]
     d = dist[idx]
-    gtri = kept[tri[idx]] if len(idx) else np.zeros(0, np.int64)
+    gtri = scene.kept[tri[idx]]
     refl = np.array([m.reflectivity for m in geometry.materials], dtype=np.float64)
     cosi = effects.incidence_cosine(dirs[idx], normals[idx])
-    inten = effects.intensity(refl[geometry.tri_material[gtri]] if len(idx) else np.zeros(0),
-                              cosi, d, atten)
+    inten = effects.intensity(refl[geometry.tri_material[gtri]], cosi, d, atten)
     if s.noise:
         d = d + effects.range_noise(rng, len(idx), sigma)
-    keep = effects.dropout_keep(rng, inten, preset.dropout.general_rate,
-                                preset.dropout.intensity_limit,
-                                preset.dropout.intensity_zero) if s.dropout else np.ones(len(idx), bool)
+    if s.dropout:
+        keep = effects.dropout_keep(rng, inten, preset.dropout.general_rate,
+                                    preset.dropout.intensity_limit, preset.dropout.intensity_zero)
+    else:
+        keep = np.ones(len(idx), bool)
     keep &= d > 0
     idx, d, gtri, inten = idx[keep], d[keep], gtri[keep], inten[keep]
 
@@ -113,9 +151,9 @@ def scan_frame(geometry, pattern, sensor_to_world, preset, settings, caster_fact
     pts["intensity"] = inten
     pts["ring"] = pattern.channels[idx]
     pts["time"] = pattern.times[idx]
-    obj = geometry.tri_object[gtri]
-    if len(geometry.objects):
+    if geometry.objects:
+        obj = geometry.tri_object[gtri]
         labels = np.array([o.label for o in geometry.objects], dtype=np.uint32)
         inst = np.array([o.instance for o in geometry.objects], dtype=np.uint32)
         pts["label"], pts["instance"] = labels[obj], inst[obj]
-    return ScanResult(pts, n, len(tris), time.perf_counter() - t0, warnings)
+    return ScanResult(pts, len(pattern), len(scene.triangles), time.perf_counter() - t0, warnings)

@@ -1,6 +1,7 @@
 """Scene geometry as the engine sees it: world-space triangles with per-triangle
 object and material indices, plus the per-object and per-material facts effects need."""
 
+import hashlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -70,6 +71,15 @@ class SceneGeometry:
             self.objects,
             self.materials,
         )
+
+    def fingerprint(self):
+        """A digest of the triangles, their objects and materials: equal digests mean
+        a built ray-casting structure can be reused."""
+        h = hashlib.blake2b(digest_size=16)
+        for a in (self.vertices, self.triangles, self.tri_object, self.tri_material):
+            h.update(np.ascontiguousarray(a).tobytes())
+        h.update(repr((self.objects, self.materials)).encode("utf-8"))
+        return h.hexdigest()
 
     def label_map(self):
         """{instance id: {"object": name, "label": id}} for every object."""

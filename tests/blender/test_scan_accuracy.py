@@ -94,3 +94,24 @@ def test_empty_scene_gives_no_points_and_a_warning(scene):
     result, info = scan(lidar)
     assert len(result.points) == 0
     assert any("no geometry" in w for w in info["warnings"])
+
+
+def test_static_geometry_is_built_once_and_rebuilt_when_it_changes(scene):
+    from rls_addon.blender.scan import ScanSession
+    import bpy
+
+    ground()
+    box = mesh_object("Box", [(5, -1, 0), (5, 1, 0), (5, 1, 3), (5, -1, 3)], [(0, 1, 2, 3)])
+    lidar = add_lidar(location=(0, 0, 2))
+    session = ScanSession()
+    outs = []
+    for frame in (1, 2, 3):
+        scene.frame_set(frame)
+        outs.append(session.scan(bpy.context.evaluated_depsgraph_get(), lidar, frame)[0])
+    assert session.builds == 1
+    assert outs[0].points.tobytes() == outs[2].points.tobytes()
+    box.location.x += 1.0
+    scene.frame_set(4)
+    p = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, 4)[0].points
+    assert session.builds == 2
+    assert np.isclose(p["x"], 6.0, atol=1e-4).sum() > 0
