@@ -107,17 +107,18 @@ def count_in_disks(xy, centres, radius, cells_per_radius=4):
     key = key[order]
     px, py = xy[order, 0], xy[order, 1]
     cx, cy = centres[:, 0], centres[:, 1]
+    slack = 1e-9 * max(1.0, r, float(np.abs(lo).max()))  # keep rounding-edge points as candidates
     starts, stops = [], []
     for dy in range(-k - 1, k + 2):
         row = cc[:, 1] + dy
         band_lo = lo[1] + row * h
         dmin = np.maximum(0.0, np.maximum(band_lo - cy, cy - (band_lo + h)))
-        half = np.sqrt(np.maximum(r * r - dmin * dmin, 0.0))
+        half = np.sqrt(np.maximum(r * r - dmin * dmin, 0.0)) + slack
         c0 = np.floor((cx - half - lo[0]) / h).astype(np.int64)
         c1 = np.floor((cx + half - lo[0]) / h).astype(np.int64)
         start = np.searchsorted(key, row * nx + c0, side="left")
         stop = np.searchsorted(key, row * nx + c1, side="right")
-        stop[dmin > r] = start[dmin > r]
+        stop[dmin > r + slack] = start[dmin > r + slack]
         starts.append(start)
         stops.append(stop)
     nrow = len(starts)
