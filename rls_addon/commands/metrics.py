@@ -1,0 +1,115 @@
+"""``rls metrics``: InfraD and InfraNUC of point clouds in an InfraLOB region.
+
+The region is a flat mesh in a .blend (``--lob scene.blend:ObjectName``) or a
+JSON file (``--lob-polygon``: ``[[x, y], ...]`` or ``{"polygon": [[x, y], ...]}``),
+in world coordinates. Clouds are PCD/PLY files. Their points must end up in
+the world frame: when a cloud has a JSON sidecar (same stem, ``.json``) that
+says the points are in the sensor frame (``"frame_space": "sensor"``, or
+``"frame": "sensor"``), its ``"sensor_to_world"`` 4x4 matrix maps them to world.
+Clouds without a sidecar are taken as world-frame. Prints the result as JSON.
+"""
+
+import json
+import os
+import sys
+
+import numpy as np
+
+from ..core.errors import InputError, OutputError, RegionError
+from ..core.metrics import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, infra_lob_metrics
+
+
+def add_parser(sub):
+    p = sub.add_parser("metrics", help="InfraD and InfraNUC of clouds in an InfraLOB region",
+                       description=__doc__.split("\n\n", 1)[1],
+                       formatter_class=__import__("argparse").RawDescriptionHelpFormatter)
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--lob", metavar="SCENE.blend:OBJECT", help="region mesh object in a .blend")
+    src.add_argument("--lob-polygon", metavar="FILE.json", help="region outline as JSON [[x, y], ...]")
+    p.add_argument("--labels", default="road,sidewalk", help="labels to keep, names or ids (default: road,sidewalk)")
+    p.add_argument("--disks", type=int, default=DEFAULT_DISKS, help=f"number of disks (default {DEFAULT_DISKS})")
+    p.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M, help=f"disk radius in m (default {DEFAULT_RADIUS_M})")
+    p.add_argument("--cell", type=float, default=DEFAULT_CELL_M, help=f"density map cell in m (default {DEFAULT_CELL_M})")
+    p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"disk placement seed (default {DEFAULT_SEED})")
+    p.add_argument("--disk-placement", choices=("inside", "centre"), default="inside",
+                   help="'inside': whole disks in the region (default); 'centre': only centres")
+    p.add_argument("--density-png", metavar="OUT.png", help="also write the density map as a PNG")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing PNG")
+    p.add_argument("clouds", nargs="+", metavar="CLOUD", help="PCD or PLY files")
+    p.set_defaults(func=run)
+
+
+def polygon_from_json(path):
+    try:
+        with open(path, encoding="utf-8") as fh:
+            data = json.load(fh)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read region polygon {path}: {exc}") from None
+    if isinstance(data, dict):
+        data = data.get("polygon")
+    if not isinstance(data, list):
+        raise InputError(f"{path}: expected [[x, y], ...] or {{\"polygon\": [[x, y], ...]}}")
+    return data
+
+
+def polygon_from_blend(spec):
+    path, sep, name = spec.rpartition(":")
+    if not sep or not path or not name:
+        raise InputError(f"--lob expects SCENE.blend:OBJECT, got {spec!r}")
+    if not os.path.isfile(path):
+        raise InputError(f"scene file not found: {path}")
+    import bpy  # only here: everything else in this command works without Blender
+
+    from ..blender.quiet import blender_output_silenced
+    from ..blender.region import lob_polygon_world
+
+    try:
+        with blender_output_silenced():
+            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+    except RuntimeError as exc:
+        raise InputError(f"cannot open scene {path}: {str(exc).strip()}") from None
+    obj = bpy.data.objects.get(name)
+    if obj is None:
+        raise RegionError(f"no object named {name!r} in {path}")
+    return lob_polygon_world(obj)
+
+
+def world_points(path):
+    """Read one cloud and bring it to the world frame using its sidecar."""
+    from ..core.io import read_cloud, read_sidecar
+    from ..core.points import transform_points
+
+    pts = read_cloud(path)
+    info = read_sidecar(path)
+    if not info:
+        return pts
+    space = info.get("frame_space")
+    if space is None and isinstance(info.get("frame"), str):
+        space = info["frame"]
+    if space in (None, "world"):
+        return pts
+    if space != "sensor":
+        raise InputError(f"sidecar of {path}: unknown coordinate frame {space!r} (expected sensor or world)")
+    m = np.asarray(info.get("sensor_to_world"), dtype=np.float64) if info.get("sensor_to_world") is not None else None
+    if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
+        raise InputError(f"sidecar of {path} says the points are in the sensor frame but has no valid 4x4 sensor_to_world")
+    return transform_points(pts, m)
+
+
+def run(args):
+    poly = polygon_from_json(args.lob_polygon) if args.lob_polygon else polygon_from_blend(args.lob)
+    clouds = [world_points(p) for p in args.clouds]
+    result = infra_lob_metrics(clouds, poly, labels=args.labels, disks=args.disks, radius=args.radius,
+                               seed=args.seed, cell=args.cell, disk_placement=args.disk_placement)
+    out = result.to_dict()
+    out["clouds"] = [str(p) for p in args.clouds]
+    if args.density_png:
+        from ..core.io import atomic_write_bytes
+
+        if not args.density_png.lower().endswith(".png"):
+            raise OutputError(f"--density-png must name a .png file, got {args.density_png}")
+        atomic_write_bytes(args.density_png, result.density.to_png(), overwrite=args.overwrite)
+        out["density_png"] = args.density_png
+    json.dump(out, sys.stdout, indent=2, allow_nan=False)
+    sys.stdout.write("\n")
+    return 0
