@@ -25,7 +25,7 @@ $(RUNTIME_STAMP): requirements.txt
 	@touch $@
 
 $(TEST_STAMP): $(RUNTIME_STAMP) requirements-test.txt
-	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-test.txt
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-test.txt -c requirements.txt
 	@touch $@
 
 # PCL's command-line tools judge our PCD files in the tests (Debian package pcl-tools).

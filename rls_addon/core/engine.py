@@ -13,7 +13,7 @@ import numpy as np
 from . import effects
 from .geometry import clean_for_casting
 from .points import POINT_DTYPE
-from .raycast import refine_hits
+from .raycast import WatertightCaster, refine_hits
 
 
 @dataclass(frozen=True)
@@ -45,15 +45,21 @@ class PreparedScene:
     """Triangles ready for casting around ``centre``: shifted to centre-relative float64
     coordinates (so scenes far from the origin keep their precision in float32
     backends), degenerate triangles dropped, everything farther than ``reach`` from
-    ``centre`` culled, and the caster built once."""
+    ``centre`` culled, and the caster built once (wrapped so that rays through shared
+    edges and vertices never slip through, see ``WatertightCaster``)."""
 
-    def __init__(self, geometry, centre, reach, caster_factory):
+    def __init__(self, geometry, centre, reach, caster_factory, watertight=True):
         self.geometry = geometry
         self.centre = np.asarray(centre, dtype=np.float64).copy()
         self.reach = float(reach)
         self.vertices, self.triangles, self.kept, self.warnings = clean_for_casting(
             geometry, self.centre, self.reach)
-        self.caster = caster_factory(self.vertices, self.triangles) if len(self.triangles) else None
+        self.caster = None
+        if len(self.triangles) and watertight:
+            self.caster = WatertightCaster(caster_factory, self.vertices, self.triangles,
+                                           geometry.tri_object[self.kept])
+        elif len(self.triangles):
+            self.caster = caster_factory(self.vertices, self.triangles)
         self.backend = getattr(self.caster, "name", "none")
 
     def covers(self, origin, max_range):

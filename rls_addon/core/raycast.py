@@ -93,3 +93,91 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri):
     dist[hit] = dh
     normals[hit] = n
     return dist, normals
+
+
+# Generic (irrational-ish) vectors used to pick a perpendicular nudge for each retry.
+_NUDGE_AXES = np.array([[0.7548776662, 0.5698402910, 0.3247179572],
+                        [-0.2306, 0.8715, -0.4330],
+                        [0.5773, -0.2113, 0.7887]])
+_NUDGE_SCALES = (8.0, 64.0, 512.0)  # in units of 1e-6 x (scene extent)
+
+
+def box_triangles(lo, hi):
+    """Vertices (8K, 3) and triangles (12K, 3) of K axis-aligned boxes."""
+    k = lo.shape[0]
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                        [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], dtype=bool)
+    v = np.where(corners[None], hi[:, None, :], lo[:, None, :]).reshape(-1, 3)
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    t = (faces[None] + 8 * np.arange(k)[:, None, None]).reshape(-1, 3)
+    return v, t
+
+
+def cluster_boxes(vertices, triangles, groups, cell):
+    """Bounding boxes of triangles grouped by (group, spatial cell of the centroid)."""
+    tv = vertices[triangles]
+    cent = tv.mean(axis=1)
+    key = np.floor(cent / cell).astype(np.int64)
+    key = np.column_stack([np.asarray(groups, np.int64), key])
+    _, inv = np.unique(key, axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    k = inv.max() + 1
+    lo = np.full((k, 3), np.inf)
+    hi = np.full((k, 3), -np.inf)
+    np.minimum.at(lo, inv, tv.min(axis=1))
+    np.maximum.at(hi, inv, tv.max(axis=1))
+    return lo, hi
+
+
+class WatertightCaster:
+    """Makes any backend's float32 traversal watertight for rays that miss.
+
+    Backends in float32 (BVHTree) let a ray aimed exactly at a shared edge or vertex
+    slip between the neighbouring triangles. Misses are re-checked against a small
+    'hull' of padded bounding boxes (of triangle clusters): a miss that enters no box
+    is a real miss (sky rays cost one cheap extra cast); the others are re-cast up to
+    three times with the origin nudged perpendicular to the ray by a few float32 ulps
+    of the scene's extent. The caller refines the range against the hit triangle's
+    plane along the *original* ray, so the nudge does not show in the range.
+    """
+
+    def __init__(self, factory, vertices, triangles, groups=None):
+        self.primary = factory(vertices, triangles)
+        self.name = getattr(self.primary, "name", "caster")
+        v = np.asarray(vertices, np.float64)
+        tv = v[np.asarray(triangles, np.int64)]
+        lo_all, hi_all = tv.reshape(-1, 3).min(0), tv.reshape(-1, 3).max(0)
+        self.extent = float(np.linalg.norm(hi_all - lo_all)) + 1.0
+        groups = np.zeros(len(triangles), np.int64) if groups is None else groups
+        cell = max(self.extent / 32.0, 1.0)
+        lo, hi = cluster_boxes(v, np.asarray(triangles, np.int64), groups, cell)
+        pad = 1e-5 * self.extent
+        hv, ht = box_triangles(lo - pad, hi + pad)
+        self.hull = factory(hv, ht)
+        self.retried = 0
+
+    def cast(self, origins, directions, max_dist):
+        d = np.asarray(directions, np.float64)
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        dist, tri = self.primary.cast(o, d, max_dist)
+        miss = np.nonzero(tri < 0)[0]
+        if len(miss) == 0:
+            return dist, tri
+        om = np.broadcast_to(o, d.shape)[miss]
+        _, inside = self.hull.cast(om, d[miss], max_dist)
+        keep = inside >= 0
+        miss, om = miss[keep], om[keep]
+        for axis, scale in zip(_NUDGE_AXES, _NUDGE_SCALES):
+            if len(miss) == 0:
+                break
+            self.retried += len(miss)
+            dm = d[miss]
+            perp = np.cross(dm, axis)
+            perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+            nudge = scale * 1e-6 * self.extent
+            d2, t2 = self.primary.cast(om + perp * nudge, dm, max_dist)
+            got = t2 >= 0
+            dist[miss[got]], tri[miss[got]] = d2[got], t2[got]
+            miss, om = miss[~got], om[~got]
+        return dist, tri
