@@ -30,6 +30,15 @@ class ScanSettings:
     max_range_m: float | None = None
     noise_sigma_m: float | None = None
     attenuation_per_m: float | None = None
+    # Motion distortion: "exact" (every ray at its own time), "substeps" (the paper's
+    # N partial sweeps) or "snapshot" (one scene state per frame, as CARLA).
+    motion: str = "exact"
+    substeps: int = 0  # 0: chosen adaptively for deforming objects; N: fixed
+    motion_tolerance_m: float | None = None  # adaptive sub-step tolerance (None: preset)
+    ghosting: bool = True  # ghost points from glossy surfaces
+
+
+MOTION_MODES = ("exact", "substeps", "snapshot")
 
 
 @dataclass
