@@ -1,0 +1,362 @@
+"""Ray casting on Intel Embree 4 through the ``embreex`` wheel (optional dependency).
+
+Same interface as ``raycast.NumpyCaster``:
+
+    caster = EmbreeCaster(vertices (V,3) float64, triangles (T,3) int)
+    dist, tri = caster.cast(origins (1,3) or (N,3), directions (N,3) unit, max_dist)
+
+``dist`` float64 (inf for a miss), ``tri`` int64 (-1 for a miss). Embree works in
+float32; the engine recomputes every range exactly in float64 afterwards
+(``raycast.refine_hits``), so Embree only decides which triangle a ray hits.
+
+Two ways to drive Embree, chosen automatically (``mode="auto"``):
+
+``packets``  Calls ``rtcIntersect16`` of the Embree library that the ``embreex`` wheel
+             bundles, through ``ctypes``, on 16-ray packets laid out by numpy. ``ctypes``
+             releases the GIL during each call, so chunks of rays run on a thread pool
+             and use every core. The packet layout is checked once per process by a
+             probe ray before it is trusted.
+``embreex``  ``embreex``'s own ``EmbreeScene.run``: one ray at a time in a Cython loop.
+             Measured with embreex 4.4.0.post1: it holds the GIL for the whole call,
+             so threads do not help and it uses one core.
+"""
+
+import ctypes
+import glob
+import os
+import threading
+
+import numpy as np
+
+_LOCK = threading.Lock()
+_LIB = None          # ctypes handle on libembree4, or False when not usable
+_LIB_ERROR = ""
+_POOL = None
+_POOL_SIZE = 0
+
+# Embree 4 constants (rtcore_common.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h).
+_GEOMETRY_TYPE_TRIANGLE = 0
+_BUFFER_TYPE_INDEX = 0
+_BUFFER_TYPE_VERTEX = 1
+_FORMAT_UINT3 = 0x5003
+_FORMAT_FLOAT3 = 0x9003
+_SCENE_FLAG_ROBUST = 1 << 2
+_INVALID_ID = 0xFFFFFFFF
+
+# RTCRayHit16: structure-of-arrays, 16 lanes each, offsets in 4-byte words.
+_K = 16
+_ORG, _TNEAR, _DIR, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 48, 64, 112, 128, 144, 160, 176
+_PRIM, _GEOM = 272, 288
+_STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
+_CHUNK_PACKETS = 2048  # 32768 rays per task (1.5 MiB of packet buffer per thread)
+
+
+def available():
+    """True when the ``embreex`` module can be imported."""
+    try:
+        import embreex.rtcore_scene  # noqa: F401
+    except Exception:  # ImportError, or a broken binary wheel (OSError)
+        return False
+    return True
+
+
+def unavailable_reason():
+    """Why ``available()`` is False ('' when it is True)."""
+    try:
+        import embreex.rtcore_scene  # noqa: F401
+    except Exception as exc:
+        return f"{type(exc).__name__}: {exc}"
+    return ""
+
+
+def default_threads():
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _pool(threads):
+    global _POOL, _POOL_SIZE
+    from concurrent.futures import ThreadPoolExecutor
+
+    with _LOCK:
+        if _POOL is None or _POOL_SIZE != threads:
+            if _POOL is not None:
+                _POOL.shutdown(wait=False)
+            _POOL = ThreadPoolExecutor(threads, thread_name_prefix="rls-embree")
+            _POOL_SIZE = threads
+        return _POOL
+
+
+def _find_library():
+    """Path of the libembree4 that ``embreex`` loaded (same process, same copy)."""
+    import embreex
+    import embreex.rtcore_scene  # loads libembree4 into the process
+
+    try:
+        with open("/proc/self/maps") as f:
+            for line in f:
+                if "libembree4" in line or "embree4.so" in line:
+                    return line.split(None, 5)[-1].strip()
+    except OSError:
+        pass
+    pkg = os.path.dirname(embreex.__file__)
+    site = os.path.dirname(pkg)
+    patterns = [os.path.join(site, "embreex.libs", "*embree4*"),
+                os.path.join(pkg, ".dylibs", "*embree4*"),
+                os.path.join(pkg, "*embree4*")]
+    for pat in patterns:
+        found = sorted(p for p in glob.glob(pat) if not p.endswith((".pxd", ".py", ".pyi")))
+        if found:
+            return found[0]
+    return None
+
+
+def _bind(lib):
+    vp, u, i, sz = ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_size_t
+    sigs = {
+        "rtcNewDevice": (vp, [ctypes.c_char_p]),
+        "rtcReleaseDevice": (None, [vp]),
+        "rtcGetDeviceError": (i, [vp]),
+        "rtcNewScene": (vp, [vp]),
+        "rtcSetSceneFlags": (None, [vp, i]),
+        "rtcCommitScene": (None, [vp]),
+        "rtcReleaseScene": (None, [vp]),
+        "rtcNewGeometry": (vp, [vp, i]),
+        "rtcSetNewGeometryBuffer": (vp, [vp, i, u, i, sz, sz]),
+        "rtcCommitGeometry": (None, [vp]),
+        "rtcAttachGeometry": (u, [vp, vp]),
+        "rtcReleaseGeometry": (None, [vp]),
+        "rtcIntersect16": (None, [vp, vp, vp, vp]),
+    }
+    for name, (res, args) in sigs.items():
+        fn = getattr(lib, name)
+        fn.restype, fn.argtypes = res, args
+
+
+def _aligned(words, dtype=np.float32):
+    raw = np.empty(words * 4 + 64, dtype=np.uint8)
+    off = (-raw.ctypes.data) % 64
+    return raw[off:off + words * 4].view(dtype)
+
+
+def _packet_library():
+    """The checked ctypes handle on libembree4, or None (reason in ``_LIB_ERROR``)."""
+    global _LIB, _LIB_ERROR
+    with _LOCK:
+        if _LIB is None:
+            try:
+                path = _find_library()
+                if not path:
+                    raise OSError("libembree4 not found next to embreex")
+                lib = ctypes.CDLL(path)
+                _bind(lib)
+                _probe(lib)
+                _LIB = lib
+            except Exception as exc:  # any surprise: fall back to embreex's own loop
+                _LIB, _LIB_ERROR = False, f"{type(exc).__name__}: {exc}"
+        return _LIB or None
+
+
+def _probe(lib):
+    """Cast one packet at a known triangle and check what Embree wrote and where, so
+    a library with a different packet layout is never used blindly."""
+    scene = _Scene(lib, np.array([[-1, -1, 0], [3, -1, 0], [-1, 3, 0]], np.float32),
+                   np.array([[0, 1, 2]], np.uint32))
+    try:
+        buf = _aligned(2 * _STRIDE).reshape(2, _STRIDE)
+        words = buf.view(np.uint32)
+        words[:] = 0x7FC0BEEF  # sentinel: a NaN no field would hold
+        o = np.zeros((_K, 3), np.float32)
+        o[:, 2] = 2.0
+        d = np.zeros((_K, 3), np.float32)
+        d[:, 2] = -1.0
+        d[1, 2] = 1.0  # lane 1 looks away: a miss
+        _fill(buf[:1], o, d, 100.0, _K)
+        valid = _aligned(_K, np.int32)
+        valid[:] = -1
+        lib.rtcIntersect16(valid.ctypes.data, scene.handle, buf.ctypes.data, None)
+        changed = np.nonzero(words[0] != 0x7FC0BEEF)[0]
+        tfar, prim, geom = buf[0, _TFAR:_TFAR + _K], words[0, _PRIM:_PRIM + _K], \
+            words[0, _GEOM:_GEOM + _K]
+        ok = (abs(tfar[0] - 2.0) < 1e-5 and prim[0] == 0 and geom[0] == 0
+              and geom[1] == _INVALID_ID and tfar[1] == np.float32(100.0)
+              and changed.max() < _STRIDE and (words[1] == 0x7FC0BEEF).all())
+        if not ok:
+            raise OSError("Embree packet layout check failed")
+    finally:
+        scene.release()
+
+
+def _fill(buf, origins, dirs, max_dist, n):
+    """Lay ``n`` rays (padded to whole packets) into packet slots ``buf`` (P, _STRIDE)."""
+    p = buf.shape[0]
+    words = buf.view(np.uint32)
+    pad = p * _K - n
+    for k in range(3):
+        col = dirs[:, k]
+        if pad:
+            col = np.concatenate([col, np.full(pad, 1.0 if k == 0 else 0.0, np.float32)])
+        buf[:, _DIR + k * _K:_DIR + (k + 1) * _K] = col.reshape(p, _K)
+        if origins.shape[0] == 1:
+            buf[:, _ORG + k * _K:_ORG + (k + 1) * _K] = origins[0, k]
+        else:
+            oc = origins[:, k]
+            if pad:
+                oc = np.concatenate([oc, np.zeros(pad, np.float32)])
+            buf[:, _ORG + k * _K:_ORG + (k + 1) * _K] = oc.reshape(p, _K)
+    buf[:, _TNEAR:_TNEAR + _K] = 0.0
+    buf[:, _TIME:_TIME + _K] = 0.0
+    buf[:, _TFAR:_TFAR + _K] = max_dist
+    words[:, _MASK:_MASK + _K] = _INVALID_ID  # mask: every bit
+    words[:, _ID:_FLAGS + _K] = 0
+    words[:, _PRIM:_GEOM + _K] = _INVALID_ID
+
+
+class _Scene:
+    """One Embree device + committed triangle scene, released explicitly."""
+
+    def __init__(self, lib, vertices32, triangles_u32, robust=True):
+        self.lib = lib
+        self.device = lib.rtcNewDevice(None)
+        if not self.device:
+            raise OSError("rtcNewDevice failed")
+        self.handle = lib.rtcNewScene(self.device)
+        if robust:
+            lib.rtcSetSceneFlags(self.handle, _SCENE_FLAG_ROBUST)
+        geom = lib.rtcNewGeometry(self.device, _GEOMETRY_TYPE_TRIANGLE)
+        vb = lib.rtcSetNewGeometryBuffer(geom, _BUFFER_TYPE_VERTEX, 0, _FORMAT_FLOAT3, 12,
+                                         len(vertices32))
+        ib = lib.rtcSetNewGeometryBuffer(geom, _BUFFER_TYPE_INDEX, 0, _FORMAT_UINT3, 12,
+                                         len(triangles_u32))
+        if not vb or not ib:
+            lib.rtcReleaseGeometry(geom)
+            self.release()
+            raise MemoryError("Embree could not allocate the geometry buffers")
+        ctypes.memmove(vb, np.ascontiguousarray(vertices32).ctypes.data, vertices32.nbytes)
+        ctypes.memmove(ib, np.ascontiguousarray(triangles_u32).ctypes.data, triangles_u32.nbytes)
+        lib.rtcCommitGeometry(geom)
+        lib.rtcAttachGeometry(self.handle, geom)
+        lib.rtcReleaseGeometry(geom)
+        lib.rtcCommitScene(self.handle)
+        err = lib.rtcGetDeviceError(self.device)
+        if err:
+            self.release()
+            raise OSError(f"Embree error {err} while building the scene")
+
+    def release(self):
+        lib, self.lib = self.lib, None
+        if lib is not None:
+            if self.handle:
+                lib.rtcReleaseScene(self.handle)
+            lib.rtcReleaseDevice(self.device)
+
+
+class EmbreeCaster:
+    """Embree 4 (via ``embreex``) closest-hit ray casting; see the module docstring.
+
+    threads  worker threads for packet mode (default: the CPUs this process may use)
+    mode     "auto" (packets when the check passes, else embreex), "packets", "embreex"
+    """
+
+    name = "embree"
+
+    def __init__(self, vertices, triangles, threads=None, mode="auto", robust=True):
+        v = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).reshape(-1, 3),
+                                 dtype=np.float32)
+        t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
+        self.triangle_count = len(t)
+        self.threads = int(threads) if threads else default_threads()
+        lib = _packet_library() if mode in ("auto", "packets") else None
+        if mode == "packets" and lib is None:
+            raise RuntimeError(f"Embree packet mode is not usable here ({_LIB_ERROR})")
+        if mode not in ("auto", "packets", "embreex"):
+            raise ValueError(f"unknown Embree mode {mode!r}")
+        self._scene = self._es = None
+        if len(t) == 0:
+            self.mode = "empty"
+        elif lib is not None:
+            self.mode = "packets"
+            self._scene = _Scene(lib, v, np.ascontiguousarray(t, dtype=np.uint32), robust)
+            self._valid = _aligned(_K, np.int32)
+            self._valid[:] = -1
+            self._local = threading.local()
+        else:
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
+
+            self.mode = "embreex"
+            self._es = rtcore_scene.EmbreeScene(robust=robust)
+            TriangleMesh(self._es, v, np.ascontiguousarray(t, dtype=np.int32))
+
+    def describe(self):
+        threads = self.threads if self.mode == "packets" else 1
+        return f"embree ({self.mode}, {threads} thread{'s' if threads != 1 else ''})"
+
+    def cast(self, origins, directions, max_dist):
+        d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3),
+                                 dtype=np.float32)
+        o = np.asarray(origins, dtype=np.float64).reshape(-1, 3).astype(np.float32)
+        n = d.shape[0]
+        dist = np.full(n, np.inf)
+        tri = np.full(n, -1, dtype=np.int64)
+        if n == 0 or self.mode == "empty":
+            return dist, tri
+        if o.shape[0] not in (1, n):
+            raise ValueError("origins must be (1, 3) or one per direction")
+        tfar = np.float32(min(float(max_dist), 3.0e38))
+        if self.mode == "embreex":
+            ob = np.ascontiguousarray(np.broadcast_to(o, d.shape))
+            res = self._es.run(ob, d, dists=np.full(n, tfar, np.float32), output=1)
+            hit = res["geomID"] != -1
+            dist[hit] = res["tfar"][hit]
+            tri[hit] = res["primID"][hit]
+            return dist, tri
+        step = _CHUNK_PACKETS * _K
+        spans = [(s, min(n, s + step)) for s in range(0, n, step)]
+        work = lambda span: self._cast_span(o, d, tfar, dist, tri, *span)  # noqa: E731
+        if len(spans) == 1 or self.threads == 1:
+            for span in spans:
+                work(span)
+        else:
+            list(_pool(self.threads).map(work, spans))
+        return dist, tri
+
+    def _cast_span(self, o, d, tfar, dist, tri, lo, hi):
+        buf = getattr(self._local, "buf", None)
+        if buf is None:
+            buf = self._local.buf = _aligned(_CHUNK_PACKETS * _STRIDE).reshape(-1, _STRIDE)
+        m = hi - lo
+        p = -(-m // _K)
+        b = buf[:p]
+        _fill(b, o if o.shape[0] == 1 else o[lo:hi], d[lo:hi], tfar, m)
+        fn, valid, scene = self._scene.lib.rtcIntersect16, self._valid.ctypes.data, \
+            self._scene.handle
+        base = b.ctypes.data
+        for addr in range(base, base + p * _STRIDE * 4, _STRIDE * 4):
+            fn(valid, scene, addr, None)
+        words = b.view(np.uint32)
+        geom = words[:, _GEOM:_GEOM + _K].reshape(-1)[:m]
+        hit = geom != _INVALID_ID
+        far = b[:, _TFAR:_TFAR + _K].reshape(-1)[:m]
+        prim = words[:, _PRIM:_PRIM + _K].reshape(-1)[:m]
+        dist[lo:hi] = np.where(hit, far, np.inf)
+        tri[lo:hi] = np.where(hit, prim.astype(np.int64), -1)
+
+    def close(self):
+        scene, self._scene = self._scene, None
+        if scene is not None:
+            scene.release()
+        self._es = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass
+
+
+def packet_mode_error():
+    """Why packet mode is not used ('' when it is, or has not been tried yet)."""
+    return _LIB_ERROR
