@@ -39,8 +39,23 @@ lidar.rls_lidar.output_dir = out_dir
 assert bpy.ops.rls.scan_frame() == {'FINISHED'}
 preview = bpy.data.objects[lidar.name + ' points']
 import rls_addon  # must NOT be importable: the installed copy lives under bl_ext
+# The bundled Embree wheel: installed into the extensions' own site-packages and used
+# from there (put first on sys.path so a copy elsewhere cannot stand in for it).
+import importlib, os, numpy as np
+site = [p for p in sys.path if 'extensions' in p and p.rstrip('/').endswith('site-packages')]
+embree = {'site': site}
+if site:
+    sys.path.insert(0, site[0])
+    import embreex
+    embree['embreex_file'] = embreex.__file__
+    backends = importlib.import_module(mods[0] + '.blender.backends')
+    factory, notice = backends.caster_factory('embree')
+    c = factory(np.array([[-1.0, -1, 0], [3, -1, 0], [-1, 3, 0]]), np.array([[0, 1, 2]]))
+    dist, tri = c.cast(np.array([[0.0, 0, 2]]), np.array([[0.0, 0, -1], [0, 0, 1]]), 10.0)
+    embree.update(notice=notice, name=c.name, mode=getattr(c, 'mode', None),
+                  dist=[float(x) for x in dist], tri=[int(x) for x in tri])
 print(json.dumps({'modules': mods, 'preview_points': len(preview.data.vertices),
-                  'package': type(lidar.rls_lidar).__module__}))
+                  'package': type(lidar.rls_lidar).__module__, 'embree': embree}))
 """
 
 
@@ -68,3 +83,10 @@ def test_install_zip_and_scan_through_installed_operator(tmp_path):
     points = read_cloud(out / clouds[0])
     assert len(points) == info["preview_points"] > 1000
     assert (tmp_path / "user" / "extensions" / "user_default" / "rls_addon").is_dir()
+    # The Embree wheel bundled for this platform is installed and usable.
+    embree = info["embree"]
+    assert embree["site"], "Blender put no extension site-packages on sys.path"
+    assert embree["embreex_file"].startswith(str(tmp_path / "user")), embree
+    assert embree["notice"] is None and embree["name"] == "embree", embree
+    assert embree["mode"] == "packets", embree
+    assert abs(embree["dist"][0] - 2.0) < 1e-5 and embree["tri"] == [0, -1], embree
