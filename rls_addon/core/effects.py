@@ -10,9 +10,12 @@ import numpy as np
 
 
 def scan_rng(seed, sensor, frame):
-    """The one generator of a scan, derived from (seed, sensor name, frame)."""
+    """The generators of a scan, derived from (seed, sensor name, frame): one for range
+    noise and dropout, one for the ghost choice. Separate streams keep a scan without
+    glossy hits byte-identical whether ghosting is on or off."""
     key = zlib.crc32(str(sensor).encode("utf-8"))
-    return np.random.default_rng([int(seed) & 0xFFFFFFFF, key, int(frame) & 0xFFFFFFFF])
+    seq = np.random.SeedSequence([int(seed) & 0xFFFFFFFF, key, int(frame) & 0xFFFFFFFF])
+    return [np.random.default_rng(s) for s in seq.spawn(2)]
 
 
 def incidence_cosine(directions, normals):
@@ -37,19 +40,22 @@ def range_noise(rng, n, sigma):
     return rng.normal(0.0, sigma, n)
 
 
-def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
+def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0,
+                 rays=None, n_rays=None):
     """CARLA's dropout: drop a random ``general_rate`` share of points; then a point with
     intensity I <= limit survives with probability (zero / limit) * I + (1 - zero).
 
-    Always draws the same number of values for a given input length, so the stream
-    stays aligned whatever the settings.
+    With ``rays`` (the ray index of each point) and ``n_rays``, the uniform draws are made
+    per ray, so each ray's fate is independent of which other rays returned.
     """
     n = intensities.shape[0]
+    rays = np.arange(n) if rays is None else rays
+    n_rays = n if n_rays is None else n_rays
     keep = np.ones(n, dtype=bool)
     if general_rate > 0:
-        keep &= rng.random(n) >= general_rate
+        keep &= rng.random(n_rays)[rays] >= general_rate
     if intensity_limit > 0 and intensity_zero > 0:
         p = (intensity_zero / intensity_limit) * intensities + (1.0 - intensity_zero)
         low = intensities <= intensity_limit
-        keep &= ~low | (rng.random(n) < p)
+        keep &= ~low | (rng.random(n_rays)[rays] < p)
     return keep

@@ -1,8 +1,14 @@
 """The scan engine: one frame of one sensor, from triangles and a pattern to points.
 
 Pure numpy around a ray-casting backend handed in by the caller (see ``raycast``).
-Static geometry is prepared once (``PreparedScene``: centred, culled, caster built)
-and reused for every frame and sensor it covers.
+
+The world is made of bodies, each prepared once and cast into as needed:
+- ``PreparedScene``: static triangles in centre-relative coordinates;
+- ``RigidBody``: one moving object's triangles in its own local coordinates with a
+  ``Track`` of its pose over the sweep; every ray is carried into the object's frame
+  at the ray's own scene time, so motion is exact with no sub-steps and no rebuilds;
+- ``TimedScene``: a deforming object's triangles at one sub-step, valid for rays whose
+  scene time falls into that sub-step.
 """
 
 import time
@@ -10,10 +16,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import effects
+from . import effects, ghost
 from .geometry import clean_for_casting
+from .motion import Track, effective_times
 from .points import POINT_DTYPE
 from .raycast import WatertightCaster, refine_hits
+
+MOTION_MODES = ("exact", "substeps", "snapshot")
 
 
 @dataclass(frozen=True)
@@ -38,9 +47,6 @@ class ScanSettings:
     ghosting: bool = True  # ghost points from glossy surfaces
 
 
-MOTION_MODES = ("exact", "substeps", "snapshot")
-
-
 @dataclass
 class ScanResult:
     points: np.ndarray
@@ -48,6 +54,15 @@ class ScanResult:
     triangles: int
     seconds: float
     warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+
+
+def _make_caster(factory, vertices, triangles, groups, watertight):
+    if not len(triangles):
+        return None
+    if watertight:
+        return WatertightCaster(factory, vertices, triangles, groups)
+    return factory(vertices, triangles)
 
 
 class PreparedScene:
@@ -63,28 +78,131 @@ class PreparedScene:
         self.reach = float(reach)
         self.vertices, self.triangles, self.kept, self.warnings = clean_for_casting(
             geometry, self.centre, self.reach)
-        self.caster = None
-        if len(self.triangles) and watertight:
-            self.caster = WatertightCaster(caster_factory, self.vertices, self.triangles,
-                                           geometry.tri_object[self.kept])
-        elif len(self.triangles):
-            self.caster = caster_factory(self.vertices, self.triangles)
+        self.caster = _make_caster(caster_factory, self.vertices, self.triangles,
+                                   geometry.tri_object[self.kept], watertight)
         self.backend = getattr(self.caster, "name", "none")
 
     def covers(self, origin, max_range):
-        """True when every ray of a sensor at ``origin`` stays inside the culled region."""
-        gap = np.linalg.norm(np.asarray(origin, np.float64) - self.centre)
+        """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
+        culled region."""
+        o = np.asarray(origin, np.float64).reshape(-1, 3)
+        gap = np.linalg.norm(o - self.centre, axis=1).max()
         return gap + max_range <= self.reach * (1 + 1e-12)
 
-    def cast(self, origin, directions, max_range):
-        """(dist, triangle index into the prepared triangles, unit normals) per ray."""
+    def cast(self, origins, directions, max_range):
+        """Per ray: (dist, index into ``geometry``'s triangles or -1, unit normals)."""
         n = directions.shape[0]
-        if self.caster is None:
+        if self.caster is None or n == 0:
             return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
-        o = (np.asarray(origin, np.float64) - self.centre).reshape(1, 3)
+        o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
         dist, tri = self.caster.cast(o, directions, max_range)
         dist, normals = refine_hits(self.vertices, self.triangles, o, directions, dist, tri)
+        return dist, np.where(tri >= 0, self.kept[np.maximum(tri, 0)], -1), normals
+
+
+class RigidBody:
+    """A rigidly moving object: local-space triangles prepared once, and its Track."""
+
+    def __init__(self, geometry_local, track, caster_factory, watertight=True):
+        v = geometry_local.vertices
+        lo, hi = (v.min(0), v.max(0)) if len(v) else (np.zeros(3), np.zeros(3))
+        self.sphere_centre = (lo + hi) / 2
+        self.sphere_radius = float(np.linalg.norm(v - self.sphere_centre, axis=1).max()) if len(v) else 0.0
+        self.scene = PreparedScene(geometry_local, self.sphere_centre, np.inf, caster_factory,
+                                   watertight)
+        self.geometry = geometry_local
+        self.track = track
+
+    def cast(self, origins, directions, times, max_range):
+        n = directions.shape[0]
+        dist = np.full(n, np.inf)
+        tri = np.full(n, -1, np.int64)
+        normals = np.zeros((n, 3))
+        if self.scene.caster is None or n == 0:
+            return dist, tri, normals
+        m = self.track.at(times)
+        centre = np.einsum("nij,j->ni", m[:, :3, :3], self.sphere_centre) + m[:, :3, 3]
+        stretch = np.linalg.norm(m[:, :3, :3], axis=1).max(axis=1)  # largest column norm
+        radius = self.sphere_radius * stretch * np.sqrt(3) + 1e-9
+        o = np.broadcast_to(np.asarray(origins, np.float64).reshape(-1, 3), directions.shape)
+        rel = centre - o
+        along = np.einsum("ij,ij->i", rel, directions)
+        perp2 = np.einsum("ij,ij->i", rel, rel) - along ** 2
+        near = (perp2 <= radius ** 2) & (along + radius >= 0) & (along - radius <= max_range)
+        idx = np.nonzero(near)[0]
+        if len(idx) == 0:
+            return dist, tri, normals
+        inv = np.linalg.inv(m[idx])
+        o_l = np.einsum("nij,nj->ni", inv[:, :3, :3], o[idx]) + inv[:, :3, 3]
+        d_l = np.einsum("nij,nj->ni", inv[:, :3, :3], directions[idx])
+        scale = np.linalg.norm(d_l, axis=1)
+        d_l /= scale[:, None]
+        dl, tl, nl = self.scene.cast(o_l, d_l, max_range * scale.max())
+        dw = dl / scale
+        ok = (tl >= 0) & (dw <= max_range)
+        nw = np.einsum("nji,nj->ni", inv[:, :3, :3], nl)  # inverse transpose
+        nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-300)
+        sel = idx[ok]
+        dist[sel], tri[sel], normals[sel] = dw[ok], tl[ok], nw[ok]
         return dist, tri, normals
+
+
+class TimedScene:
+    """A deforming object's world triangles at one sub-step, valid for scene times in
+    [t0, t1)."""
+
+    def __init__(self, scene, t0, t1):
+        self.scene, self.t0, self.t1 = scene, float(t0), float(t1)
+        self.geometry = scene.geometry
+
+    def cast(self, origins, directions, times, max_range):
+        n = directions.shape[0]
+        dist = np.full(n, np.inf)
+        tri = np.full(n, -1, np.int64)
+        normals = np.zeros((n, 3))
+        idx = np.nonzero((times >= self.t0) & (times < self.t1))[0]
+        if len(idx):
+            o = np.broadcast_to(np.asarray(origins, np.float64).reshape(-1, 3), directions.shape)
+            d, t, nn = self.scene.cast(o[idx], directions[idx], max_range)
+            dist[idx], tri[idx], normals[idx] = d, t, nn
+        return dist, tri, normals
+
+
+@dataclass
+class World:
+    """Everything a sweep can hit. Body 0 is the static scene; the geometries of all
+    bodies share one object table and one material table."""
+
+    static: PreparedScene
+    moving: list = field(default_factory=list)  # RigidBody and TimedScene
+
+    @property
+    def bodies(self):
+        return [self.static] + list(self.moving)
+
+    def cast(self, origins, directions, times, max_range):
+        """Nearest hit over all bodies: (dist, body index, triangle index, normals)."""
+        dist, tri, normals = self.static.cast(origins, directions, max_range)
+        body = np.where(tri >= 0, 0, -1)
+        for k, b in enumerate(self.moving, start=1):
+            d2, t2, n2 = b.cast(origins, directions, times, max_range)
+            closer = (t2 >= 0) & (d2 < dist)
+            dist[closer], tri[closer], normals[closer], body[closer] = \
+                d2[closer], t2[closer], n2[closer], k
+        return dist, body, tri, normals
+
+    def per_hit(self, body, tri, table):
+        """Gather a per-triangle array (``table(geometry)`` for each body) at hits."""
+        out = None
+        for k, b in enumerate(self.bodies):
+            sel = body == k
+            if not sel.any():
+                continue
+            values = table(b.geometry)[tri[sel]]
+            if out is None:
+                out = np.zeros(len(body), dtype=values.dtype)
+            out[sel] = values
+        return out if out is not None else np.zeros(len(body))
 
 
 def sensor_axes(sensor_to_world):
@@ -98,6 +216,16 @@ def sensor_axes(sensor_to_world):
     return m[:3, 3].copy(), r
 
 
+def _axes_many(mats):
+    u, _, vt = np.linalg.svd(mats[:, :3, :3])
+    r = u @ vt
+    flip = np.linalg.det(r) < 0
+    if flip.any():
+        u[flip, :, -1] *= -1
+        r = u @ vt
+    return mats[:, :3, 3].copy(), r
+
+
 def resolve_range(preset, settings):
     """(min, max) range in metres after the settings' overrides."""
     rmin = preset.range.min_m if settings.min_range_m is None else settings.min_range_m
@@ -105,70 +233,158 @@ def resolve_range(preset, settings):
     return rmin, rmax
 
 
+def _material_table(name):
+    def table(geometry):
+        return np.array([getattr(m, name) for m in geometry.materials])[geometry.tri_material]
+    return table
+
+
+def _object_table(name):
+    def table(geometry):
+        vals = np.array([getattr(o, name) for o in geometry.objects] or [0], dtype=np.uint32)
+        return vals[geometry.tri_object]
+    return table
+
+
+@dataclass
+class Hits:
+    """Hit records of the rays that returned something (one row per ray in ``idx``)."""
+
+    idx: np.ndarray       # ray index into the pattern
+    dist: np.ndarray      # range (for ghosts: total path a + b)
+    body: np.ndarray      # body index in World.bodies
+    tri: np.ndarray       # triangle index in that body's geometry
+    normals: np.ndarray   # unit normal of the surface that sent the light back
+    u: np.ndarray         # beam direction (world)
+    u_last: np.ndarray    # direction of the last leg (reflected direction for ghosts)
+    ghost: np.ndarray     # uint8 flag
+    mirror: np.ndarray    # reflectivity of the mirror a ghost came through (1 otherwise)
+
+    def take(self, keep):
+        return Hits(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
+
+
+def _ghosts(world, rng, origins, times, h, rmax):
+    """Turn a seeded share of glossy hits into ghost points at total path a + b along
+    the beam, labelled as the object the reflected beam found; glossy hits whose
+    reflected beam finds nothing return nothing. Returns (Hits, stats)."""
+    n = len(h.dist)
+    labels = ghost.glossy_labels()
+    glossy, ratio, mirror = np.zeros(n, bool), np.zeros(n), np.ones(n)
+    for k, b in enumerate(world.bodies):
+        sel = h.body == k
+        if sel.any():
+            g, r, refl = ghost.glossy_triangles(b.geometry, labels)
+            glossy[sel], ratio[sel], mirror[sel] = g[h.tri[sel]], r[h.tri[sel]], refl[h.tri[sel]]
+    gi = np.nonzero(glossy)[0]
+    stats = {"glossy_hits": int(len(gi)), "ghosts": 0, "bounce_rays": 0}
+    if len(gi) == 0:
+        return h, stats
+    chosen = gi[rng.random(len(gi)) < ratio[gi]]
+    if len(chosen) == 0:
+        return h, stats
+    a, uc = h.dist[chosen], h.u[chosen]
+    o = origins if origins.shape[0] == 1 else origins[h.idx[chosen]]
+    r = ghost.reflect(uc, h.normals[chosen])
+    p = o + uc * a[:, None]
+    start = ghost.bounce_origins(p, uc, h.normals[chosen], a)
+    b, body2, tri2, n2 = world.cast(start, r, times[h.idx[chosen]], rmax)
+    found = tri2 >= 0
+    # The second leg measured from the mirror point itself, not the lifted start.
+    b = np.where(found, np.linalg.norm(start + r * np.where(found, b, 0)[:, None] - p, axis=1), b)
+    found &= a + b <= rmax
+    g = chosen[found]
+    out = h.take(np.arange(n))  # a copy
+    out.dist[g] = a[found] + b[found]
+    out.body[g], out.tri[g], out.normals[g] = body2[found], tri2[found], n2[found]
+    out.u_last[g] = r[found]
+    out.ghost[g] = 1
+    out.mirror[g] = mirror[g]
+    keep = np.ones(n, bool)
+    keep[chosen[~found]] = False
+    stats.update(ghosts=int(len(g)), bounce_rays=int(len(chosen)))
+    return out.take(keep), stats
+
+
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
-               frame=0, sensor="sensor"):
+               frame=0, sensor="sensor", sensor_track=None, moving=()):
     """Scan one frame.
 
     scene            PreparedScene covering the sensor, or a SceneGeometry (world
                      coordinates), prepared here around the sensor with caster_factory
-    pattern          ScanPattern (directions in the sensor frame)
-    sensor_to_world  4x4 pose of the sensor
-    preset           DevicePreset (range, dropout, attenuation)
-    Returns a ScanResult whose points follow ``POINT_DTYPE``.
+    pattern          ScanPattern (directions in the sensor frame, per-ray times)
+    sensor_to_world  4x4 pose of the sensor at the start of the sweep
+    sensor_track     optional Track of the sensor over the sweep (a moving sensor)
+    moving           RigidBody / TimedScene bodies (moving and deforming objects)
+    Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
+    as the device reports them (each in the sensor frame at its own firing time).
     """
     t0 = time.perf_counter()
     s = settings
     rmin, rmax = resolve_range(preset, s)
     sigma = preset.range.noise_sigma_m if s.noise_sigma_m is None else s.noise_sigma_m
     atten = preset.attenuation_per_m if s.attenuation_per_m is None else s.attenuation_per_m
-    rng = effects.scan_rng(s.seed, sensor, frame)
+    rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
 
-    origin, rot = sensor_axes(sensor_to_world)
+    n = len(pattern)
+    tscene = effective_times(pattern.times, pattern.period, s.motion, s.substeps)
+    track = sensor_track if sensor_track is not None else Track.fixed(sensor_to_world)
+    dirs_sensor = pattern.directions
+    if track.is_static:
+        origin, rot = sensor_axes(track.matrices[0])
+        origins = origin.reshape(1, 3)
+        dirs = dirs_sensor @ rot.T
+    else:
+        origins, rots = _axes_many(track.at(tscene))
+        dirs = np.einsum("nij,nj->ni", rots, dirs_sensor)
     if not isinstance(scene, PreparedScene):
-        scene = PreparedScene(scene, origin, rmax, caster_factory)
-    elif not scene.covers(origin, rmax):
+        scene = PreparedScene(scene, origins.mean(axis=0),
+                              rmax + np.ptp(origins, axis=0).max(initial=0.0), caster_factory)
+    elif not scene.covers(origins, rmax):
         raise ValueError("the prepared scene does not cover this sensor's range")
-    geometry = scene.geometry
+    world = World(scene, list(moving))
     warnings = list(scene.warnings)
-    if geometry.triangle_count == 0:
+    if scene.geometry.triangle_count == 0 and not moving:
         warnings.append("the scene has no geometry to scan")
-    elif len(scene.triangles) == 0:
+    elif len(scene.triangles) == 0 and not moving:
         warnings.append(f"no geometry within {rmax:g} m of the sensor")
 
-    dirs_sensor = pattern.directions
-    dirs = dirs_sensor @ rot.T
-    dist, tri, normals = scene.cast(origin, dirs, rmax)
+    dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax)
+    idx = np.nonzero((tri >= 0) & (dist >= rmin) & (dist <= rmax))[0]
+    h = Hits(idx, dist[idx], body[idx], tri[idx], normals[idx], dirs[idx], dirs[idx].copy(),
+             np.zeros(len(idx), np.uint8), np.ones(len(idx)))
+    stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
+    if s.ghosting and len(idx):
+        h, stats = _ghosts(world, ghost_rng, origins, tscene, h, rmax)
 
-    hit = (tri >= 0) & (dist >= rmin) & (dist <= rmax)
-    idx = np.nonzero(hit)[0]
-    d = dist[idx]
-    gtri = scene.kept[tri[idx]]
-    refl = np.array([m.reflectivity for m in geometry.materials], dtype=np.float64)
-    cosi = effects.incidence_cosine(dirs[idx], normals[idx])
-    inten = effects.intensity(refl[geometry.tri_material[gtri]], cosi, d, atten)
+    refl = world.per_hit(h.body, h.tri, _material_table("reflectivity")).astype(np.float64)
+    cosi = effects.incidence_cosine(h.u_last, h.normals)
+    inten = effects.intensity(refl, cosi, h.dist, atten) * h.mirror
+    # Noise and dropout are drawn per ray, not per hit, so a ray's draws never depend on
+    # which other rays returned (ghosting or moving objects change only their own rays).
+    d = h.dist
     if s.noise:
-        d = d + effects.range_noise(rng, len(idx), sigma)
+        d = d + effects.range_noise(rng, n, sigma)[h.idx]
     if s.dropout:
         keep = effects.dropout_keep(rng, inten, preset.dropout.general_rate,
-                                    preset.dropout.intensity_limit, preset.dropout.intensity_zero)
+                                    preset.dropout.intensity_limit, preset.dropout.intensity_zero,
+                                    rays=h.idx, n_rays=n)
     else:
-        keep = np.ones(len(idx), bool)
+        keep = np.ones(len(d), bool)
     keep &= d > 0
-    idx, d, gtri, inten = idx[keep], d[keep], gtri[keep], inten[keep]
+    h, d, inten = h.take(keep), d[keep], inten[keep]
+    idx = h.idx
+    o_hit = origins if origins.shape[0] == 1 else origins[idx]
 
     pts = np.zeros(len(idx), dtype=POINT_DTYPE)
-    if s.frame_space == "world":
-        xyz = origin + dirs[idx] * d[:, None]
-    else:
-        xyz = dirs_sensor[idx] * d[:, None]
+    xyz = o_hit + h.u * d[:, None] if s.frame_space == "world" else dirs_sensor[idx] * d[:, None]
     pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
     pts["range"] = d
     pts["intensity"] = inten
     pts["ring"] = pattern.channels[idx]
     pts["time"] = pattern.times[idx]
-    if geometry.objects:
-        obj = geometry.tri_object[gtri]
-        labels = np.array([o.label for o in geometry.objects], dtype=np.uint32)
-        inst = np.array([o.instance for o in geometry.objects], dtype=np.uint32)
-        pts["label"], pts["instance"] = labels[obj], inst[obj]
-    return ScanResult(pts, len(pattern), len(scene.triangles), time.perf_counter() - t0, warnings)
+    pts["label"] = world.per_hit(h.body, h.tri, _object_table("label"))
+    pts["instance"] = world.per_hit(h.body, h.tri, _object_table("instance"))
+    pts["ghost"] = h.ghost
+    stats["moving_bodies"] = len(moving)
+    return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats)

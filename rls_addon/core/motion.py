@@ -1,0 +1,157 @@
+"""Motion over one sweep: poses sampled at a few times, interpolated per ray.
+
+A ``Track`` holds 4x4 matrices at increasing times (seconds from the start of the
+sweep). ``Track.at(t)`` interpolates per query time: translation linearly, rotation
+by quaternion slerp, and the remaining scale/shear part linearly; between samples
+this is exact for constant linear and angular velocity. The Blender layer chooses the
+samples (densifying until interpolation matches the evaluated animation).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def quat_from_matrix(r):
+    """Unit quaternions (w, x, y, z) of rotation matrices (..., 3, 3), by Shepperd's
+    method (divide by the largest component, so no precision is lost near 0 or 180 deg)."""
+    r = np.asarray(r, dtype=np.float64)
+    shape = r.shape[:-2]
+    r = r.reshape(-1, 3, 3)
+    m00, m11, m22 = r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]
+    trace = np.stack([m00 + m11 + m22, m00, m11, m22], axis=1)
+    case = np.argmax(trace, axis=1)
+    q = np.empty((len(r), 4))
+    for c in range(4):
+        sel = case == c
+        if not sel.any():
+            continue
+        m = r[sel]
+        if c == 0:
+            s = 2.0 * np.sqrt(1.0 + m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2])
+            q[sel] = np.stack([s / 4, (m[:, 2, 1] - m[:, 1, 2]) / s,
+                               (m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 1, 0] - m[:, 0, 1]) / s], 1)
+        elif c == 1:
+            s = 2.0 * np.sqrt(1.0 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2])
+            q[sel] = np.stack([(m[:, 2, 1] - m[:, 1, 2]) / s, s / 4,
+                               (m[:, 0, 1] + m[:, 1, 0]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s], 1)
+        elif c == 2:
+            s = 2.0 * np.sqrt(1.0 - m[:, 0, 0] + m[:, 1, 1] - m[:, 2, 2])
+            q[sel] = np.stack([(m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 0, 1] + m[:, 1, 0]) / s,
+                               s / 4, (m[:, 1, 2] + m[:, 2, 1]) / s], 1)
+        else:
+            s = 2.0 * np.sqrt(1.0 - m[:, 0, 0] - m[:, 1, 1] + m[:, 2, 2])
+            q[sel] = np.stack([(m[:, 1, 0] - m[:, 0, 1]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s,
+                               (m[:, 1, 2] + m[:, 2, 1]) / s, s / 4], 1)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(*shape, 4)
+
+
+def matrix_from_quat(q):
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def slerp(q0, q1, a):
+    """Spherical interpolation between unit quaternions, row-wise."""
+    dot = np.einsum("ij,ij->i", q0, q1)
+    q1 = np.where(dot[:, None] < 0, -q1, q1)
+    dot = np.abs(dot)
+    a = a[:, None]
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))[:, None]
+    small = theta < 1e-9
+    s = np.sin(theta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w0 = np.where(small, 1 - a, np.sin((1 - a) * theta) / s)
+        w1 = np.where(small, a, np.sin(a * theta) / s)
+    q = w0 * q0 + w1 * q1
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def polar(linear):
+    """Split 3x3 matrices into rotation R (det +1 where possible) and S = R^T A."""
+    u, _, vt = np.linalg.svd(linear)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0
+    if np.any(flip):
+        u = u.copy()
+        u[flip, :, -1] *= -1
+        r = u @ vt
+    return r, np.swapaxes(r, -1, -2) @ linear
+
+
+@dataclass
+class Track:
+    """Poses of one body over a sweep.
+
+    times     (K,) float64 increasing seconds since the start of the sweep
+    matrices  (K, 4, 4) float64 world matrices at those times
+    """
+
+    times: np.ndarray
+    matrices: np.ndarray
+
+    def __post_init__(self):
+        self.times = np.asarray(self.times, dtype=np.float64).reshape(-1)
+        self.matrices = np.asarray(self.matrices, dtype=np.float64).reshape(-1, 4, 4)
+        rot, self._scale = polar(self.matrices[:, :3, :3])
+        self._quat = quat_from_matrix(rot)
+        for k in range(1, len(self._quat)):  # keep neighbouring quaternions on one side
+            if np.dot(self._quat[k - 1], self._quat[k]) < 0:
+                self._quat[k] = -self._quat[k]
+
+    @classmethod
+    def fixed(cls, matrix):
+        return cls(np.zeros(1), np.asarray(matrix, np.float64)[None])
+
+    @property
+    def is_static(self):
+        return bool(np.all(self.matrices == self.matrices[0]))
+
+    def at(self, t):
+        """(N, 4, 4) matrices at times t (clamped to the sampled span)."""
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        k = len(self.times)
+        out = np.empty((t.shape[0], 4, 4))
+        out[:] = np.eye(4)
+        if k == 1 or self.is_static:
+            out[:] = self.matrices[0]
+            return out
+        i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, k - 2)
+        span = self.times[i + 1] - self.times[i]
+        a = np.clip((t - self.times[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+        m0, m1 = self.matrices[i], self.matrices[i + 1]
+        out[:, :3, 3] = m0[:, :3, 3] * (1 - a)[:, None] + m1[:, :3, 3] * a[:, None]
+        rot = matrix_from_quat(slerp(self._quat[i], self._quat[i + 1], a))
+        scale = self._scale[i] * (1 - a)[:, None, None] + self._scale[i + 1] * a[:, None, None]
+        out[:, :3, :3] = rot @ scale
+        return out
+
+    def max_displacement(self, points):
+        """Largest distance any of ``points`` (local coordinates) travels between the
+        first and any later sample."""
+        p = np.c_[np.asarray(points, np.float64).reshape(-1, 3), np.ones(len(points))]
+        w = np.einsum("kij,nj->kni", self.matrices[:, :3, :], p)
+        return float(np.linalg.norm(w - w[:1], axis=2).max()) if len(p) else 0.0
+
+
+def effective_times(times, period, mode, substeps):
+    """Scene time at which each ray sees the world.
+
+    exact     the ray's own time
+    substeps  the middle of its sub-sweep of period/N (the paper's N partial sweeps,
+              error at most v*T/(2N))
+    snapshot  the start of the sweep (one scene state per frame, as CARLA)
+    """
+    t = np.asarray(times, dtype=np.float64)
+    if mode == "exact":
+        return t
+    if mode == "snapshot":
+        return np.zeros_like(t)
+    n = max(int(substeps), 1)
+    step = period / n
+    return (np.minimum(np.floor(t / step), n - 1) + 0.5) * step
