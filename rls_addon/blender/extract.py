@@ -1,16 +1,21 @@
-"""Scene extraction: evaluated depsgraph -> world-space ``SceneGeometry`` in bulk.
+"""Scene extraction: evaluated depsgraph -> ``SceneGeometry`` in bulk.
 
 Reads every evaluated object instance (modifiers, geometry nodes, collection
 instances, curves and text as meshes), skips objects hidden from render and objects
 whose bounds lie beyond the sensor's range, and reads vertices and loop triangles
 with ``foreach_get`` into numpy. Meshes shared by several instances are read once.
+Instances keep their local triangles and matrix, so the motion layer can treat moving
+objects in their own frame; ``world_geometry`` joins any subset in world space with
+one shared object table and material table.
 """
+
+from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.geometry import MaterialInfo, ObjectInfo, concatenate
-from .materials import material_info
+from ..core.geometry import MaterialInfo, ObjectInfo, SceneGeometry, concatenate
 from .labels import object_label
+from .materials import material_info
 from .sensor import is_lidar
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -18,7 +23,8 @@ GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
 def is_rls_helper(obj):
     """LiDAR objects, previews and regions of interest are never scanned."""
-    return bool(obj.get("rls_preview") or obj.get("rls_infralob") or is_lidar(obj))
+    return bool(obj.get("rls_preview") or obj.get("rls_infralob") or is_lidar(obj)
+                or obj.get("rls_fov"))
 
 
 def _bounds_distance(matrix, bound_box, centre):
@@ -29,7 +35,7 @@ def _bounds_distance(matrix, bound_box, centre):
     return float(np.sqrt(gap @ gap))
 
 
-def _read_mesh(obj_eval):
+def read_mesh(obj_eval):
     """(local vertices float64, triangles int64, material index int32) of an evaluated object."""
     mesh = obj_eval.to_mesh()
     try:
@@ -46,17 +52,39 @@ def _read_mesh(obj_eval):
         obj_eval.to_mesh_clear()
 
 
-def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):
-    """World-space triangles of everything visible to render in ``depsgraph``.
+@dataclass
+class Instance:
+    """One evaluated object instance: its triangles in its own frame, and its matrix."""
 
-    centre, max_range   when given, objects whose world bounds are farther than
-                        max_range from centre are not read at all
-    exclude             names of original objects to leave out
-    Returns (SceneGeometry, stats dict).
-    """
+    key: str              # unique name ('Object', or 'Instancer/Object#id' for instances)
+    source: str           # name of the original object
+    parent: str           # name of the instancing object ('' when not instanced)
+    label: int
+    vertices: np.ndarray  # local, float64
+    triangles: np.ndarray
+    materials: np.ndarray  # per triangle, index into the shared material table
+    matrix: np.ndarray    # 4x4 world matrix
+    slot_map: np.ndarray = None  # material slot -> index into the shared material table
+
+    def material_indices(self, slot_indices):
+        """Shared-table material index of per-triangle material slot indices."""
+        return self.slot_map[np.clip(slot_indices, 0, len(self.slot_map) - 1)]
+
+
+def instance_key(inst):
+    """Stable name of a depsgraph instance."""
+    orig = inst.object.original
+    if inst.is_instance and inst.parent is not None:
+        return f"{inst.parent.original.name}/{orig.name}#{inst.random_id}"
+    return orig.name
+
+
+def read_instances(depsgraph, centre=None, max_range=None, exclude=()):
+    """Instances visible to render (see module doc). Returns (instances, material
+    table, stats)."""
     centre = None if centre is None else np.asarray(centre, dtype=np.float64)
-    objects, materials, mat_index = [], [MaterialInfo("default")], {}
-    parts, cache, instance_keys = [], {}, []
+    materials, mat_index = [MaterialInfo("default")], {}
+    cache, out = {}, []
     stats = {"objects": 0, "culled_by_range": 0, "hidden": 0}
     for inst in depsgraph.object_instances:
         ob = inst.object
@@ -66,19 +94,17 @@ def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):
         if orig.hide_render:
             stats["hidden"] += 1
             continue
-        mw = inst.matrix_world
+        mw = np.array(inst.matrix_world, dtype=np.float64)
         if centre is not None and max_range is not None:
             if _bounds_distance(mw, ob.bound_box, centre) > max_range:
                 stats["culled_by_range"] += 1
                 continue
         key = (orig.name, ob.type)
         if key not in cache:
-            cache[key] = _read_mesh(ob)
+            cache[key] = read_mesh(ob)
         co, tri, mat = cache[key]
         if len(tri) == 0:
             continue
-        m = np.array(mw, dtype=np.float64)
-        world = co @ m[:3, :3].T + m[:3, 3]
         slots = [s.material for s in ob.material_slots] or [None]
         local_to_global = np.zeros(len(slots), dtype=np.int32)
         for i, mt in enumerate(slots):
@@ -88,13 +114,46 @@ def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):
                 mat_index[mt.name] = len(materials)
                 materials.append(material_info(mt))
             local_to_global[i] = mat_index[mt.name]
-        mat_g = local_to_global[np.clip(mat, 0, len(slots) - 1)]
         parent = inst.parent.original if inst.is_instance and inst.parent else None
-        name = orig.name if parent is None else f"{parent.name}/{orig.name}#{inst.random_id}"
-        objects.append((name, object_label(orig, parent)))
-        parts.append((world, tri, np.full(len(tri), len(objects) - 1, np.int32), mat_g))
+        item = Instance(instance_key(inst), orig.name, parent.name if parent else "",
+                        object_label(orig, parent), co, tri, None, mw, local_to_global)
+        item.materials = item.material_indices(mat)
+        out.append(item)
         stats["objects"] += 1
-    # Stable instance ids: 1..K in name order, independent of depsgraph order.
-    order = {n: i + 1 for i, n in enumerate(sorted(n for n, _ in objects))}
-    infos = [ObjectInfo(n, lab, order[n]) for n, lab in objects]
-    return concatenate(parts, infos, materials), stats
+    return out, materials, stats
+
+
+def object_table(instances):
+    """ObjectInfo per instance, with stable instance ids 1..K in key order."""
+    order = {k: i + 1 for i, k in enumerate(sorted(i.key for i in instances))}
+    return [ObjectInfo(i.key, i.label, order[i.key]) for i in instances]
+
+
+def world_geometry(instances, objects, materials, select=None, matrices=None, local=False):
+    """Join instances (all, or those whose index is in ``select``) into one geometry.
+
+    matrices  optional {instance index: 4x4} replacing the stored matrices
+    local     keep each instance's own coordinates (for a single moving object)
+    Triangle object indices refer to ``objects`` (one entry per instance)."""
+    parts = []
+    for k, inst in enumerate(instances):
+        if select is not None and k not in select:
+            continue
+        v = inst.vertices
+        if not local:
+            m = inst.matrix if matrices is None or k not in matrices else matrices[k]
+            v = v @ m[:3, :3].T + m[:3, 3]
+        parts.append((v, inst.triangles, np.full(len(inst.triangles), k, np.int32), inst.materials))
+    return concatenate(parts, objects, materials)
+
+
+def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):
+    """World-space triangles of everything visible to render in ``depsgraph``.
+
+    Returns (SceneGeometry, stats dict)."""
+    instances, materials, stats = read_instances(depsgraph, centre, max_range, exclude)
+    return world_geometry(instances, object_table(instances), materials), stats
+
+
+def empty_geometry_like(objects, materials):
+    return SceneGeometry(np.zeros((0, 3)), np.zeros((0, 3), np.int64), [], [], objects, materials)

@@ -1,45 +1,75 @@
-"""Scanning a Blender scene: extraction + BVHTree + the core engine."""
+"""Scanning a Blender scene: extraction + motion sampling + BVHTree + the core engine."""
 
-from ..core.engine import PreparedScene, resolve_range, scan_frame
+from dataclasses import replace
+
+import bpy
+import numpy as np
+
+from ..core.engine import PreparedScene, RigidBody, TimedScene, resolve_range, scan_frame
+from ..core.motion import Track
 from .bvh_caster import BVHCaster
-from .extract import extract_geometry
+from .extract import object_table, read_instances, read_mesh, world_geometry, instance_key
+from .motion import SweepClock, deformation, may_move, sample_sweep, substep_count
 from .sensor import scan_inputs, sensor_pose
+
+MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
 
 
 class ScanSession:
-    """Scans several frames and sensors, building the ray-casting structure only when
-    the geometry a sensor sees changed (same digest: the built structure is reused)."""
+    """Scans several frames and sensors. Static geometry is built into a ray-casting
+    structure once and reused while its digest is unchanged; each rigidly moving
+    object's own structure is reused likewise; deforming objects are rebuilt per
+    sub-step."""
 
     def __init__(self, caster_factory=BVHCaster):
         self.caster_factory = caster_factory
         self._prepared = {}
+        self._bodies = {}
         self.builds = 0
 
-    def prepared(self, geometry, centre, reach):
-        key = (geometry.fingerprint(), tuple(centre), reach)
-        scene = self._prepared.get(key)
-        if scene is None:
-            if len(self._prepared) >= 4:  # bounded: a moving sensor sees new geometry
-                self._prepared.pop(next(iter(self._prepared)))
-            scene = PreparedScene(geometry, centre, reach, self.caster_factory)
-            self._prepared[key] = scene
+    def _cached(self, store, key, make):
+        item = store.get(key)
+        if item is None:
+            if len(store) >= 16:  # bounded: a moving sensor keeps seeing new geometry
+                store.pop(next(iter(store)))
+            item = store[key] = make()
             self.builds += 1
-        return scene
+        return item
 
-    def scan(self, depsgraph, obj, frame, settings=None):
+    def prepared(self, geometry, centre, reach):
+        key = (geometry.fingerprint(), tuple(np.round(centre, 9)), reach)
+        return self._cached(self._prepared, key,
+                            lambda: PreparedScene(geometry, centre, reach, self.caster_factory))
+
+    def scan(self, depsgraph, obj, frame, settings=None, context=None):
         """Scan one frame of LiDAR ``obj`` in ``depsgraph`` (already at ``frame``).
 
+        ``context`` (default ``bpy.context``) is used to sample motion over the sweep;
+        in snapshot mode the scene is taken as it is at ``frame``.
         Returns (ScanResult, info dict for the sidecar)."""
+        context = context or bpy.context
         preset, obj_settings = scan_inputs(obj)
         settings = settings or obj_settings
         pose = sensor_pose(obj.evaluated_get(depsgraph))
         _, rmax = resolve_range(preset, settings)
         centre = pose[:3, 3]
-        geometry, stats = extract_geometry(depsgraph, centre=centre, max_range=rmax,
-                                           exclude={obj.name})
-        scene = self.prepared(geometry, centre, rmax)
-        result = scan_frame(scene, preset.pattern(), pose, preset, settings,
-                            frame=frame, sensor=obj.name)
+        instances, materials, stats = read_instances(
+            depsgraph, centre=centre, max_range=rmax + MOVER_MARGIN_M, exclude={obj.name})
+        objects = object_table(instances)
+        motion = {"rigid": [], "deforming": [], "samples": 1, "substeps": {}}
+        moving, track = [], None
+        static_sel = set(range(len(instances)))
+        if settings.motion != "snapshot":
+            moving, track, static_sel, motion = self._motion(
+                context, frame, preset, settings, obj, instances, objects, materials, rmax)
+        geometry = world_geometry(instances, objects, materials, select=static_sel)
+        reach = rmax
+        if track is not None:
+            reach += float(np.linalg.norm(track.matrices[:, :3, 3] - centre, axis=1).max())
+        scene = self.prepared(geometry, centre, reach)
+        result = scan_frame(scene, preset.pattern(frame), pose, preset, settings, frame=frame,
+                            sensor=obj.name, sensor_track=track, moving=moving)
+        labels = {str(o.instance): {"object": o.name, "label": o.label} for o in objects}
         info = {
             "device": {"id": preset.id, "name": preset.name, "source": preset.source},
             "sensor": obj.name,
@@ -49,22 +79,107 @@ class ScanSession:
             "seed": settings.seed,
             "effects": {"noise": settings.noise, "dropout": settings.dropout,
                         "range_m": [resolve_range(preset, settings)[0], rmax],
-                        "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0},
-            "labels": {str(k): v for k, v in geometry.label_map().items()},
+                        "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
+                        "motion": settings.motion, "substeps": settings.substeps,
+                        "ghosting": settings.ghosting},
+            "motion": motion,
+            "labels": labels,
             "backend": scene.backend,
             "rays": result.rays,
             "points": int(len(result.points)),
             "triangles_cast": result.triangles,
             "objects_read": stats["objects"],
             "objects_culled_by_range": stats["culled_by_range"],
+            "ghosts": result.stats.get("ghosts", 0),
             "warnings": result.warnings,
         }
         return result, info
 
+    def _motion(self, context, frame, preset, settings, obj, instances, objects, materials,
+                rmax):
+        """Sample the sweep; return (moving bodies, sensor Track or None, indices of
+        static instances, a summary for the sidecar)."""
+        scene = context.scene
+        cand = []
+        for k, inst in enumerate(instances):
+            ob = scene.objects.get(inst.source)
+            par = scene.objects.get(inst.parent) if inst.parent else None
+            if (ob is not None and may_move(ob)) or (par is not None and may_move(par)):
+                cand.append(k)
+        sensor_moves = may_move(obj)
+        summary = {"rigid": [], "deforming": [], "samples": 1, "substeps": {}}
+        if not cand and not sensor_moves:
+            return [], None, set(range(len(instances))), summary
+        clock = SweepClock(scene, frame, preset.period)
+        try:
+            times, mats, verts, sensor = sample_sweep(context, clock, instances, cand, obj,
+                                                      sensor_moves)
+            summary["samples"] = len(times)
+            static_sel = set(range(len(instances)))
+            bodies = []
+            tol = settings.motion_tolerance_m or preset.range.noise_sigma_m or 0.01
+            for k in cand:
+                inst = instances[k]
+                m = mats[k]
+                moved = bool(np.abs(m - m[0]).max() > 1e-12)
+                deform = deformation(verts[k]) if k in verts else 0.0
+                if deform > 1e-9:
+                    n = substep_count(deform + _travel(m, inst), tol, settings.substeps)
+                    bodies += self._substeps(context, clock, inst, k, objects, materials, n)
+                    summary["deforming"].append(inst.key)
+                    summary["substeps"][inst.key] = n
+                    static_sel.discard(k)
+                elif moved:
+                    local = world_geometry(instances, objects, materials, select={k}, local=True)
+                    key = (inst.key, local.fingerprint())
+                    body = self._cached(self._bodies, key, lambda: RigidBody(
+                        local, Track(times, m), self.caster_factory))
+                    body.track = Track(times, m)
+                    bodies.append(body)
+                    summary["rigid"].append(inst.key)
+                    static_sel.discard(k)
+            track = None
+            if sensor is not None and np.abs(sensor - sensor[0]).max() > 1e-12:
+                track = Track(times, sensor)
+            summary["sensor_moves"] = track is not None
+        finally:
+            clock.restore()
+        return bodies, track, static_sel, summary
 
-def scan_lidar(depsgraph, obj, frame, caster_factory=BVHCaster, settings=None):
+    def _substeps(self, context, clock, inst, k, objects, materials, n):
+        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps."""
+        out = []
+        step = clock.period / n
+        for j in range(n):
+            clock.set((j + 0.5) * step)
+            dg = context.evaluated_depsgraph_get()
+            for i in dg.object_instances:
+                if instance_key(i) == inst.key:
+                    co, tri, mat = read_mesh(i.object)
+                    m = np.array(i.matrix_world, dtype=np.float64)
+                    snap = replace(inst, vertices=co, triangles=tri,
+                                   materials=inst.material_indices(mat), matrix=m)
+                    geom = world_geometry([snap], [objects[k]], materials)
+                    centre = m[:3, 3]
+                    scene = PreparedScene(geom, centre, np.inf, self.caster_factory)
+                    self.builds += 1
+                    t1 = (j + 1) * step if j < n - 1 else np.inf
+                    out.append(TimedScene(scene, j * step if j else -np.inf, t1))
+                    break
+        return out
+
+
+def _travel(matrices, inst):
+    """How far the instance's bounding-box corners travel over the samples."""
+    corners = np.array([inst.vertices.min(0), inst.vertices.max(0)])
+    p = np.c_[corners, np.ones(2)]
+    w = np.einsum("kij,nj->kni", matrices[:, :3, :], p)
+    return float(np.linalg.norm(w - w[:1], axis=2).max())
+
+
+def scan_lidar(depsgraph, obj, frame, caster_factory=BVHCaster, settings=None, context=None):
     """Scan one frame of one LiDAR without reuse across calls (see ``ScanSession``)."""
-    return ScanSession(caster_factory).scan(depsgraph, obj, frame, settings)
+    return ScanSession(caster_factory).scan(depsgraph, obj, frame, settings, context)
 
 
 def save_scan(result, info, out_dir, template, fmt, scene_name, overwrite=False):

@@ -113,6 +113,14 @@ class RigidBody:
         self.geometry = geometry_local
         self.track = track
 
+    def _swept_sphere(self):
+        """A sphere holding the body over the whole track (for a cheap first cull)."""
+        m = self.track.matrices
+        c = np.einsum("kij,j->ki", m[:, :3, :3], self.sphere_centre) + m[:, :3, 3]
+        stretch = np.linalg.norm(m[:, :3, :3], axis=1).max()
+        mid = (c.min(0) + c.max(0)) / 2
+        return mid, np.linalg.norm(c - mid, axis=1).max() + self.sphere_radius * stretch * 1.01
+
     def cast(self, origins, directions, times, max_range):
         n = directions.shape[0]
         dist = np.full(n, np.inf)
@@ -120,23 +128,23 @@ class RigidBody:
         normals = np.zeros((n, 3))
         if self.scene.caster is None or n == 0:
             return dist, tri, normals
-        m = self.track.at(times)
-        centre = np.einsum("nij,j->ni", m[:, :3, :3], self.sphere_centre) + m[:, :3, 3]
-        stretch = np.linalg.norm(m[:, :3, :3], axis=1).max(axis=1)  # largest column norm
-        radius = self.sphere_radius * stretch * np.sqrt(3) + 1e-9
         o = np.broadcast_to(np.asarray(origins, np.float64).reshape(-1, 3), directions.shape)
-        rel = centre - o
-        along = np.einsum("ij,ij->i", rel, directions)
-        perp2 = np.einsum("ij,ij->i", rel, rel) - along ** 2
-        near = (perp2 <= radius ** 2) & (along + radius >= 0) & (along - radius <= max_range)
-        idx = np.nonzero(near)[0]
+        centre, radius = self._swept_sphere()
+        idx = np.nonzero(_ray_meets_sphere(o, directions, centre, radius, max_range))[0]
         if len(idx) == 0:
             return dist, tri, normals
-        inv = np.linalg.inv(m[idx])
+        m = self.track.at(times[idx])
+        inv = np.linalg.inv(m)
         o_l = np.einsum("nij,nj->ni", inv[:, :3, :3], o[idx]) + inv[:, :3, 3]
         d_l = np.einsum("nij,nj->ni", inv[:, :3, :3], directions[idx])
         scale = np.linalg.norm(d_l, axis=1)
         d_l /= scale[:, None]
+        # Second cull in the body's own frame, now at each ray's own time.
+        near = _ray_meets_sphere(o_l, d_l, self.sphere_centre, self.sphere_radius * 1.01 + 1e-9,
+                                 max_range * scale)
+        idx, inv, o_l, d_l, scale = idx[near], inv[near], o_l[near], d_l[near], scale[near]
+        if len(idx) == 0:
+            return dist, tri, normals
         dl, tl, nl = self.scene.cast(o_l, d_l, max_range * scale.max())
         dw = dl / scale
         ok = (tl >= 0) & (dw <= max_range)
@@ -145,6 +153,14 @@ class RigidBody:
         sel = idx[ok]
         dist[sel], tri[sel], normals[sel] = dw[ok], tl[ok], nw[ok]
         return dist, tri, normals
+
+
+def _ray_meets_sphere(o, d, centre, radius, max_range):
+    """Rays (unit d) that pass within ``radius`` of ``centre`` before ``max_range``."""
+    rel = centre - o
+    along = np.einsum("ij,ij->i", rel, d)
+    perp2 = np.einsum("ij,ij->i", rel, rel) - along ** 2
+    return (perp2 <= radius ** 2) & (along + radius >= 0) & (along - radius <= max_range)
 
 
 class TimedScene:

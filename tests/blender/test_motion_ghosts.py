@@ -1,0 +1,149 @@
+"""Motion distortion and ghosting through the Blender layer (BVHTree, animation)."""
+
+import bpy
+import numpy as np
+import pytest
+
+from .conftest import add_lidar, mesh_object, scan
+
+V = 20.0  # m/s
+FPS = 25
+
+
+def box(name, lo, hi):
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    verts = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+             (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
+    faces = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    return mesh_object(name, verts, faces)
+
+
+def linear_keys(idblock, path, frames_values):
+    """Keyframes with linear interpolation (constant velocity between keys)."""
+    from bpy_extras import anim_utils
+
+    for f, value in frames_values:
+        setattr(idblock, path, value)
+        idblock.keyframe_insert(path, frame=f)
+    ad = idblock.id_data.animation_data  # a shape key animates its Key datablock
+    bag = anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot)
+    for fc in bag.fcurves:
+        for kp in fc.keyframe_points:
+            kp.interpolation = "LINEAR"
+
+
+def box_sdf(p, centre, half):
+    q = np.abs(p - centre) - half
+    return np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
+
+
+def moving_box_setup(scene):
+    scene.render.fps, scene.render.fps_base = FPS, 1.0
+    car = box("Car", (-1, -2, -1), (1, 2, 1))
+    start = np.array([10.0, -6.0, 0.0])
+    step = V / FPS  # metres per frame
+    linear_keys(car, "location", [(1, tuple(start)), (11, tuple(start + [0, 10 * step, 0]))])
+    lidar = add_lidar(location=(0, 0, 0))
+    lidar.rls_lidar.frame_space = "WORLD"
+    return lidar, start
+
+
+def points_xyz(p):
+    return np.stack([p["x"], p["y"], p["z"]], 1)
+
+
+def test_rigid_motion_exact_every_point_on_the_box_at_its_time(scene):
+    lidar, start = moving_box_setup(scene)
+    result, info = scan(lidar, frame=1)
+    p = result.points
+    assert info["motion"]["rigid"] == ["Car"] and not info["motion"]["deforming"]
+    assert len(p) > 50
+    centre = start + np.outer(p["time"], [0, V, 0])
+    err = np.abs(box_sdf(points_xyz(p), centre, np.array([1, 2, 1])))
+    assert err.max() <= 1e-3
+
+
+def test_substeps_and_snapshot_modes_through_blender(scene):
+    import dataclasses
+
+    from rls_addon.blender.scan import ScanSession
+    from rls_addon.blender.sensor import scan_inputs
+
+    lidar, start = moving_box_setup(scene)
+    scene.frame_set(1)
+    _, base = scan_inputs(lidar)
+    for mode, n in (("substeps", 4), ("snapshot", 0)):
+        settings = dataclasses.replace(base, motion=mode, substeps=n)
+        res, info = ScanSession().scan(bpy.context.evaluated_depsgraph_get(), lidar, 1, settings)
+        p = res.points
+        centre = start + np.outer(p["time"], [0, V, 0])
+        err = np.abs(box_sdf(points_xyz(p), centre, np.array([1, 2, 1])))
+        bound = V * 0.1 / (2 * n) if n else V * 0.1
+        assert err.max() <= bound + 1e-4
+
+
+def test_moving_sensor_in_static_room_follows_its_pose(scene):
+    scene.render.fps, scene.render.fps_base = FPS, 1.0
+    room = box("Room", (-10, -6, -1), (10, 6, 5))
+    lidar = add_lidar(location=(-2, 0.5, 1.5))
+    lidar.rls_lidar.frame_space = "WORLD"
+    # 10 m/s along +X: 0.4 m per frame.
+    linear_keys(lidar, "location", [(1, (-2.0, 0.5, 1.5)), (11, (2.0, 0.5, 1.5))])
+    result, info = scan(lidar, frame=1)
+    p = result.points
+    assert info["motion"]["sensor_moves"] and not info["motion"]["rigid"]
+    t = p["time"]
+    origin = np.stack([-2 + 10 * t, np.full_like(t, 0.5), np.full_like(t, 1.5)], 1)
+    xyz = points_xyz(p)
+    d = (xyz - origin) / p["range"][:, None]
+    assert np.abs(np.linalg.norm(d, axis=1) - 1).max() <= 1e-6  # on the ray from its origin
+    lo, hi = np.array([-10, -6, -1]), np.array([10, 6, 5])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tt = np.where(d > 0, (hi - origin) / d, np.where(d < 0, (lo - origin) / d, np.inf))
+    assert np.abs(p["range"] - tt.min(axis=1)).max() <= 1e-4
+    assert room.name == "Room"
+
+
+def test_deforming_object_is_substepped_adaptively(scene):
+    scene.render.fps, scene.render.fps_base = FPS, 1.0
+    wall = mesh_object("Wall", [(6, -4, -2), (6, 4, -2), (6, 4, 2), (6, -4, 2)], [(0, 1, 2, 3)])
+    wall.shape_key_add(name="Basis")
+    key = wall.shape_key_add(name="Away")
+    for i, v in enumerate(key.data):
+        v.co.x += 4.0  # the wall moves 4 m in x at full weight
+    linear_keys(key, "value", [(1, 0.0), (11, 1.0)])  # 10 frames = 0.4 s for 4 m: 10 m/s
+    lidar = add_lidar(location=(0, 0, 0))
+    lidar.rls_lidar.frame_space = "WORLD"
+    result, info = scan(lidar, frame=1)
+    p = result.points
+    n = info["motion"]["substeps"]["Wall"]
+    assert info["motion"]["deforming"] == ["Wall"] and n >= 8
+    expected_x = 6 + 10.0 * p["time"]
+    assert np.abs(p["x"] - expected_x).max() <= 10.0 * 0.1 / (2 * n) + 1e-4
+
+
+def test_animated_but_still_objects_cost_nothing(scene):
+    scene.render.fps, scene.render.fps_base = FPS, 1.0
+    post = box("Post", (4, -0.5, 0), (5, 0.5, 3))
+    linear_keys(post, "location", [(1, (0.0, 0.0, 0.0)), (20, (0.0, 0.0, 0.0))])
+    lidar = add_lidar(location=(0, 0, 1))
+    _, info = scan(lidar, frame=1)
+    assert info["motion"]["rigid"] == [] and info["motion"]["deforming"] == []
+
+
+def test_glossy_principled_material_makes_ghosts(scene):
+    wall = box("Glass", (5.0, -20, -5), (5.2, 20, 5))
+    mat = bpy.data.materials.new("Glass")
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.02
+    wall.data.materials.append(mat)
+    box("Car", (-3.0, -1, -1), (-2.0, 1, 1))
+    lidar = add_lidar(location=(0, 0, 0))
+    lidar.rls_lidar.frame_space = "WORLD"
+    result, info = scan(lidar)
+    g = result.points[result.points["ghost"] == 1]
+    assert info["ghosts"] == len(g) > 20
+    image = points_xyz(g)
+    image[:, 0] = 10.0 - image[:, 0]
+    assert np.abs(box_sdf(image, np.array([-2.5, 0, 0]), np.array([0.5, 1, 1]))).max() <= 1e-4
