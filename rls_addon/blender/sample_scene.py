@@ -1,68 +1,16 @@
-"""A small procedural street scene, built with ``bpy.data`` only (no operators), so it
+"""A small procedural street scene (the demo's), built with ``bpy.data`` only (no operators), so it
 runs the same in the UI, ``blender -b`` and the ``bpy`` module.
 
 Labels come from collection names (Road, Sidewalk, Buildings, Poles, Vehicles); the
-region of interest is a flat rectangle marked ``rls_infralob``.
+region of interest is a flat rectangle marked ``rls_infralob``. The paper's three
+placement scenes are in ``scenes/``.
 """
 
-import bpy
-import numpy as np
-
-BOX_FACES = [(0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3), (3, 7, 4, 0)]
-
-
-def _collection(scene, name):
-    coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
-    if coll.name not in scene.collection.children:
-        scene.collection.children.link(coll)
-    return coll
+from .scenes.build import box, collection as _collection, cylinder, material, plane
 
 
 def _material(name, rgb, roughness=0.5, metallic=0.0, reflectivity=None):
-    mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
-    mat.diffuse_color = (*rgb, 1.0)
-    mat.roughness = roughness
-    mat.metallic = metallic
-    if reflectivity is not None:
-        mat["rls_reflectivity"] = reflectivity
-    return mat
-
-
-def _mesh_object(coll, name, verts, faces, material):
-    mesh = bpy.data.meshes.new(name)
-    mesh.from_pydata([tuple(map(float, v)) for v in verts], [], faces)
-    mesh.update()
-    mesh.materials.append(material)
-    obj = bpy.data.objects.new(name, mesh)
-    coll.objects.link(obj)
-    return obj
-
-
-def box(coll, name, lo, hi, material):
-    (x0, y0, z0), (x1, y1, z1) = lo, hi
-    verts = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
-             (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
-    return _mesh_object(coll, name, verts, BOX_FACES, material)
-
-
-def cylinder(coll, name, centre, radius, height, material, segments=16):
-    a = np.linspace(0, 2 * np.pi, segments, endpoint=False)
-    cx, cy, cz = centre
-    ring = [(cx + radius * np.cos(t), cy + radius * np.sin(t)) for t in a]
-    verts = [(x, y, cz) for x, y in ring] + [(x, y, cz + height) for x, y in ring]
-    n = segments
-    faces = [(i, (i + 1) % n, (i + 1) % n + n, i + n) for i in range(n)]
-    faces += [tuple(range(n - 1, -1, -1)), tuple(range(n, 2 * n))]
-    return _mesh_object(coll, name, verts, faces, material)
-
-
-def plane(coll, name, x0, x1, y0, y1, z, material, cuts=1):
-    xs, ys = np.linspace(x0, x1, cuts + 1), np.linspace(y0, y1, cuts + 1)
-    verts = [(x, y, z) for y in ys for x in xs]
-    w = cuts + 1
-    faces = [(j * w + i, j * w + i + 1, (j + 1) * w + i + 1, (j + 1) * w + i)
-             for j in range(cuts) for i in range(cuts)]
-    return _mesh_object(coll, name, verts, faces, material)
+    return material(name, rgb, roughness, metallic, reflectivity)
 
 
 def build_street(scene):
