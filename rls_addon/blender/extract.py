@@ -71,10 +71,17 @@ class Instance:
         return self.slot_map[np.clip(slot_indices, 0, len(self.slot_map) - 1)]
 
 
+def _realizes_itself(inst):
+    """Curves, text and surfaces evaluate to a mesh that the depsgraph lists as an
+    instance of the object itself: that instance *is* the object."""
+    return bool(inst.is_instance and inst.parent is not None
+                and inst.parent.original.name == inst.object.original.name)
+
+
 def instance_key(inst):
     """Stable name of a depsgraph instance."""
     orig = inst.object.original
-    if inst.is_instance and inst.parent is not None:
+    if inst.is_instance and inst.parent is not None and not _realizes_itself(inst):
         return f"{inst.parent.original.name}/{orig.name}#{inst.random_id}"
     return orig.name
 
@@ -86,11 +93,14 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=()):
     materials, mat_index = [MaterialInfo("default")], {}
     cache, out = {}, []
     stats = {"objects": 0, "culled_by_range": 0, "hidden": 0}
+    realized = {i.object.original.name for i in depsgraph.object_instances if _realizes_itself(i)}
     for inst in depsgraph.object_instances:
         ob = inst.object
         orig = ob.original
         if ob.type not in GEOMETRY_TYPES or orig.name in exclude or is_rls_helper(orig):
             continue
+        if not inst.is_instance and orig.name in realized:
+            continue  # read through its realized mesh instance instead
         if orig.hide_render:
             stats["hidden"] += 1
             continue
@@ -115,6 +125,8 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=()):
                 materials.append(material_info(mt))
             local_to_global[i] = mat_index[mt.name]
         parent = inst.parent.original if inst.is_instance and inst.parent else None
+        if _realizes_itself(inst):
+            parent = None
         item = Instance(instance_key(inst), orig.name, parent.name if parent else "",
                         object_label(orig, parent), co, tri, None, mw, local_to_global)
         item.materials = item.material_indices(mat)

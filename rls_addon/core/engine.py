@@ -322,6 +322,24 @@ def _ghosts(world, rng, origins, times, h, rmax):
     return out.take(keep), stats
 
 
+def _inside_warnings(world, h, min_hits=100, share=0.95):
+    """Warn when nearly all hits on an object land on the back of its faces: the sensor
+    is inside it (fine for a tunnel or a room; a mistake for a solid object)."""
+    if len(h.idx) < min_hits:
+        return []
+    back = np.einsum("ij,ij->i", h.u_last, h.normals) > 0
+    names = world.per_hit(h.body, h.tri, _object_table("instance"))
+    out = []
+    objects = {o.instance: o.name for b in world.bodies for o in b.geometry.objects}
+    for inst in np.unique(names):
+        sel = names == inst
+        if sel.sum() >= min_hits and back[sel].mean() >= share:
+            out.append(f"the sensor is inside '{objects.get(int(inst), inst)}' "
+                       f"({back[sel].mean():.0%} of its {int(sel.sum())} hits are on the back "
+                       "of its faces); fine for a room or tunnel, otherwise move the sensor")
+    return out
+
+
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
                frame=0, sensor="sensor", sensor_track=None, moving=()):
     """Scan one frame.
@@ -392,6 +410,7 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     idx = h.idx
     o_hit = origins if origins.shape[0] == 1 else origins[idx]
 
+    warnings += _inside_warnings(world, h)
     pts = np.zeros(len(idx), dtype=POINT_DTYPE)
     xyz = o_hit + h.u * d[:, None] if s.frame_space == "world" else dirs_sensor[idx] * d[:, None]
     pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
