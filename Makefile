@@ -2,6 +2,7 @@
 #   make demo    set up .venv, scan the sample street scene, print where the output is
 #   make test    set up .venv and system tools, build the extension, run all tests
 #   make build   build and validate dist/rls_addon-<version>.zip with Blender's tooling
+#   make bench   benchmarks (about 10 minutes): docs/benchmarks.md and docs/bench_*.png
 
 PYTHON ?= python3.11
 VENV   := .venv
@@ -11,7 +12,7 @@ TEST_STAMP    := $(VENV)/.test-installed
 VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP     := dist/rls_addon-$(VERSION).zip
 
-.PHONY: venv demo test build system-deps clean
+.PHONY: venv demo test build system-deps clean bench
 
 venv: $(RUNTIME_STAMP)
 
@@ -46,6 +47,18 @@ demo: $(RUNTIME_STAMP)
 
 test: $(TEST_STAMP) system-deps build
 	$(PY) -m pytest
+
+# Benchmarks need what the tests need (embreex, open3d) plus matplotlib, from
+# requirements-bench.txt when that file exists.
+BENCH_STAMP := $(VENV)/.bench-installed
+BENCH_REQS  := $(wildcard requirements-bench.txt)
+
+$(BENCH_STAMP): $(TEST_STAMP) $(BENCH_REQS)
+	$(if $(BENCH_REQS),$(PY) -m pip install --quiet --disable-pip-version-check -r $(BENCH_REQS) -c requirements.txt)
+	@touch $@
+
+bench: $(BENCH_STAMP)
+	$(PY) bench/run.py --out docs
 
 clean:
 	rm -rf build dist out .pytest_cache

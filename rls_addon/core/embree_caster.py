@@ -48,7 +48,8 @@ _K = 16
 _ORG, _TNEAR, _DIR, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 48, 64, 112, 128, 144, 160, 176
 _PRIM, _GEOM = 272, 288
 _STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
-_CHUNK_PACKETS = 2048  # 32768 rays per task (1.5 MiB of packet buffer per thread)
+_CHUNK_PACKETS = 2048  # at most 32768 rays per task (3 MiB of packet buffer per thread)
+_TASKS_PER_THREAD = 4  # smaller tasks balance the threads (a frame is a few 100k rays)
 
 
 def available():
@@ -121,6 +122,7 @@ def _bind(lib):
         "rtcGetDeviceError": (i, [vp]),
         "rtcNewScene": (vp, [vp]),
         "rtcSetSceneFlags": (None, [vp, i]),
+        "rtcSetSceneBuildQuality": (None, [vp, i]),
         "rtcCommitScene": (None, [vp]),
         "rtcReleaseScene": (None, [vp]),
         "rtcNewGeometry": (vp, [vp, i]),
@@ -217,7 +219,7 @@ def _fill(buf, origins, dirs, max_dist, n):
 class _Scene:
     """One Embree device + committed triangle scene, released explicitly."""
 
-    def __init__(self, lib, vertices32, triangles_u32, robust=True):
+    def __init__(self, lib, vertices32, triangles_u32, robust=True, quality=None):
         self.lib = lib
         self.device = lib.rtcNewDevice(None)
         if not self.device:
@@ -225,6 +227,8 @@ class _Scene:
         self.handle = lib.rtcNewScene(self.device)
         if robust:
             lib.rtcSetSceneFlags(self.handle, _SCENE_FLAG_ROBUST)
+        if quality is not None:  # RTC_BUILD_QUALITY_LOW 0, MEDIUM 1 (default), HIGH 2
+            lib.rtcSetSceneBuildQuality(self.handle, int(quality))
         geom = lib.rtcNewGeometry(self.device, _GEOMETRY_TYPE_TRIANGLE)
         vb = lib.rtcSetNewGeometryBuffer(geom, _BUFFER_TYPE_VERTEX, 0, _FORMAT_FLOAT3, 12,
                                          len(vertices32))
@@ -313,7 +317,8 @@ class EmbreeCaster:
             dist[hit] = res["tfar"][hit]
             tri[hit] = res["primID"][hit]
             return dist, tri
-        step = _CHUNK_PACKETS * _K
+        tasks = max(self.threads * _TASKS_PER_THREAD, -(-n // (_CHUNK_PACKETS * _K)))
+        step = min(_CHUNK_PACKETS, max(64, -(-n // (tasks * _K)))) * _K
         spans = [(s, min(n, s + step)) for s in range(0, n, step)]
         work = lambda span: self._cast_span(o, d, tfar, dist, tri, *span)  # noqa: E731
         if len(spans) == 1 or self.threads == 1:

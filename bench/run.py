@@ -1,0 +1,824 @@
+"""RLS benchmarks: ray-casting backends, frame times, scaling, memory, and a
+speed-against-accuracy chart. Writes docs/benchmarks.md and docs/bench_*.png.
+
+    .venv/bin/python bench/run.py [--out docs] [--quick]
+
+Every number comes from this one run on this machine. Times are the best of a few
+repeats (the machine may be shared); rays/s count every ray cast, hit or miss.
+Baselines on the same rays and triangles: the bare ``BVHTree.ray_cast`` Python loop
+and Open3D's ``RaycastingScene.cast_rays``.
+"""
+
+import argparse
+import datetime
+import gc
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+import numpy as np  # noqa: E402
+
+DEVICES = [("Pandar64", "hesai_pandar64"), ("Pandar128", "hesai_pandar128"),
+           ("Livox Avia", "livox_avia"), ("RoboSense M1", "robosense_m1")]
+SCALING_TRIANGLES = [10_000, 100_000, 300_000, 1_000_000, 2_000_000, 4_000_000]
+SCALING_RAYS = [10_000, 30_000, 100_000, 300_000, 1_000_000]
+TARGETS = {"embree_vs_open3d": 0.7, "bvh_pipeline_vs_bare": 1.25, "pandar64_realtime": 4.0}
+
+
+def log(*a):
+    print(*a, file=sys.stderr, flush=True)
+
+
+# ---- machine --------------------------------------------------------------------------
+
+def machine_info():
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    mem = None
+    try:
+        for line in open("/proc/meminfo"):
+            if line.startswith("MemTotal"):
+                mem = int(line.split()[1]) / 1024 ** 2
+    except OSError:
+        pass
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:
+        cores = os.cpu_count()
+    versions = {"python": platform.python_version(), "numpy": np.__version__}
+    from importlib.metadata import PackageNotFoundError, version
+
+    for pkg in ("bpy", "embreex", "open3d", "matplotlib"):
+        try:
+            versions[pkg] = version(pkg)
+        except PackageNotFoundError:
+            versions[pkg] = "missing"
+    return {"cpu": cpu, "cores": cores, "memory_gib": mem, "os": platform.platform(),
+            "loadavg_start": os.getloadavg()[0],
+            "date": datetime.datetime.now().strftime("%Y-%m-%d %H:%M"), "versions": versions}
+
+
+def best(fn, repeat=3):
+    """(best wall time in s, last result)."""
+    times, out = [], None
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t)
+    return min(times), out
+
+
+def preset_or_fallback(label, pid):
+    from rls_addon.core.presets import get_preset
+
+    try:
+        return get_preset(pid), None
+    except Exception as exc:  # another preset may be missing in this checkout
+        msg = f"preset {pid!r} for {label} is missing ({exc}); using generic_uniform32"
+        log("bench: WARNING:", msg)
+        return get_preset("generic_uniform32"), msg
+
+
+def fresh_pattern_time(preset):
+    """Seconds to build one frame's pattern from scratch (the preset caches patterns)."""
+    preset.__dict__.pop("_pattern_cache", None)
+    t = time.perf_counter()
+    preset.pattern()
+    return time.perf_counter() - t
+
+
+# ---- backends on the same triangles and rays -------------------------------------------
+
+class Backends:
+    """Every backend built once on the same sensor-centred triangles."""
+
+    def __init__(self, geometry, origin, reach, which=("embree", "bvhtree", "open3d"),
+                 prepared=True):
+        import bpy  # noqa: F401  (mathutils)
+
+        from rls_addon.blender.bvh_caster import BVHCaster
+        from rls_addon.core.embree_caster import EmbreeCaster
+        from rls_addon.core.engine import PreparedScene
+        from rls_addon.core.geometry import clean_for_casting
+
+        self.origin = np.asarray(origin, float)
+        self.build = {}
+        self.prepared = {}
+        if not prepared:
+            which_prepared = ()
+        else:
+            which_prepared = which
+        if "embree" in which_prepared:
+            t = time.perf_counter()
+            self.prepared["embree"] = PreparedScene(geometry, origin, reach, EmbreeCaster)
+            self.build["embree (scene, incl. watertight hull)"] = time.perf_counter() - t
+        if "bvhtree" in which_prepared:
+            t = time.perf_counter()
+            self.prepared["bvhtree"] = PreparedScene(geometry, origin, reach, BVHCaster)
+            self.build["bvhtree (scene, incl. watertight hull)"] = time.perf_counter() - t
+        if self.prepared:
+            ref = next(iter(self.prepared.values()))
+            self.vertices, self.triangles = ref.vertices, ref.triangles
+        else:
+            self.vertices, self.triangles, _, _ = clean_for_casting(geometry, origin, reach)
+        self.casters = {}
+        if "embree" in which:
+            t = time.perf_counter()
+            self.casters["embree"] = EmbreeCaster(self.vertices, self.triangles)
+            self.build["embree"] = time.perf_counter() - t
+            self.casters["embree_1t"] = EmbreeCaster(self.vertices, self.triangles, threads=1)
+        if "bvhtree" in which:
+            t = time.perf_counter()
+            self.casters["bvhtree"] = BVHCaster(self.vertices, self.triangles)
+            self.build["bvhtree"] = time.perf_counter() - t
+        self.o3d = None
+        if "open3d" in which:
+            try:
+                import open3d as o3d
+
+                t = time.perf_counter()
+                sc = o3d.t.geometry.RaycastingScene()
+                sc.add_triangles(o3d.core.Tensor(self.vertices.astype(np.float32)),
+                                 o3d.core.Tensor(self.triangles.astype(np.uint32)))
+                sc.cast_rays(o3d.core.Tensor(np.array([[0, 0, 0, 1, 0, 0]], np.float32)))
+                self.build["open3d"] = time.perf_counter() - t
+                self.o3d = sc
+            except ImportError:
+                log("bench: open3d is not installed: no Open3D baseline")
+
+    def cast_times(self, dirs, max_range, repeat=5):
+        """Seconds to cast ``dirs`` from the sensor with each backend and baseline: the
+        best of ``repeat`` rounds, backends taking turns within a round so that load
+        from other work on the machine hits them alike."""
+        o = np.zeros((1, 3))
+        runs = {}
+        for name in ("embree", "embree_1t", "bvhtree"):
+            if name in self.casters:
+                runs[name] = (lambda c: lambda: c.cast(o, dirs, max_range))(self.casters[name])
+        if "bvhtree" in self.casters:
+            runs["bare ray_cast loop"] = bare_loop(self.casters["bvhtree"].tree, dirs, max_range)
+        if self.o3d is not None:
+            import open3d as o3d
+
+            def o3d_cast(threads):
+                rays = np.empty((len(dirs), 6), np.float32)
+                rays[:, :3] = 0.0
+                rays[:, 3:] = dirs
+                return self.o3d.cast_rays(o3d.core.Tensor(rays), nthreads=threads)
+
+            runs["open3d"] = lambda: o3d_cast(0)
+            runs["open3d_1t"] = lambda: o3d_cast(1)
+        slow = {"bvhtree", "bare ray_cast loop"}
+        out = {k: float("inf") for k in runs}
+        for i in range(repeat):
+            for name, fn in runs.items():
+                if name in slow and i >= max(2, repeat // 2):
+                    continue  # BVHTree runs are long and steadier: fewer repeats
+                t = time.perf_counter()
+                fn()
+                out[name] = min(out[name], time.perf_counter() - t)
+        return out
+
+
+def bare_loop(tree, dirs, max_range):
+    """The bare BVHTree loop: one ``ray_cast`` per ray over prepared Python lists, the
+    least any Python-driven BVHTree scan can cost (the conversion is not timed)."""
+    dl = dirs.tolist()
+    o = (0.0, 0.0, 0.0)
+    rc = tree.ray_cast
+    m = float(max_range)
+
+    def loop():
+        for d in dl:
+            rc(o, d, m)
+    return loop
+
+
+class CountingFactory:
+    """Wraps a caster factory; counts the rays every caster it built was asked to cast
+    (primary rays, the watertight re-check of misses, nudged re-casts, ghost rays)."""
+
+    def __init__(self, factory):
+        self.factory = factory
+        self.rays = 0
+
+    def __call__(self, vertices, triangles):
+        inner = self.factory(vertices, triangles)
+        counter = self
+
+        class Counted:
+            name = getattr(inner, "name", "caster")
+
+            def cast(self, origins, directions, max_dist):
+                counter.rays += len(directions)
+                return inner.cast(origins, directions, max_dist)
+        return Counted()
+
+
+def rays_cast_per_frame(geometry, pose, preset, factory):
+    """Rays actually cast by one default ``scan_frame`` (and by ``PreparedScene.cast``)."""
+    from rls_addon.core.engine import PreparedScene, ScanSettings, scan_frame
+
+    cf = CountingFactory(factory)
+    scene = PreparedScene(geometry, pose[:3, 3], preset.range.max_m, cf)
+    cf.rays = 0
+    scene.cast(pose[:3, 3], preset.pattern().directions @ pose[:3, :3].T, preset.range.max_m)
+    prepared = cf.rays
+    cf.rays = 0
+    scan_frame(scene, preset.pattern(), pose, preset, ScanSettings())
+    return {"pattern": len(preset.pattern()), "prepared_cast": prepared, "frame": cf.rays}
+
+
+# ---- sections --------------------------------------------------------------------------
+
+def devices_section(geometry, pose, quick):
+    from rls_addon.core.engine import ScanSettings, scan_frame
+
+    origin = pose[:3, 3]
+    presets = []
+    notes = []
+    for label, pid in DEVICES:
+        p, note = preset_or_fallback(label, pid)
+        presets.append((label, p))
+        if note:
+            notes.append(note)
+    reach = max(p.range.max_m for _, p in presets)
+    log(f"bench: building backends on {geometry.triangle_count:,} triangles")
+    be = Backends(geometry, origin, reach)
+    rows = []
+    for label, p in presets:
+        pat = p.pattern()
+        rays = len(pat)
+        dirs = np.ascontiguousarray(pat.directions)
+        log(f"bench: {label}: {rays:,} rays per frame")
+        rmax = p.range.max_m
+        times = be.cast_times(dirs, rmax, repeat=2 if quick else 3)
+        settings = ScanSettings()
+        bare_settings = _settings(ScanSettings, ghosting=False, noise=False, dropout=False)
+        frame, prepared_cast, frame_bare = {}, {}, {}
+        for name in ("embree", "bvhtree"):
+            scene = be.prepared[name]
+            k = 5 if name == "embree" else 2
+            frame[name], res = best(lambda: scan_frame(scene, pat, pose, p, settings), k)
+            prepared_cast[name], _ = best(lambda: scene.cast(origin, dirs, rmax), k)
+            frame_bare[name], _ = best(lambda: scan_frame(scene, pat, pose, p, bare_settings), k)
+        rows.append({"device": label, "preset": p.id, "rays": rays,
+                     "frequency_hz": p.frequency_hz, "points": int(len(res.points)),
+                     "cast_s": times, "frame_s": frame, "prepared_cast_s": prepared_cast,
+                     "frame_no_effects_s": frame_bare})
+    p64 = next((p for label, p in presets if label == "Pandar64"), presets[0][1])
+    ghosts = ghosting_cost(be.prepared["embree"], p64.pattern(), pose, p64)
+    from rls_addon.core.embree_caster import EmbreeCaster
+
+    counts = {label: rays_cast_per_frame(geometry, pose, p, EmbreeCaster) for label, p in presets}
+    for row in rows:
+        row["rays_cast"] = counts[row["device"]]
+    return {"rows": rows, "build_s": be.build, "notes": notes,
+            "triangles": int(len(be.triangles)), "ghosting": ghosts}
+
+
+def _settings(cls, **want):
+    """ScanSettings with those of ``want`` that this engine version has."""
+    import dataclasses
+
+    names = {f.name for f in dataclasses.fields(cls)}
+    return cls(**{k: v for k, v in want.items() if k in names})
+
+
+def scaling_triangles(pose, preset, quick):
+    from bench.scene import street_geometry
+
+    dirs = np.ascontiguousarray(preset.pattern().directions)
+    out = []
+    for n in (SCALING_TRIANGLES[:4] if quick else SCALING_TRIANGLES):
+        g = street_geometry(n)
+        log(f"bench: scaling: {g.triangle_count:,} triangles")
+        be = Backends(g, pose[:3, 3], preset.range.max_m, prepared=False)
+        t = be.cast_times(dirs, preset.range.max_m, repeat=3)
+        out.append({"triangles": g.triangle_count, "build_s": dict(be.build), "cast_s": t})
+        del be, g
+        gc.collect()
+    return out
+
+
+def scaling_rays(geometry, pose, preset, quick):
+    rng = np.random.default_rng(0)
+    base = preset.pattern().directions
+    be = Backends(geometry, pose[:3, 3], preset.range.max_m, prepared=False)
+    out = []
+    for n in (SCALING_RAYS[:4] if quick else SCALING_RAYS):
+        dirs = np.ascontiguousarray(base[rng.integers(0, len(base), n)])
+        log(f"bench: scaling: {n:,} rays")
+        out.append({"rays": n, "cast_s": be.cast_times(dirs, preset.range.max_m, repeat=3)})
+    return out
+
+
+MEMORY_CASE = r"""
+import json, os, resource, sys, threading, time
+sys.path.insert(0, {root!r})
+import numpy as np
+import bpy
+from bench.scene import street_geometry, SENSOR_POSE
+from rls_addon.core.geometry import clean_for_casting
+from rls_addon.core.presets import get_preset
+backend, tris = sys.argv[1], int(sys.argv[2])
+g = street_geometry(tris)
+p = get_preset('hesai_pandar64')
+dirs = np.ascontiguousarray(p.pattern().directions)
+v, t, _, _ = clean_for_casting(g, SENSOR_POSE[:3, 3], p.range.max_m)
+del g
+page = os.sysconf('SC_PAGE_SIZE') / 2 ** 20
+def rss():
+    with open('/proc/self/statm') as f:
+        return int(f.read().split()[1]) * page
+peak, done = [rss()], [False]
+def sample():
+    while not done[0]:
+        peak[0] = max(peak[0], rss())
+        time.sleep(0.002)
+before = rss()
+th = threading.Thread(target=sample, daemon=True)
+th.start()
+if backend == 'open3d':
+    import open3d as o3d
+    sc = o3d.t.geometry.RaycastingScene()
+    sc.add_triangles(o3d.core.Tensor(v.astype(np.float32)), o3d.core.Tensor(t.astype(np.uint32)))
+    rays = np.zeros((len(dirs), 6), np.float32); rays[:, 3:] = dirs
+    sc.cast_rays(o3d.core.Tensor(rays))
+else:
+    if backend == 'embree':
+        from rls_addon.core.embree_caster import EmbreeCaster as F
+    else:
+        from rls_addon.blender.bvh_caster import BVHCaster as F
+    c = F(v, t)
+    c.cast(np.zeros((1, 3)), dirs, p.range.max_m)
+after = rss()
+done[0] = True
+th.join()
+peak[0] = max(peak[0], after)
+print(json.dumps({{'before_mib': before, 'peak_mib': peak[0], 'after_mib': after,
+                  'maxrss_mib': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}}))
+"""
+
+
+def memory_section(sizes):
+    """Memory of building each backend and casting one Pandar64 frame, one subprocess
+    per case: resident memory sampled every 2 ms (peak) and after, against the
+    resident memory just before the build (scene arrays already in memory)."""
+    out = []
+    script = MEMORY_CASE.format(root=str(ROOT))
+    for tris in sizes:
+        for backend in ("embree", "bvhtree", "open3d"):
+            proc = subprocess.run([sys.executable, "-c", script, backend, str(tris)],
+                                  capture_output=True, text=True, timeout=600)
+            if proc.returncode != 0:
+                log(f"bench: memory case {backend} {tris} failed: {proc.stderr[-500:]}")
+                continue
+            r = json.loads(proc.stdout.strip().splitlines()[-1])
+            out.append({"backend": backend, "triangles": tris, **r,
+                        "added_mib": r["peak_mib"] - r["before_mib"]})
+            log(f"bench: memory {backend} {tris:,}: +{out[-1]['added_mib']:.0f} MiB")
+    return out
+
+
+# ---- hooks for later work ------------------------------------------------------------
+
+def motion_distortion_cost(geometry, pose, preset):
+    """Hook: cost of motion distortion (exact per-ray time vs sub-steps vs snapshot) on
+    a scene with moving objects. Returns rows for the report, or None while the engine
+    has no motion modes to time. Later work fills this in."""
+    return None
+
+
+def ghosting_cost(scene, pattern, pose, preset, repeat=3):
+    """Cost of ghost points from glossy surfaces: one frame with ghosting on and off
+    (noise and dropout on), on a built ``PreparedScene``. Returns a line for the
+    report, or None when this engine has no ghosting switch. Later work may extend it
+    (ghost counts, glossy fraction of the scene)."""
+    import dataclasses
+
+    from rls_addon.core.engine import ScanSettings, scan_frame
+
+    if "ghosting" not in {f.name for f in dataclasses.fields(ScanSettings)}:
+        return None
+    on, res_on = best(lambda: scan_frame(scene, pattern, pose, preset, ScanSettings()), repeat)
+    off, res_off = best(lambda: scan_frame(scene, pattern, pose, preset,
+                                           ScanSettings(ghosting=False)), repeat)
+    ghosts = int(res_on.points["ghost"].sum()) if "ghost" in res_on.points.dtype.names else 0
+    return (f"{preset.name} frame with {scene.backend}: ghosting on {on * 1000:.1f} ms, "
+            f"off {off * 1000:.1f} ms (+{(on - off) * 1000:.1f} ms, {ghosts:,} ghost points)")
+
+
+def chart_motion_substeps(out_dir):
+    """Hook: chart of motion sub-steps against position error and time
+    (docs/bench_motion_substeps.png). Returns the PNG path, or None until filled in."""
+    return None
+
+
+def chart_infranuc_disks(out_dir):
+    """Hook: chart of the InfraNUC disk count against metric stability and time
+    (docs/bench_infranuc_disks.png). Returns the PNG path, or None until filled in."""
+    return None
+
+
+# ---- speed against accuracy: tessellation ---------------------------------------------
+
+def _ray_sphere(o, d, c, r):
+    oc = o - c
+    b = d @ oc
+    disc = b * b - (oc @ oc - r * r)
+    with np.errstate(invalid="ignore"):
+        t = -b - np.sqrt(disc)
+    return np.where((disc >= 0) & (t > 0), t, np.inf)
+
+
+def _ray_cylinder_side(o, d, c, r, h):
+    """Distance to the side of a z-axis cylinder (inf when the first hit is not the side)."""
+    oc = o[:2] - c[:2]
+    dd = d[:, :2]
+    a = np.einsum("ij,ij->i", dd, dd)
+    b = dd @ oc
+    cc = oc @ oc - r * r
+    disc = b * b - a * cc
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = (-b - np.sqrt(disc)) / a
+    z = o[2] + t * d[:, 2]
+    ok = (disc >= 0) & (t > 0) & (z >= c[2]) & (z <= c[2] + h)
+    return np.where(ok, t, np.inf)
+
+
+def tessellation_study(preset, levels):
+    """Range error (vs the analytic surface) and frame time for a sphere and a cylinder
+    tessellated ever finer, seen by one frame of ``preset``."""
+    import bpy  # noqa: F401
+
+    from bench.scene import cylinder, uv_sphere
+    from rls_addon.blender.bvh_caster import BVHCaster
+    from rls_addon.core.embree_caster import EmbreeCaster
+    from rls_addon.core.engine import PreparedScene
+    from rls_addon.core.geometry import SceneGeometry
+
+    dirs = np.ascontiguousarray(preset.pattern().directions)
+    origin = np.zeros(3)
+    shapes = {
+        "sphere r=4 m at 12 m": (lambda s: uv_sphere(s // 2, s, (4.0, 4.0, 4.0), (12.0, 0, 0)),
+                                 lambda: _ray_sphere(origin, dirs, np.array([12.0, 0, 0]), 4.0)),
+        "cylinder r=1 m at 8 m": (lambda s: cylinder(s, 1.0, 4.0, (6.0, -6.0, -2.0), caps=True),
+                                  lambda: _ray_cylinder_side(origin, dirs, np.array([6.0, -6.0, -2.0]),
+                                                             1.0, 4.0)),
+    }
+    rows = []
+    for shape, (make, exact) in shapes.items():
+        truth = exact()
+        for s in levels:
+            v, t = make(s)
+            g = SceneGeometry(v, t, np.zeros(len(t)), np.zeros(len(t)))
+            row = {"shape": shape, "segments": s, "triangles": int(len(t))}
+            for name, factory in (("embree", EmbreeCaster), ("bvhtree", BVHCaster)):
+                ps = PreparedScene(g, origin, 60.0, factory)
+                sec, (dist, tri, _) = best(lambda: ps.cast(origin, dirs, 60.0), 2)
+                row[f"{name}_s"] = sec
+            both = np.isfinite(truth) & (tri >= 0)
+            err = np.abs(dist[both] - truth[both])
+            row.update(rays_on_shape=int(both.sum()), mean_err_m=float(err.mean()),
+                       p99_err_m=float(np.percentile(err, 99)), max_err_m=float(err.max()),
+                       sagitta_m=float((4.0 if "sphere" in shape else 1.0)
+                                       * (1 - np.cos(np.pi / s))))
+            rows.append(row)
+            log(f"bench: tessellation {shape} {s}: mean {row['mean_err_m'] * 1000:.2f} mm")
+    return rows
+
+
+def chart_tessellation(rows, path, device):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for shape in dict.fromkeys(r["shape"] for r in rows):
+        rs = [r for r in rows if r["shape"] == shape]
+        tri = [r["triangles"] for r in rs]
+        l1, = ax1.loglog(tri, [r["mean_err_m"] * 1000 for r in rs], "o-", label=f"{shape}: mean")
+        ax1.loglog(tri, [r["max_err_m"] * 1000 for r in rs], "^--", color=l1.get_color(),
+                   label=f"{shape}: max")
+        ax1.loglog(tri, [r["sagitta_m"] * 1000 for r in rs], ":", color=l1.get_color(),
+                   alpha=0.6, label=f"{shape}: chord sagitta R(1-cos(pi/n))")
+        for name, mk in (("embree", "o-"), ("bvhtree", "s--")):
+            ax2.loglog([r[f"{name}_s"] * 1000 for r in rs], [r["mean_err_m"] * 1000 for r in rs],
+                       mk, label=f"{shape}, {name}")
+        for r in rs:
+            ax2.annotate(str(r["segments"]), (r["embree_s"] * 1000, r["mean_err_m"] * 1000),
+                         fontsize=7, xytext=(3, 3), textcoords="offset points")
+    ax1.set_xlabel("triangles in the shape")
+    ax1.set_ylabel("range error vs analytic surface (mm)")
+    ax1.set_title("Tessellation against range error")
+    ax1.grid(True, which="both", alpha=0.3)
+    ax1.legend(fontsize=7)
+    ax2.set_xlabel(f"time to cast one {device} frame (ms, incl. exact refinement)")
+    ax2.set_ylabel("mean range error (mm)")
+    ax2.set_title("Speed against accuracy (labels: segments)")
+    ax2.grid(True, which="both", alpha=0.3)
+    ax2.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def chart_scaling(tri_rows, ray_rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [("embree", "Embree (RLS, all cores)"), ("embree_1t", "Embree (RLS, 1 thread)"),
+             ("bvhtree", "BVHTree (RLS caster)"), ("bare ray_cast loop", "bare BVHTree loop"),
+             ("open3d", "Open3D (all cores)"), ("open3d_1t", "Open3D (1 thread)")]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for key, label in names:
+        xs = [r["triangles"] for r in tri_rows if key in r["cast_s"]]
+        ys = [r["cast_s"][key] * 1000 for r in tri_rows if key in r["cast_s"]]
+        if xs:
+            ax1.loglog(xs, ys, "o-", label=label)
+        xs = [r["rays"] for r in ray_rows if key in r["cast_s"]]
+        ys = [r["rays"] / r["cast_s"][key] / 1e6 for r in ray_rows if key in r["cast_s"]]
+        if xs:
+            ax2.semilogx(xs, ys, "o-", label=label)
+    ax1.set_xlabel("triangles")
+    ax1.set_ylabel("time for one Pandar64 frame (ms)")
+    ax1.set_title("Cast time against scene size")
+    ax2.set_xlabel("rays per call (1M-triangle street)")
+    ax2.set_ylabel("million rays per second")
+    ax2.set_title("Throughput against rays")
+    for ax in (ax1, ax2):
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---- report ---------------------------------------------------------------------------
+
+def ms(s):
+    return f"{s * 1000:.1f}"
+
+
+def mrays(n, s):
+    return f"{n / s / 1e6:.2f}"
+
+
+def ratios(dev):
+    """The three targets, from the device rows of this run."""
+    out = {}
+    rows = dev["rows"]
+    # Embree vs Open3D, rays/s on the same rays, same thread count (all cores; 1 thread).
+    r_all = [r["cast_s"]["open3d"] / r["cast_s"]["embree"] for r in rows if "open3d" in r["cast_s"]]
+    r_one = [r["cast_s"]["open3d_1t"] / r["cast_s"]["embree_1t"] for r in rows
+             if "open3d_1t" in r["cast_s"]]
+    out["embree_vs_open3d"] = min(r_all) if r_all else None
+    out["embree_vs_open3d_1t"] = min(r_one) if r_one else None
+    bare = lambda r: r["cast_s"]["bare ray_cast loop"]  # noqa: E731
+    out["bvh_pipeline_vs_bare"] = max(r["frame_s"]["bvhtree"] / bare(r) for r in rows)
+    out["bvh_caster_vs_bare"] = max(r["cast_s"]["bvhtree"] / bare(r) for r in rows)
+    out["bvh_prepared_cast_vs_bare"] = max(r["prepared_cast_s"]["bvhtree"] / bare(r)
+                                           for r in rows)
+    out["bvh_frame_no_effects_vs_bare"] = max(r["frame_no_effects_s"]["bvhtree"] / bare(r)
+                                              for r in rows)
+    p64 = next((r for r in rows if r["device"] == "Pandar64"), rows[0])
+    out["pandar64_realtime"] = (1.0 / p64["frequency_hz"]) / p64["frame_s"]["embree"]
+    out["pandar64_realtime_no_effects"] = ((1.0 / p64["frequency_hz"])
+                                           / p64["frame_no_effects_s"]["embree"])
+    out["pandar64_realtime_cast_only"] = (1.0 / p64["frequency_hz"]) / p64["cast_s"]["embree"]
+    return out
+
+
+def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, charts, hooks,
+                 total_s):
+    r = ratios(dev)
+    ok = lambda v, t, higher=True: "n/a" if v is None else (  # noqa: E731
+        "**met**" if (v >= t if higher else v <= t) else "**missed**")
+    L = []
+    L.append("# Benchmarks\n")
+    L.append("Written by `make bench` (`bench/run.py`); every number below comes from one run. "
+             "Times are the best of 2-3 repeats; the machine may be shared with other work, "
+             "so treat small differences as noise.\n")
+    v = info["versions"]
+    L.append(f"- Machine: {info['cpu']}, {info['cores']} cores, "
+             f"{info['memory_gib']:.1f} GiB memory, {info['os']}")
+    L.append(f"- Date: {info['date']}; whole run {total_s / 60:.1f} min; load average "
+             f"{info['loadavg_start']:.2f} at the start, {os.getloadavg()[0]:.2f} at the end "
+             f"(above ~0.3, other work shared the cores and multi-thread numbers suffer)")
+    L.append("- Versions: " + ", ".join(f"{k} {val}" for k, val in v.items()))
+    L.append(f"- Scene: procedural street (`bench/scene.py`), {dev['triangles']:,} triangles "
+             "within range of a roof-mounted sensor 2 m above the road\n")
+    for n in dev["notes"]:
+        L.append(f"> **Preset fallback:** {n}\n")
+    L.append("## Targets (ratios from this run)\n")
+    L.append("| target | measured | |")
+    L.append("|---|---|---|")
+    L.append(f"| Embree rays/s >= 0.7x Open3D's, same rays, all cores (worst device) | "
+             f"{r['embree_vs_open3d']:.2f}x | {ok(r['embree_vs_open3d'], 0.7)} |"
+             if r["embree_vs_open3d"] is not None else "| Embree vs Open3D | n/a | |")
+    if r["embree_vs_open3d_1t"] is not None:
+        L.append(f"| (same, 1 thread each) | {r['embree_vs_open3d_1t']:.2f}x | "
+                 f"{ok(r['embree_vs_open3d_1t'], 0.7)} |")
+    L.append(f"| BVHTree pipeline (`scan_frame` on a built `PreparedScene`) <= 1.25x the bare "
+             f"`ray_cast` loop (worst device) | {r['bvh_pipeline_vs_bare']:.2f}x | "
+             f"{ok(r['bvh_pipeline_vs_bare'], 1.25, False)} |")
+    L.append(f"| (BVHTree: caster alone / `PreparedScene.cast` / frame without ghosting, noise "
+             f"and dropout, each against the bare loop) | {r['bvh_caster_vs_bare']:.2f}x / "
+             f"{r['bvh_prepared_cast_vs_bare']:.2f}x / {r['bvh_frame_no_effects_vs_bare']:.2f}x"
+             f" | |")
+    L.append(f"| (BVHTree frame per ray actually cast: the frame casts extra rays, see "
+             f"below) | {r['bvh_frame_per_ray_vs_bare']:.2f}x | "
+             f"{ok(r['bvh_frame_per_ray_vs_bare'], 1.25, False)} |")
+    L.append(f"| Pandar64 frame on the 1M-triangle street >= 4x faster than real time (10 Hz), "
+             f"Embree | {r['pandar64_realtime']:.1f}x | {ok(r['pandar64_realtime'], 4.0)} |")
+    L.append(f"| (Pandar64 with Embree: frame without ghosting, noise and dropout / cast "
+             f"alone) | {r['pandar64_realtime_no_effects']:.1f}x / "
+             f"{r['pandar64_realtime_cast_only']:.1f}x | |\n")
+    L.append("## Devices on the 1M-triangle street\n")
+    L.append("Cast only (ms per frame; in brackets million rays/s). `embree` is RLS's Embree "
+             "backend on all cores, `embree 1t` on one thread; `bvhtree` is RLS's BVHTree "
+             "caster; `bare loop` is `for d in dirs: tree.ray_cast(o, d, max)` over "
+             "prepared lists; Open3D is `RaycastingScene.cast_rays` (`nthreads=0`: all "
+             "cores, and 1).\n")
+    L.append("| device | rays | embree | embree 1t | open3d | open3d 1t | bvhtree | bare loop |")
+    L.append("|---|---|---|---|---|---|---|---|")
+    for row in dev["rows"]:
+        c, n = row["cast_s"], row["rays"]
+        cell = lambda k: f"{ms(c[k])} ({mrays(n, c[k])})" if k in c else "n/a"  # noqa: E731
+        L.append(f"| {row['device']} | {n:,} | {cell('embree')} | {cell('embree_1t')} | "
+                 f"{cell('open3d')} | {cell('open3d_1t')} | {cell('bvhtree')} | "
+                 f"{cell('bare ray_cast loop')} |")
+    L.append("")
+    L.append("Whole frame (ms): `scan_frame` on a `PreparedScene` built once, default "
+             "settings (watertight re-check of misses, exact float64 refinement, ghosting, "
+             "noise, dropout, intensity, points); *no effects* is the same with ghosting, "
+             "noise and dropout off; *prepared cast* is `PreparedScene.cast` alone (primary "
+             "cast, watertight re-check, refinement).\n")
+    L.append("| device | Hz | points | Embree: prepared cast | no effects | frame | x real time "
+             "| BVHTree: prepared cast | no effects | frame | x real time | BVHTree frame / "
+             "bare loop |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for row in dev["rows"]:
+        f, period = row["frame_s"], 1.0 / row["frequency_hz"]
+        pc, fb = row["prepared_cast_s"], row["frame_no_effects_s"]
+        L.append(f"| {row['device']} | {row['frequency_hz']:g} | {row['points']:,} | "
+                 f"{ms(pc['embree'])} | {ms(fb['embree'])} | {ms(f['embree'])} | "
+                 f"{period / f['embree']:.1f} | {ms(pc['bvhtree'])} | {ms(fb['bvhtree'])} | "
+                 f"{ms(f['bvhtree'])} | {period / f['bvhtree']:.1f} | "
+                 f"{f['bvhtree'] / row['cast_s']['bare ray_cast loop']:.2f} |")
+    L.append("")
+    L.append("Rays actually cast per frame (counted by wrapping the caster): the pattern's "
+             "rays, then `PreparedScene.cast` adds the watertight re-check of misses against "
+             "padded cluster boxes and nudged re-casts, and the frame adds ghost rays from "
+             "glossy hits (car paint and windows are glossy in this street).\n")
+    L.append("| device | pattern rays | `PreparedScene.cast` | whole frame | extra |")
+    L.append("|---|---|---|---|---|")
+    for row in dev["rows"]:
+        c = row["rays_cast"]
+        L.append(f"| {row['device']} | {c['pattern']:,} | {c['prepared_cast']:,} | "
+                 f"{c['frame']:,} | {c['frame'] / c['pattern'] - 1:+.0%} |")
+    L.append("")
+    L.append("Build times on the 1M-triangle street (s): "
+             + ", ".join(f"{k} {val:.2f}" for k, val in dev["build_s"].items()) + "\n")
+    L.append(f"Pattern generation, one Pandar128 frame from scratch: {pattern_s * 1000:.1f} ms\n")
+    L.append("## Scaling\n")
+    L.append(f"![scaling]({charts['scaling']})\n")
+    L.append("One Pandar64 frame (ms) against scene size:\n")
+    keys = ["embree", "embree_1t", "open3d", "open3d_1t", "bvhtree", "bare ray_cast loop"]
+    L.append("| triangles | " + " | ".join(keys) + " | build embree (s) | build bvhtree (s) | "
+             "build open3d (s) |")
+    L.append("|---" * (len(keys) + 4) + "|")
+    for row in tri_rows:
+        c, b = row["cast_s"], row["build_s"]
+        L.append(f"| {row['triangles']:,} | " + " | ".join(ms(c[k]) if k in c else "n/a"
+                                                          for k in keys)
+                 + f" | {b.get('embree', float('nan')):.2f} | {b.get('bvhtree', float('nan')):.2f}"
+                 f" | {b.get('open3d', float('nan')):.2f} |")
+    L.append("")
+    L.append("Million rays per second against rays per call (1M-triangle street, Pandar64 "
+             "directions sampled):\n")
+    L.append("| rays | " + " | ".join(keys) + " |")
+    L.append("|---" * (len(keys) + 1) + "|")
+    for row in ray_rows:
+        c = row["cast_s"]
+        L.append(f"| {row['rays']:,} | " + " | ".join(mrays(row["rays"], c[k]) if k in c
+                                                       else "n/a" for k in keys) + " |")
+    L.append("")
+    L.append("## Peak memory\n")
+    L.append("One subprocess per case: generate the street, keep its sensor-centred arrays, "
+             "build the backend and cast one Pandar64 frame; resident memory sampled every "
+             "2 ms. *Added* is the peak minus the resident memory just before the build; "
+             "*kept* is what stays after the cast.\n")
+    L.append("| backend | triangles | RSS before (MiB) | peak (MiB) | peak added (MiB) | "
+             "kept (MiB) |")
+    L.append("|---|---|---|---|---|---|")
+    for m in mem:
+        L.append(f"| {m['backend']} | {m['triangles']:,} | {m['before_mib']:.0f} | "
+                 f"{m['peak_mib']:.0f} | {m['added_mib']:.0f} | "
+                 f"{m['after_mib'] - m['before_mib']:.0f} |")
+    L.append("")
+    L.append("## Speed against accuracy\n")
+    L.append(f"![tessellation]({charts['tessellation']})\n")
+    L.append("Curved surfaces tessellated with n segments (UV sphere with n/2 rings); range "
+             "error of Pandar64 rays against the analytic surface, and the time to cast the "
+             "frame. The error follows the chord sagitta R(1 - cos(pi/n)): the ray caster "
+             "adds nothing measurable on top of the tessellation.\n")
+    L.append("| shape | segments | triangles | rays on shape | mean error (mm) | max error (mm) "
+             "| sagitta (mm) | Embree (ms) | BVHTree (ms) |")
+    L.append("|---|---|---|---|---|---|---|---|---|")
+    for t in tess:
+        L.append(f"| {t['shape']} | {t['segments']} | {t['triangles']:,} | {t['rays_on_shape']:,}"
+                 f" | {t['mean_err_m'] * 1000:.3f} | {t['max_err_m'] * 1000:.3f} | "
+                 f"{t['sagitta_m'] * 1000:.3f} | {ms(t['embree_s'])} | {ms(t['bvhtree_s'])} |")
+    L.append("")
+    L.append("## Not measured yet\n")
+    for name, val in hooks.items():
+        L.append(f"- {name}: " + ("pending (hook in `bench/run.py`)" if val is None else str(val)))
+    L.append("")
+    L.append("## How the Embree backend runs\n")
+    L.append("embreex 4.4.0.post1's own `EmbreeScene.run` casts one ray at a time and holds "
+             "the GIL for the whole call (measured: two threads take as long as one), so RLS "
+             "calls `rtcIntersect16` of the Embree library inside the embreex wheel through "
+             "`ctypes` on 16-ray packets laid out with numpy; `ctypes` releases the GIL per "
+             "call, so chunks of 32k rays run on a thread pool on every core. A probe packet "
+             "checks the packet layout once per process; if anything is off, RLS falls back to "
+             "`EmbreeScene.run`, and without embreex to BVHTree, with a notice.\n")
+    Path(path).write_text("\n".join(L))
+    return r
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=str(ROOT / "docs"))
+    ap.add_argument("--quick", action="store_true", help="smaller series (for a smoke run)")
+    ap.add_argument("--json", help="also write the raw numbers here")
+    args = ap.parse_args()
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        sys.exit("bench: matplotlib is missing: pip install matplotlib (see requirements)")
+    from rls_addon.core import embree_caster
+
+    if not embree_caster.available():
+        sys.exit("bench: embreex is missing (" + embree_caster.unavailable_reason() + ")")
+    import bpy  # noqa: F401
+
+    from bench.scene import SENSOR_POSE, street_geometry
+
+    t_start = time.perf_counter()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    info = machine_info()
+    log(f"bench: {info['cpu']}, {info['cores']} cores")
+    g = street_geometry(1_000_000)
+    dev = devices_section(g, SENSOR_POSE, args.quick)
+    p64, _ = preset_or_fallback("Pandar64", "hesai_pandar64")
+    p128, _ = preset_or_fallback("Pandar128", "hesai_pandar128")
+    pattern_s = min(fresh_pattern_time(p128) for _ in range(3))
+    ray_rows = scaling_rays(g, SENSOR_POSE, p64, args.quick)
+    hooks = {"motion distortion cost": motion_distortion_cost(g, SENSOR_POSE, p64),
+             "ghosting cost": dev["ghosting"]}
+    del g
+    gc.collect()
+    tri_rows = scaling_triangles(SENSOR_POSE, p64, args.quick)
+    mem = memory_section([100_000, 1_000_000] if args.quick else [100_000, 1_000_000, 4_000_000])
+    levels = [8, 16, 32, 64, 128, 256] if args.quick else [8, 16, 32, 64, 128, 256, 512]
+    tess = tessellation_study(p64, levels)
+    charts = {"scaling": "bench_scaling.png", "tessellation": "bench_tessellation.png"}
+    chart_scaling(tri_rows, ray_rows, out / charts["scaling"])
+    chart_tessellation(tess, out / charts["tessellation"], "Pandar64")
+    hooks["chart: motion sub-steps"] = chart_motion_substeps(out)
+    hooks["chart: InfraNUC disk count"] = chart_infranuc_disks(out)
+    total = time.perf_counter() - t_start
+    r = write_report(out / "benchmarks.md", info, dev, tri_rows, ray_rows, mem, tess,
+                     pattern_s, charts, hooks, total)
+    if args.json:
+        Path(args.json).write_text(json.dumps(
+            {"machine": info, "devices": dev, "triangles": tri_rows, "rays": ray_rows,
+             "memory": mem, "tessellation": tess, "pattern_s": pattern_s, "ratios": r},
+            indent=1, default=float))
+    print(json.dumps({"report": str(out / "benchmarks.md"), "ratios": r,
+                      "minutes": round(total / 60, 1)}))
+    log(f"bench: done in {total / 60:.1f} min: {out / 'benchmarks.md'}")
+
+
+if __name__ == "__main__":
+    main()
