@@ -1,15 +1,51 @@
-"""Operators: thin wrappers that read properties, call the Blender adapters and
-report domain errors."""
+"""Operators: thin wrappers that read properties, call the Blender adapters and report
+domain errors. Every operator also runs without a window (``blender -b``, the ``bpy``
+module): the frame-range scan then runs straight through in ``execute()``."""
+
+import dataclasses
+import re
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
 
-from .blender.preview import show_points
-from .blender.scan import save_scan, scan_lidar
-from .blender.sensor import DEFAULT_PRESET, is_lidar, lidar_settings
-from .core.errors import RLSError
-from .properties import preset_items
+from . import properties
+from .blender import batch, preset_catalog
+from .blender.images import image_from_png
+from .blender.preview import COLOR_ATTRIBUTES, color_preview, preview_object, preview_world_points
+from .blender.region import LOB_PROPERTY, is_lob, lob_polygon_world
+from .blender.sensor import DEFAULT_PRESET, is_lidar, lidar_objects, lidar_settings
+from .core.errors import PresetError, RLSError
+from .core.metrics import infra_lob_metrics
+from .core.points import empty_points
+from .core.preset_schema import ID_RE
+from .core.presets import RangeModel, load_preset
+from .core.user_presets import delete_user_preset, export_preset, import_preset, save_user_preset
+from .properties import COLOR_ITEMS, preset_items
 
+# What the last scan operator did (for scripts and tests; reports go to the UI).
+LAST_RUN = {}
+
+
+def _active_lidar(context):
+    obj = context.active_object
+    return obj if obj is not None and is_lidar(obj) else None
+
+
+def _poll_active_lidar(cls, context):
+    if _active_lidar(context) is None:
+        cls.poll_message_set("Select a LiDAR object (Add > LiDAR) first")
+        return False
+    return True
+
+
+def _select_only(context, obj):
+    for o in context.view_layer.objects:
+        o.select_set(False)
+    obj.select_set(True)
+    context.view_layer.objects.active = obj
+
+
+# ---- adding objects -----------------------------------------------------------------------
 
 class OBJECT_OT_rls_add_lidar(bpy.types.Operator):
     """Add a LiDAR sensor at the 3D cursor (its X axis looks forward, Z up)"""
@@ -19,25 +55,100 @@ class OBJECT_OT_rls_add_lidar(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     preset: EnumProperty(name="Device", items=preset_items)
+    show_fov: BoolProperty(name="Show Field of View", default=True)
+
+    @classmethod
+    def poll(cls, context):
+        if context.mode != "OBJECT":
+            cls.poll_message_set("Switch to Object Mode to add a LiDAR")
+            return False
+        return True
 
     def execute(self, context):
         obj = bpy.data.objects.new("LiDAR", None)
         obj.empty_display_type = "ARROWS"
         obj.empty_display_size = 0.5
         obj.location = context.scene.cursor.location
-        context.collection.objects.link(obj)
+        (context.collection or context.scene.collection).objects.link(obj)
         s = lidar_settings(obj)
         s.is_lidar = True
-        s.preset = self.preset or DEFAULT_PRESET
-        for o in context.view_layer.objects:
-            o.select_set(False)
-        obj.select_set(True)
-        context.view_layer.objects.active = obj
+        s.preset_id = self.preset or DEFAULT_PRESET
+        s.show_fov = self.show_fov
+        _select_only(context, obj)
         return {"FINISHED"}
 
 
+class OBJECT_OT_rls_add_infralob(bpy.types.Operator):
+    """Add an InfraLOB: a flat rectangle on the ground marking the region the placement
+    metrics (InfraD, InfraNUC) are computed over"""
+
+    bl_idname = "object.rls_add_infralob"
+    bl_label = "InfraLOB Region"
+    bl_options = {"REGISTER", "UNDO"}
+
+    size_x: FloatProperty(name="Size X", default=20.0, min=0.1, unit="LENGTH")
+    size_y: FloatProperty(name="Size Y", default=30.0, min=0.1, unit="LENGTH")
+
+    @classmethod
+    def poll(cls, context):
+        if context.mode != "OBJECT":
+            cls.poll_message_set("Switch to Object Mode to add a region")
+            return False
+        return True
+
+    def execute(self, context):
+        hx, hy = self.size_x / 2, self.size_y / 2
+        mesh = bpy.data.meshes.new("InfraLOB")
+        mesh.from_pydata([(-hx, -hy, 0), (hx, -hy, 0), (hx, hy, 0), (-hx, hy, 0)], [], [(0, 1, 2, 3)])
+        mesh.update()
+        obj = bpy.data.objects.new("InfraLOB", mesh)
+        obj[LOB_PROPERTY] = True
+        obj.location = context.scene.cursor.location
+        obj.display_type = "WIRE"
+        obj.hide_render = True
+        obj.visible_shadow = False
+        (context.collection or context.scene.collection).objects.link(obj)
+        context.scene.rls.lob = obj
+        _select_only(context, obj)
+        return {"FINISHED"}
+
+
+# ---- scanning -------------------------------------------------------------------------------
+
+def _report_job(op, job):
+    for w in job.warnings[:5]:
+        op.report({"WARNING"}, w)
+    if len(job.warnings) > 5:
+        op.report({"WARNING"}, f"... and {len(job.warnings) - 5} more warnings")
+    LAST_RUN.clear()
+    LAST_RUN.update(cancelled=job.cancelled, frames_done=list(job.frames_done),
+                    frames=list(job.frames), steps_done=job.index, steps=job.total,
+                    paths=[str(p) for p in job.paths], points=job.points,
+                    warnings=list(job.warnings))
+    where = f", {len(job.paths)} files written" if job.write else ""
+    if job.cancelled:
+        op.report({"WARNING"}, f"Scan cancelled: {len(job.frames_done)} of {len(job.frames)} "
+                               f"frames completed{where}")
+        return {"CANCELLED"}
+    if job.total == 1 and job.paths:
+        where = f" to {job.paths[0]}"
+    op.report({"INFO"}, f"{job.points} points from {len(job.names)} LiDAR(s) over "
+                        f"{len(job.frames)} frame(s){where}")
+    return {"FINISHED"}
+
+
+def _run_job(op, context, sensors, frames, **kw):
+    try:
+        job = batch.ScanJob(context, sensors, frames, **kw)
+        job.run()
+    except RLSError as exc:
+        op.report({"ERROR"}, str(exc))
+        return {"CANCELLED"}
+    return _report_job(op, job)
+
+
 class RLS_OT_scan_frame(bpy.types.Operator):
-    """Scan the current frame with the active LiDAR and show the points"""
+    """Scan the current frame with the active LiDAR, write the cloud and show the points"""
 
     bl_idname = "rls.scan_frame"
     bl_label = "Scan Frame"
@@ -48,36 +159,505 @@ class RLS_OT_scan_frame(bpy.types.Operator):
     preview: BoolProperty(name="Preview", default=True,
                           description="Show the points as an object in the scene")
 
+    poll = classmethod(_poll_active_lidar)
+
+    def execute(self, context):
+        return _run_job(self, context, [_active_lidar(context)], [context.scene.frame_current],
+                        write=self.write, preview=self.preview)
+
+
+class RLS_OT_scan_all(bpy.types.Operator):
+    """Scan the current frame with every LiDAR in the scene"""
+
+    bl_idname = "rls.scan_all"
+    bl_label = "Scan All LiDARs"
+    bl_options = {"REGISTER"}
+
+    write: BoolProperty(name="Write Files", default=True)
+    preview: BoolProperty(name="Preview", default=True)
+
     @classmethod
     def poll(cls, context):
-        obj = context.active_object
-        if obj is None or not is_lidar(obj):
-            cls.poll_message_set("Select a LiDAR object (Add > LiDAR) to scan")
+        if not lidar_objects(context.scene):
+            cls.poll_message_set("The scene has no LiDAR objects (Add > LiDAR)")
             return False
         return True
 
     def execute(self, context):
-        scene, obj = context.scene, context.active_object
-        s = lidar_settings(obj)
-        frame = scene.frame_current
+        return _run_job(self, context, lidar_objects(context.scene), [context.scene.frame_current],
+                        write=self.write, preview=self.preview)
+
+
+class RLS_OT_scan_range(bpy.types.Operator):
+    """Scan a range of frames and write a cloud per frame and LiDAR. Runs in the
+    background of the UI with a progress bar; Esc cancels after the frame in progress
+    (files already written stay complete; nothing half-written is left)"""
+
+    bl_idname = "rls.scan_range"
+    bl_label = "Scan Frame Range"
+    bl_options = {"REGISTER"}
+
+    all_lidars: BoolProperty(name="All LiDARs", default=False,
+                             description="Scan with every LiDAR in the scene, not only the active one")
+    use_scene_range: BoolProperty(name="Scene Frame Range", default=True)
+    frame_start: IntProperty(name="Start", default=1)
+    frame_end: IntProperty(name="End", default=1)
+    frame_step: IntProperty(name="Step", default=1, min=1)
+    preview: BoolProperty(name="Preview", default=True,
+                          description="Update the preview points after every frame")
+
+    _timer = None
+    _job = None
+
+    @classmethod
+    def poll(cls, context):
+        if not lidar_objects(context.scene):
+            cls.poll_message_set("The scene has no LiDAR objects (Add > LiDAR)")
+            return False
+        return True
+
+    def _sensors(self, context):
+        if self.all_lidars:
+            return lidar_objects(context.scene)
+        obj = _active_lidar(context)
+        if obj is None:
+            raise RLSError("select a LiDAR object, or enable 'All LiDARs'")
+        return [obj]
+
+    def _frames(self, context):
+        sc = context.scene
+        if self.use_scene_range:
+            a, b, step = sc.frame_start, sc.frame_end, sc.frame_step
+        else:
+            a, b, step = self.frame_start, self.frame_end, self.frame_step
+        if b < a:
+            raise RLSError(f"empty frame range {a}-{b}")
+        return list(range(a, b + 1, max(1, step)))
+
+    def _make_job(self, context):
+        return batch.ScanJob(context, self._sensors(context), self._frames(context),
+                             preview=self.preview)
+
+    def execute(self, context):
         try:
-            result, info = scan_lidar(context.evaluated_depsgraph_get(), obj, frame)
-            where = ""
-            if self.write:
-                out_dir = bpy.path.abspath(s.output_dir)
-                path = save_scan(result, info, out_dir, s.name_template, s.file_format,
-                                 scene.name, overwrite=True)
-                where = f" to {path}"
+            job = self._make_job(context)
+            job.run()
         except RLSError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        if self.preview:
-            show_points(scene, obj, result.points, info["frame_space"], info["sensor_to_world"])
-        for w in result.warnings:
-            self.report({"WARNING"}, w)
-        self.report({"INFO"}, f"{len(result.points)} points from {result.rays} rays "
-                              f"in {result.seconds:.2f} s{where}")
+        return _report_job(self, job)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            self._job = self._make_job(context)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, self._job.total)
+        self._status(context, self._job.status())
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, text):
+        ws = getattr(context, "workspace", None)
+        if ws is not None:
+            try:
+                ws.status_text_set(text)
+            except (RuntimeError, AttributeError):
+                pass
+
+    def _end(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        self._status(context, None)
+        self._job.finish()
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC":
+            batch.request_cancel()
+            job.cancelled = True
+        if event.type == "TIMER" or job.cancelled:
+            try:
+                if not job.finished:
+                    job.step()
+            except RLSError as exc:
+                self._end(context)
+                self.report({"ERROR"}, str(exc))
+                return {"CANCELLED"}
+            except Exception:
+                self._end(context)
+                raise
+            if job.finished:
+                self._end(context)
+                return _report_job(self, job)
+            context.window_manager.progress_update(job.index)
+            self._status(context, job.status())
+            return {"RUNNING_MODAL"}
+        return {"PASS_THROUGH"}
+
+    def cancel(self, context):  # Blender quits or the window closes
+        if self._job is not None:
+            self._job.cancelled = True
+            self._end(context)
+
+
+# ---- previews and metrics ---------------------------------------------------------------------
+
+def _previews(context, everything):
+    if everything:
+        objs = [preview_object(o) for o in lidar_objects(context.scene)]
+        return [o for o in objs if o is not None]
+    obj = context.active_object
+    if obj is not None and obj.get("rls_preview"):
+        return [obj]
+    if obj is not None and is_lidar(obj):
+        p = preview_object(obj)
+        return [p] if p is not None else []
+    return []
+
+
+class RLS_OT_preview_color(bpy.types.Operator):
+    """Colour the preview points by a point attribute (shown in Material Preview and
+    Rendered shading; the points are drawn by a geometry-nodes modifier)"""
+
+    bl_idname = "rls.preview_color"
+    bl_label = "Color Preview Points"
+    bl_options = {"REGISTER", "UNDO"}
+
+    attribute: EnumProperty(name="Color By", items=COLOR_ITEMS, default="intensity")
+    all_previews: BoolProperty(name="All LiDARs", default=False,
+                               description="Colour the previews of every LiDAR in the scene")
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        if obj is None or not (is_lidar(obj) or obj.get("rls_preview")):
+            cls.poll_message_set("Select a LiDAR or its preview points")
+            return False
+        return True
+
+    def execute(self, context):
+        targets = _previews(context, self.all_previews)
+        if not targets:
+            self.report({"ERROR"}, "No preview points to colour: scan a frame first")
+            return {"CANCELLED"}
+        for obj in targets:
+            color_preview(obj, self.attribute)
+        obj = context.active_object
+        if obj is not None and is_lidar(obj):
+            lidar_settings(obj).preview_color = self.attribute
+        self.report({"INFO"}, f"Preview points coloured by {self.attribute} "
+                              f"({len(targets)} object(s))")
         return {"FINISHED"}
 
 
-CLASSES = (OBJECT_OT_rls_add_lidar, RLS_OT_scan_frame)
+def _find_lob(context):
+    sc = context.scene
+    obj = context.active_object
+    if obj is not None and is_lob(obj):
+        return obj
+    if sc.rls.lob is not None and is_lob(sc.rls.lob) and sc.rls.lob.name in sc.objects:
+        return sc.rls.lob
+    lobs = [o for o in sc.objects if is_lob(o)]
+    return lobs[0] if len(lobs) == 1 else None
+
+
+class RLS_OT_compute_metrics(bpy.types.Operator):
+    """Compute InfraD and InfraNUC over the InfraLOB from the preview points of every
+    LiDAR in the scene (world frame), and make the density map image"""
+
+    bl_idname = "rls.compute_metrics"
+    bl_label = "Compute Metrics"
+    bl_options = {"REGISTER"}
+
+    @classmethod
+    def poll(cls, context):
+        if _find_lob(context) is None:
+            cls.poll_message_set("Select an InfraLOB region (Add > LiDAR > InfraLOB Region) or "
+                                 "choose one in the Metrics panel")
+            return False
+        return True
+
+    def execute(self, context):
+        sc = context.scene
+        rs = sc.rls
+        lob = _find_lob(context)
+        clouds, names = [], []
+        for obj in lidar_objects(sc):
+            prev = preview_object(obj)
+            if prev is None or len(prev.data.vertices) == 0:
+                continue
+            co, labels = preview_world_points(prev)
+            pts = empty_points(len(co))
+            pts["x"], pts["y"], pts["z"] = co[:, 0], co[:, 1], co[:, 2]
+            pts["label"] = labels
+            clouds.append(pts)
+            names.append(obj.name)
+        if not clouds:
+            self.report({"ERROR"}, "No LiDAR points to measure: scan a frame first "
+                                   "(Scan Frame or Scan All LiDARs)")
+            return {"CANCELLED"}
+        try:
+            res = infra_lob_metrics(clouds, lob_polygon_world(lob), labels=rs.metric_labels,
+                                    disks=rs.metric_disks, radius=rs.metric_radius,
+                                    seed=rs.metric_seed, cell=rs.metric_cell)
+        except RLSError as exc:
+            self.report({"ERROR"}, f"{lob.name}: {exc}")
+            return {"CANCELLED"}
+        img = image_from_png(f"RLS density {lob.name}", res.density.to_png())
+        rs.has_metrics = True
+        rs.infra_d, rs.infra_nuc = res.infra_d, res.infra_nuc
+        rs.metric_points, rs.metric_area = res.n_points, res.area_m2
+        rs.metric_lob_name = lob.name
+        rs.metric_sensors = ", ".join(names)
+        rs.metric_image = img
+        rs.lob = lob
+        self.report({"INFO"}, f"{lob.name}: InfraD {res.infra_d:.3f} pts/m^2, "
+                              f"InfraNUC {res.infra_nuc:.4f} ({res.n_points} points)")
+        return {"FINISHED"}
+
+
+# ---- presets ----------------------------------------------------------------------------------
+
+def _preset_arg(op, context):
+    pid = op.preset
+    if not pid:
+        obj = _active_lidar(context)
+        pid = lidar_settings(obj).preset_id if obj is not None else ""
+    return pid
+
+
+class RLS_OT_preset_apply(bpy.types.Operator):
+    """Use this device preset for the active LiDAR"""
+
+    bl_idname = "rls.preset_apply"
+    bl_label = "Apply Device Preset"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: StringProperty(name="Preset", description="Preset id")
+
+    poll = classmethod(_poll_active_lidar)
+
+    def execute(self, context):
+        try:
+            p = preset_catalog.resolve(self.preset)
+        except PresetError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        s = lidar_settings(_active_lidar(context))
+        if preset_catalog.entry(p.id) is None:
+            properties.refresh_preset_items()
+        s.preset = p.id
+        self.report({"INFO"}, f"Device: {p.name}")
+        return {"FINISHED"}
+
+
+def _slug(name):
+    s = re.sub(r"[^a-z0-9_.-]+", "_", name.strip().lower()).strip("_.-")
+    return s[:64]
+
+
+class RLS_OT_preset_save(bpy.types.Operator):
+    """Save the active LiDAR's device with its range and noise overrides as a user preset
+    (a validated TOML file in the user preset folder)"""
+
+    bl_idname = "rls.preset_save"
+    bl_label = "Save User Preset"
+    bl_options = {"REGISTER"}
+
+    name: StringProperty(name="Name", description="Display name of the new preset")
+    preset_id: StringProperty(name="Id", description="File id (default: from the name)")
+    overwrite: BoolProperty(name="Overwrite", default=False,
+                            description="Replace a user preset with the same id")
+
+    poll = classmethod(_poll_active_lidar)
+
+    def invoke(self, context, event):
+        if not self.name:
+            base = preset_catalog.entry(lidar_settings(_active_lidar(context)).preset_id)
+            self.name = f"{base.name} (custom)" if base else "My LiDAR"
+        return context.window_manager.invoke_props_dialog(self)
+
+    def execute(self, context):
+        obj = _active_lidar(context)
+        s = lidar_settings(obj)
+        name = self.name.strip()
+        if not name:
+            self.report({"ERROR"}, "Give the preset a name")
+            return {"CANCELLED"}
+        pid = self.preset_id.strip() or _slug(name)
+        if not ID_RE.match(pid):
+            self.report({"ERROR"}, f"'{pid}' is not a usable preset id: lower-case letters, digits, "
+                                   f"'_', '-' or '.', starting with a letter or digit")
+            return {"CANCELLED"}
+        e = preset_catalog.entry(pid)
+        if e is not None and e.builtin:
+            self.report({"ERROR"}, f"'{pid}' is a built-in preset id; choose another name")
+            return {"CANCELLED"}
+        try:
+            base = preset_catalog.resolve(s.preset_id)
+            rng = RangeModel(
+                min_m=float(s.min_range) if s.use_min_range else base.range.min_m,
+                max_m=float(s.max_range) if s.use_max_range else base.range.max_m,
+                noise_sigma_m=float(s.noise_sigma) if s.use_noise_sigma else base.range.noise_sigma_m)
+            source = base.source if base.id == pid else f"{base.source} [user preset based on {base.name}]"
+            new = dataclasses.replace(base, id=pid, name=name, range=rng, source=source[:4000])
+            path = save_user_preset(new, preset_catalog.user_dir(), overwrite=self.overwrite)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        properties.refresh_preset_items()
+        s.preset = pid
+        self.report({"INFO"}, f"Saved user preset '{pid}' to {path}")
+        return {"FINISHED"}
+
+
+class RLS_OT_preset_import(bpy.types.Operator):
+    """Import a device preset file (.toml): it is validated, never executed, and stored
+    in the user preset folder"""
+
+    bl_idname = "rls.preset_import"
+    bl_label = "Import Preset"
+    bl_options = {"REGISTER"}
+
+    filepath: StringProperty(subtype="FILE_PATH")
+    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
+    overwrite: BoolProperty(name="Overwrite", default=False,
+                            description="Replace a user preset with the same id")
+
+    def invoke(self, context, event):
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        if not self.filepath:
+            self.report({"ERROR"}, "Choose a preset file to import")
+            return {"CANCELLED"}
+        try:
+            p = load_preset(self.filepath)
+            e = preset_catalog.entry(p.id)
+            if e is not None and e.builtin:
+                raise PresetError(f"{self.filepath}: key 'id': '{p.id}' is a built-in preset; "
+                                  f"give the imported preset another id")
+            p = import_preset(self.filepath, preset_catalog.user_dir(), overwrite=self.overwrite)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        properties.refresh_preset_items()
+        obj = _active_lidar(context)
+        if obj is not None:
+            lidar_settings(obj).preset = p.id
+        self.report({"INFO"}, f"Imported preset '{p.id}' ({p.name})")
+        return {"FINISHED"}
+
+
+class RLS_OT_preset_export(bpy.types.Operator):
+    """Export a device preset to a self-contained .toml file to share"""
+
+    bl_idname = "rls.preset_export"
+    bl_label = "Export Preset"
+    bl_options = {"REGISTER"}
+
+    filepath: StringProperty(subtype="FILE_PATH")
+    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
+    check_existing: BoolProperty(default=True, options={"HIDDEN"})
+    preset: StringProperty(name="Preset", description="Preset id (default: the active LiDAR's)")
+    overwrite: BoolProperty(name="Overwrite", default=True)
+
+    def invoke(self, context, event):
+        pid = _preset_arg(self, context) or "preset"
+        if not self.filepath:
+            self.filepath = f"{pid}.toml"
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        pid = _preset_arg(self, context)
+        if not pid:
+            self.report({"ERROR"}, "Choose a preset to export (or select a LiDAR)")
+            return {"CANCELLED"}
+        try:
+            path = export_preset(preset_catalog.resolve(pid), bpy.path.abspath(self.filepath),
+                                 overwrite=self.overwrite)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Exported preset '{pid}' to {path}")
+        return {"FINISHED"}
+
+
+class RLS_OT_preset_delete(bpy.types.Operator):
+    """Delete a user preset (built-in presets are read-only)"""
+
+    bl_idname = "rls.preset_delete"
+    bl_label = "Delete User Preset"
+    bl_options = {"REGISTER"}
+
+    preset: StringProperty(name="Preset", description="Preset id (default: the active LiDAR's)")
+
+    def invoke(self, context, event):
+        return context.window_manager.invoke_confirm(
+            self, event, message=f"Delete user preset '{_preset_arg(self, context)}'?")
+
+    def execute(self, context):
+        pid = _preset_arg(self, context)
+        e = preset_catalog.entry(pid)
+        if e is not None and e.builtin:
+            self.report({"ERROR"}, f"'{pid}' is a built-in preset and read-only; only user "
+                                   f"presets can be deleted")
+            return {"CANCELLED"}
+        try:
+            delete_user_preset(pid, preset_catalog.user_dir())
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        properties.refresh_preset_items()
+        users = [o.name for o in bpy.data.objects if is_lidar(o) and o.rls_lidar.preset_id == pid]
+        if users:
+            self.report({"WARNING"}, f"LiDARs still set to the deleted preset '{pid}': "
+                                     f"{', '.join(users)}; choose another device")
+        self.report({"INFO"}, f"Deleted user preset '{pid}'")
+        return {"FINISHED"}
+
+
+class RLS_OT_preset_refresh(bpy.types.Operator):
+    """Re-read the user preset folder (after copying files into it by hand)"""
+
+    bl_idname = "rls.preset_refresh"
+    bl_label = "Reload Presets"
+    bl_options = {"REGISTER"}
+
+    def execute(self, context):
+        properties.refresh_preset_items()
+        for err in preset_catalog.errors():
+            self.report({"WARNING"}, err)
+        self.report({"INFO"}, f"{len(preset_catalog.catalog())} presets; user folder "
+                              f"{preset_catalog.user_dir()}")
+        return {"FINISHED"}
+
+
+CLASSES = (
+    OBJECT_OT_rls_add_lidar,
+    OBJECT_OT_rls_add_infralob,
+    RLS_OT_scan_frame,
+    RLS_OT_scan_all,
+    RLS_OT_scan_range,
+    RLS_OT_preview_color,
+    RLS_OT_compute_metrics,
+    RLS_OT_preset_apply,
+    RLS_OT_preset_save,
+    RLS_OT_preset_import,
+    RLS_OT_preset_export,
+    RLS_OT_preset_delete,
+    RLS_OT_preset_refresh,
+)
+
+__all__ = ["CLASSES", "COLOR_ATTRIBUTES", "LAST_RUN"]

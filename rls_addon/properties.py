@@ -1,11 +1,20 @@
-"""Blender properties: one ``PropertyGroup`` per LiDAR object."""
+"""Blender properties: one ``PropertyGroup`` per LiDAR object (``Object.rls_lidar``) and
+one per scene (``Scene.rls``: InfraLOB metric settings and the last results).
+
+Only plain values live here; ``blender.sensor.scan_inputs`` maps them into the core's
+``ScanSettings`` in one place.
+"""
 
 import bpy
-from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, StringProperty
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
+                       StringProperty)
 
-from .core.presets import builtin_presets
-
-_PRESET_ITEMS = []
+from .blender import preset_catalog
+from .blender.preview import COLOR_ATTRIBUTES
+from .blender.region import is_lob
+from .blender.sensor import DEFAULT_PRESET
+from .core.io import DEFAULT_FIELDS
+from .core.labels import DEFAULT_LABELS
 
 FORMAT_ITEMS = [
     ("pcd_binary", "PCD binary", "PCD v0.7, binary"),
@@ -15,42 +24,222 @@ FORMAT_ITEMS = [
     ("ply_ascii", "PLY ASCII", "PLY, text"),
 ]
 
+FIELD_ITEMS = [
+    ("intensity", "Intensity", "Return strength, 0..1 (float32)"),
+    ("ring", "Ring", "Vendor channel index (uint16)"),
+    ("time", "Time", "Seconds since the start of the sweep (float64)"),
+    ("label", "Label", "Semantic class id (uint32)"),
+    ("instance", "Instance", "Per-object id (uint32)"),
+    ("ghost", "Ghost", "1 for ghost points from glossy surfaces (uint8)"),
+    ("range", "Range", "Distance along the ray in metres (float32)"),
+]
+
+MOTION_ITEMS = [
+    ("exact", "Exact", "Every ray sees the scene at its own firing time (moving objects and "
+                       "a moving sensor distort the cloud as on a real device)"),
+    ("substeps", "Sub-steps", "The sweep is split into N partial sweeps, each with one scene state"),
+    ("snapshot", "Snapshot", "One scene state per frame: no motion distortion"),
+]
+
+COLOR_ITEMS = [(a, a.title(), f"Colour preview points by {a}") for a in COLOR_ATTRIBUTES]
+
+_ITEMS = {"presets": [], "old": []}  # enum items must stay referenced while Blender shows them
+
 
 def preset_items(self, context):
-    """Enum items of the device presets (kept referenced, as Blender requires)."""
-    if not _PRESET_ITEMS:
-        for i, p in enumerate(builtin_presets().values()):
-            _PRESET_ITEMS.append((p.id, p.name, f"{p.family}: {p.source}", i))
-    return _PRESET_ITEMS
+    """Enum items of the device presets, grouped by family (built-in and user)."""
+    if not _ITEMS["presets"]:
+        items, n = [], 0
+        for fam, entries in preset_catalog.by_family():
+            if items:
+                items.append(None)
+            items.append(("", preset_catalog.FAMILY_LABELS.get(fam, fam), ""))
+            for e in entries:
+                tag = "built-in" if e.builtin else "user preset"
+                items.append((e.id, e.name, f"{e.source} ({tag})", "NONE" if e.builtin else "USER", n))
+                n += 1
+        _ITEMS["presets"] = items
+    return _ITEMS["presets"]
+
+
+def refresh_preset_items():
+    """Rebuild the preset list after user presets changed."""
+    preset_catalog.refresh()
+    if _ITEMS["presets"]:
+        _ITEMS["old"].append(_ITEMS["presets"])  # keep the strings alive for open menus
+        del _ITEMS["old"][:-4]
+    _ITEMS["presets"] = []
+
+
+def _preset_number(preset_id):
+    for it in preset_items(None, None):
+        if it and it[0] == preset_id:
+            return it[4]
+    return -1
+
+
+def _get_preset(self):
+    return _preset_number(self.preset_id or DEFAULT_PRESET)
+
+
+def _set_preset(self, value):
+    for it in preset_items(None, None):
+        if it and it[0] and it[4] == value:
+            self.preset_id = it[0]
+            return
+
+
+def _update_fov(self, context):
+    obj = self.id_data
+    if not isinstance(obj, bpy.types.Object) or not self.is_lidar:
+        return
+    from .blender import fov
+
+    if not self.show_fov:
+        fov.remove_fov(obj)
+        return
+    try:
+        preset = preset_catalog.resolve(self.preset_id)
+    except Exception:  # noqa: BLE001 - a broken preset shows in the panel, not here
+        return
+    fov.update_fov(obj, preset, self.fov_length)
+
+
+def _update_preset(self, context):
+    obj = self.id_data
+    if isinstance(obj, bpy.types.Object) and self.show_fov:
+        _update_fov(self, context)
+
+
+LABEL_ITEMS = [("NONE", "From Collections", "No rls_label property: the label comes from the "
+                "name of one of the object's collections (Road, Buildings, ...)", 0)] + [
+    (name.upper(), name.replace("_", " ").title(), f"Label id {i}", i + 1)
+    for i, name in DEFAULT_LABELS.items()]
+
+
+def _get_label(self):
+    from .core.labels import label_id
+    from .core.errors import RLSError
+
+    value = self.id_data.get("rls_label")
+    if value is None:
+        return 0
+    try:
+        return label_id(value if not isinstance(value, str) or not value.isdigit() else int(value)) + 1
+    except (RLSError, TypeError, ValueError):
+        return 0
+
+
+def _set_label(self, value):
+    obj = self.id_data
+    if value == 0:
+        if "rls_label" in obj:
+            del obj["rls_label"]
+    else:
+        obj["rls_label"] = DEFAULT_LABELS[value - 1]
 
 
 class RLS_LidarSettings(bpy.types.PropertyGroup):
     is_lidar: BoolProperty(name="Is LiDAR", default=False,
                            description="This object is a LiDAR sensor; its axes are the sensor frame")
-    preset: EnumProperty(name="Device", items=preset_items,
+    preset_id: StringProperty(name="Device Id", default=DEFAULT_PRESET,
+                              description="Id of the device preset (built-in or user preset)")
+    preset: EnumProperty(name="Device", items=preset_items, get=_get_preset, set=_set_preset,
+                         update=_update_preset,
                          description="Device preset: scan pattern, range and noise of a real sensor")
+    show_fov: BoolProperty(name="Show Field of View", default=False, update=_update_fov,
+                           description="Outline the device's field of view in the viewport "
+                                       "(a wire object parented to the LiDAR, never rendered)")
+    fov_length: FloatProperty(name="FOV Size", default=3.0, min=0.1, soft_max=50.0, unit="LENGTH",
+                              update=_update_fov, description="Distance at which the field of view is drawn")
     seed: IntProperty(name="Seed", default=0, min=0,
-                      description="Seed of the scan's random generator (noise, dropout)")
-    noise: BoolProperty(name="Range Noise", default=True)
-    dropout: BoolProperty(name="Dropout", default=True)
+                      description="Seed of the scan's random generator (noise, dropout, ghosts)")
+    noise: BoolProperty(name="Range Noise", default=True,
+                        description="Add the device's Gaussian range noise")
+    use_noise_sigma: BoolProperty(name="Override Noise", default=False,
+                                  description="Use your own range noise instead of the preset's")
+    noise_sigma: FloatProperty(name="Noise Sigma", default=0.02, min=0.0, soft_max=0.2, unit="LENGTH",
+                               precision=4, description="Standard deviation of the range noise")
+    dropout: BoolProperty(name="Dropout", default=True,
+                          description="Drop returns as the device's dropout model says")
+    use_min_range: BoolProperty(name="Override Min Range", default=False)
+    min_range: FloatProperty(name="Min Range", default=0.5, min=0.0, soft_max=10.0, unit="LENGTH",
+                             description="Blind zone: no returns closer than this")
     use_max_range: BoolProperty(name="Override Range", default=False)
     max_range: FloatProperty(name="Max Range", default=100.0, min=0.1, soft_max=500.0,
-                             unit="LENGTH")
+                             unit="LENGTH", description="No returns beyond this")
+    motion: EnumProperty(name="Motion", items=MOTION_ITEMS, default="exact",
+                         description="How moving objects and a moving sensor are scanned")
+    substeps: IntProperty(name="Sub-steps", default=0, min=0, soft_max=64,
+                          description="Partial sweeps per frame for deforming objects "
+                                      "(0: chosen from how far they move)")
+    ghosting: BoolProperty(name="Ghost Points", default=True,
+                           description="Ghost points from glossy surfaces (mirror-like bounces)")
     frame_space: EnumProperty(name="Frame", default="SENSOR", items=[
         ("SENSOR", "Sensor", "Point coordinates in the sensor frame"),
         ("WORLD", "World", "Point coordinates in world space")])
-    output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//lidar/")
+    output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//lidar/",
+                               description="Folder the clouds and sidecars are written to "
+                                           "('//' is the folder of the .blend file)")
     file_format: EnumProperty(name="Format", items=FORMAT_ITEMS, default="pcd_binary")
-    name_template: StringProperty(name="Names", default="{scene}_{sensor}_{frame:06d}")
+    fields: EnumProperty(name="Fields", items=FIELD_ITEMS, options={"ENUM_FLAG"},
+                         default={f for f in DEFAULT_FIELDS if f not in ("x", "y", "z")},
+                         description="Point fields to write (x, y, z are always written)")
+    name_template: StringProperty(name="Names", default="{scene}_{sensor}_{frame:06d}",
+                                  description="File name template: {scene}, {sensor}, {frame:06d}; "
+                                              "slashes make sub-folders")
+    preview_color: EnumProperty(name="Color By", items=COLOR_ITEMS, default="intensity",
+                                description="Attribute the preview points are coloured by")
+    label: EnumProperty(name="Semantic Label", items=LABEL_ITEMS, get=_get_label, set=_set_label,
+                        description="The object's rls_label property: the class its points get")
 
 
-CLASSES = (RLS_LidarSettings,)
+def _lob_poll(self, obj):
+    return is_lob(obj)
+
+
+class RLS_SceneSettings(bpy.types.PropertyGroup):
+    frame_start: IntProperty(name="Start", default=1, description="First frame to scan")
+    frame_end: IntProperty(name="End", default=10, description="Last frame to scan")
+    frame_step: IntProperty(name="Step", default=1, min=1)
+    use_scene_range: BoolProperty(name="Scene Frame Range", default=True,
+                                  description="Scan the scene's frame range")
+    range_all_lidars: BoolProperty(name="All LiDARs", default=False,
+                                   description="Scan the frame range with every LiDAR in the scene")
+    lob: PointerProperty(name="InfraLOB", type=bpy.types.Object, poll=_lob_poll,
+                         description="Region of interest for the placement metrics")
+    metric_labels: StringProperty(name="Labels", default="road,sidewalk",
+                                  description="Labels of the points counted (names or ids, comma separated)")
+    metric_disks: IntProperty(name="Disks", default=6000, min=1, soft_max=50000,
+                              description="Random disks for InfraNUC")
+    metric_radius: FloatProperty(name="Disk Radius", default=0.7, min=0.01, unit="LENGTH")
+    metric_cell: FloatProperty(name="Map Cell", default=1.0, min=0.05, unit="LENGTH",
+                               description="Cell size of the density map")
+    metric_seed: IntProperty(name="Seed", default=0, min=0)
+    # results of the last rls.compute_metrics (draw() only shows them)
+    has_metrics: BoolProperty(default=False, options={"HIDDEN"})
+    infra_d: FloatProperty(name="InfraD", default=0.0, precision=3,
+                           description="Points per square metre in the InfraLOB")
+    infra_nuc: FloatProperty(name="InfraNUC", default=0.0, precision=4,
+                             description="Non-uniformity: standard deviation of normalised disk counts")
+    metric_points: IntProperty(name="Points", default=0)
+    metric_area: FloatProperty(name="Area", default=0.0, unit="AREA")
+    metric_lob_name: StringProperty(name="Region", default="")
+    metric_sensors: StringProperty(name="Sensors", default="")
+    metric_image: PointerProperty(name="Density Map", type=bpy.types.Image)
+
+
+CLASSES = (RLS_LidarSettings, RLS_SceneSettings)
 
 
 def register_properties():
-    bpy.types.Object.rls_lidar = bpy.props.PointerProperty(type=RLS_LidarSettings)
+    bpy.types.Object.rls_lidar = PointerProperty(type=RLS_LidarSettings)
+    bpy.types.Scene.rls = PointerProperty(type=RLS_SceneSettings)
 
 
 def unregister_properties():
+    del bpy.types.Scene.rls
     del bpy.types.Object.rls_lidar
-    _PRESET_ITEMS.clear()
+    _ITEMS["presets"] = []
+    _ITEMS["old"].clear()
+    preset_catalog.clear()

@@ -6,12 +6,12 @@ from . import operators, properties, ui
 from .cli import blender_command
 
 CLASSES = properties.CLASSES + operators.CLASSES + ui.CLASSES
+_register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
 _state = {"cli": None}
 
 
 def register():
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
+    _register_classes()
     properties.register_properties()
     bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
     _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
@@ -23,5 +23,4 @@ def unregister():
         _state["cli"] = None
     bpy.types.VIEW3D_MT_add.remove(ui.draw_add_menu)
     properties.unregister_properties()
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+    _unregister_classes()

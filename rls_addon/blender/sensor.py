@@ -4,7 +4,6 @@ import numpy as np
 
 from ..core.engine import ScanSettings
 from ..core.errors import SceneError
-from ..core.presets import get_preset
 
 DEFAULT_PRESET = "generic_uniform32"
 
@@ -37,15 +36,25 @@ def find_lidar(scene, name):
 
 
 def scan_inputs(obj):
-    """(DevicePreset, ScanSettings) from a LiDAR object's properties."""
+    """(DevicePreset, ScanSettings) from a LiDAR object's properties.
+
+    The one place where the panel's properties become the core's settings: overrides
+    left off take the preset's values (None)."""
+    from .preset_catalog import resolve
+
     s = lidar_settings(obj)
-    preset = get_preset(s.preset)
+    preset = resolve(s.preset_id or DEFAULT_PRESET)
     settings = ScanSettings(
         seed=int(s.seed),
         frame_space=s.frame_space.lower(),
         noise=bool(s.noise),
         dropout=bool(s.dropout),
+        min_range_m=float(s.min_range) if s.use_min_range else None,
         max_range_m=float(s.max_range) if s.use_max_range else None,
+        noise_sigma_m=float(s.noise_sigma) if s.use_noise_sigma else None,
+        motion=s.motion,
+        substeps=int(s.substeps),
+        ghosting=bool(s.ghosting),
     )
     return preset, settings
 
