@@ -1,0 +1,238 @@
+"""Scan operators in background mode (no window), as batch scripts call them:
+scan frame, scan all LiDARs, scan a frame range (run through, cancelled), bad input."""
+
+import json
+
+
+import numpy as np
+import pytest
+
+from .conftest import bpy
+from .ops_helpers import add_lidar_op, labelled_ground, user_dir  # noqa: F401 (fixture)
+
+
+def _files(d):
+    return sorted(p.name for p in d.iterdir()) if d.exists() else []
+
+
+def test_add_lidar_places_it_at_the_cursor_with_a_fov_wire(scene):
+    obj = add_lidar_op("velodyne_vlp16", location=(1.0, 2.0, 3.0))
+    assert obj.rls_lidar.is_lidar and obj.rls_lidar.preset == "velodyne_vlp16"
+    assert tuple(obj.location) == (1.0, 2.0, 3.0)
+    fov = [c for c in obj.children if c.get("rls_fov")]
+    assert len(fov) == 1
+    fov = fov[0]
+    assert fov.type == "MESH" and fov.display_type == "WIRE" and fov.hide_render
+    assert len(fov.data.polygons) == 0 and len(fov.data.edges) > 0
+    co = np.array([v.co for v in fov.data.vertices])
+    r = np.linalg.norm(co, axis=1)
+    far = co[r > 1e-6]
+    np.testing.assert_allclose(np.linalg.norm(far, axis=1), obj.rls_lidar.fov_length, rtol=1e-5)
+    el = np.degrees(np.arcsin(far[:, 2] / np.linalg.norm(far, axis=1)))
+    assert el.min() == pytest.approx(-15.0, abs=0.01) and el.max() == pytest.approx(15.0, abs=0.01)
+
+
+def test_fov_follows_the_preset_and_can_be_hidden(scene):
+    obj = add_lidar_op("velodyne_vlp16")
+    obj.rls_lidar.preset = "livox_mid40"  # a 38.4 degree cone looking along +X
+    fov = next(c for c in obj.children if c.get("rls_fov"))
+    assert fov["rls_fov_preset"] == "livox_mid40"
+    co = np.array([v.co for v in fov.data.vertices])
+    far = co[np.linalg.norm(co, axis=1) > 1e-6]
+    off_axis = np.degrees(np.arccos(far[:, 0] / np.linalg.norm(far, axis=1)))
+    assert off_axis.max() == pytest.approx(19.2, abs=0.6)  # half of the 38.4 degree FOV
+    obj.rls_lidar.fov_length = 7.0
+    co = np.array([v.co for v in fov.data.vertices])
+    assert np.linalg.norm(co, axis=1).max() == pytest.approx(7.0, rel=1e-5)
+    obj.rls_lidar.show_fov = False
+    assert not [c for c in obj.children if c.get("rls_fov")]
+    assert "LiDAR FOV" not in bpy.data.objects
+
+
+def test_fov_wire_is_not_scanned(scene, tmp_path):
+    labelled_ground()
+    obj = add_lidar_op(out=tmp_path)
+    obj.rls_lidar.fov_length = 1.0  # the wire around the sensor must not block rays
+    assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}
+    from rls_addon.operators import LAST_RUN
+
+    assert LAST_RUN["points"] > 1000
+
+
+def test_scan_frame_writes_only_the_chosen_fields_and_colours_the_preview(scene, tmp_path):
+    from rls_addon.core.io import read_records, read_sidecar
+
+    labelled_ground()
+    obj = add_lidar_op(out=tmp_path, file_format="ply_binary", fields={"intensity", "label"},
+                       frame_space="WORLD", preview_color="ring")
+    assert bpy.ops.rls.scan_frame() == {"FINISHED"}
+    files = _files(tmp_path)
+    assert files == ["Scene_LiDAR_000001.json", "Scene_LiDAR_000001.ply"]
+    rec = read_records(tmp_path / files[1])
+    assert rec.dtype.names == ("x", "y", "z", "intensity", "label")
+    assert set(np.unique(rec["label"])) == {1}
+    side = read_sidecar(tmp_path / files[1])
+    assert side["fields"] == ["x", "y", "z", "intensity", "label"] and side["frame_space"] == "world"
+    preview = bpy.data.objects["LiDAR points"]
+    assert len(preview.data.vertices) == len(rec)
+    assert preview["rls_color_by"] == "ring"
+    mod = preview.modifiers["RLS Points"]
+    assert mod.type == "NODES" and mod.node_group.name == "RLS Points"
+
+
+def test_scan_settings_are_mapped_in_one_place(scene):
+    from rls_addon.blender.sensor import scan_inputs
+
+    obj = add_lidar_op("velodyne_vlp16")
+    s = obj.rls_lidar
+    s.seed, s.frame_space, s.noise, s.dropout = 7, "WORLD", True, False
+    s.use_min_range, s.min_range = True, 1.5
+    s.use_max_range, s.max_range = True, 42.0
+    s.use_noise_sigma, s.noise_sigma = True, 0.05
+    s.motion, s.substeps, s.ghosting = "substeps", 6, False
+    preset, st = scan_inputs(obj)
+    assert preset.id == "velodyne_vlp16"
+    assert (st.seed, st.frame_space, st.noise, st.dropout) == (7, "world", True, False)
+    assert (st.min_range_m, st.max_range_m) == (1.5, 42.0)
+    assert st.noise_sigma_m == pytest.approx(0.05)
+    assert (st.motion, st.substeps, st.ghosting) == ("substeps", 6, False)
+    s.use_min_range = s.use_max_range = s.use_noise_sigma = False
+    _, st = scan_inputs(obj)
+    assert st.min_range_m is None and st.max_range_m is None and st.noise_sigma_m is None
+
+
+def test_motion_mode_reaches_the_sidecar(scene, tmp_path):
+    from rls_addon.core.io import read_sidecar
+
+    labelled_ground()
+    add_lidar_op(out=tmp_path, motion="snapshot", ghosting=False)
+    assert bpy.ops.rls.scan_frame() == {"FINISHED"}
+    side = read_sidecar(next(tmp_path.glob("*.pcd")))
+    assert side["effects"]["motion"] == "snapshot" and side["effects"]["ghosting"] is False
+
+
+def test_scan_all_lidars(scene, tmp_path):
+    labelled_ground()
+    add_lidar_op(out=tmp_path, location=(0, 0, 2))
+    add_lidar_op(out=tmp_path, location=(5, 0, 2))
+    bpy.context.view_layer.objects.active = None
+    assert bpy.ops.rls.scan_all() == {"FINISHED"}
+    assert _files(tmp_path) == ["Scene_LiDAR.001_000001.json", "Scene_LiDAR.001_000001.pcd",
+                                "Scene_LiDAR_000001.json", "Scene_LiDAR_000001.pcd"]
+    assert "LiDAR points" in bpy.data.objects and "LiDAR.001 points" in bpy.data.objects
+
+
+def test_scan_range_runs_through_in_background(scene, tmp_path):
+    from rls_addon.operators import LAST_RUN
+
+    labelled_ground()
+    scene.frame_start, scene.frame_end = 3, 6
+    scene.frame_set(4)
+    add_lidar_op(out=tmp_path)
+    # INVOKE_DEFAULT as a UI button would: without a window it must run in execute()
+    assert bpy.ops.rls.scan_range("INVOKE_DEFAULT") == {"FINISHED"}
+    assert LAST_RUN["frames_done"] == [3, 4, 5, 6] and not LAST_RUN["cancelled"]
+    assert len([f for f in _files(tmp_path) if f.endswith(".pcd")]) == 4
+    assert scene.frame_current == 4  # the frame the user was on
+    assert bpy.ops.rls.scan_range(use_scene_range=False, frame_start=10, frame_end=14,
+                                  frame_step=2) == {"FINISHED"}
+    assert LAST_RUN["frames_done"] == [10, 12, 14]
+
+
+def test_scan_range_cancel_keeps_only_complete_frames(scene, tmp_path):
+    from rls_addon.blender import batch
+    from rls_addon.operators import LAST_RUN
+
+    labelled_ground()
+    scene.frame_start, scene.frame_end = 1, 6
+    add_lidar_op(out=tmp_path)
+    add_lidar_op(out=tmp_path, location=(3, 0, 2))
+
+    def press_esc_at_frame_3(sc, *args):
+        if sc.frame_current == 3:
+            batch.request_cancel()
+
+    bpy.app.handlers.frame_change_post.append(press_esc_at_frame_3)
+    try:
+        result = bpy.ops.rls.scan_range(all_lidars=True)
+    finally:
+        bpy.app.handlers.frame_change_post.remove(press_esc_at_frame_3)
+    assert result == {"CANCELLED"}
+    assert LAST_RUN["cancelled"] and LAST_RUN["frames_done"] == [1, 2]
+    files = _files(tmp_path)
+    assert len(files) == 2 * 2 * 2  # 2 frames x 2 LiDARs x (cloud + sidecar)
+    assert not any("000003" in f for f in files)
+    assert not [p for p in tmp_path.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
+    for f in tmp_path.glob("*.json"):
+        json.loads(f.read_text())  # every sidecar complete
+    assert scene.frame_current == 1
+    assert not batch.cancel_requested()  # the next job starts clean
+    assert bpy.ops.rls.scan_range(all_lidars=True) == {"FINISHED"}
+    assert LAST_RUN["frames_done"] == [1, 2, 3, 4, 5, 6]
+
+
+def test_no_lidar_selected_poll_says_why(scene):
+    labelled_ground()
+    with pytest.raises(RuntimeError, match="Select a LiDAR object"):
+        bpy.ops.rls.scan_frame()
+    with pytest.raises(RuntimeError, match="no LiDAR objects"):
+        bpy.ops.rls.scan_all()
+    with pytest.raises(RuntimeError, match="no LiDAR objects"):
+        bpy.ops.rls.scan_range()
+    add_lidar_op()
+    bpy.context.view_layer.objects.active = bpy.data.objects["Ground"]
+    with pytest.raises(RuntimeError, match="select a LiDAR object, or enable 'All LiDARs'"):
+        bpy.ops.rls.scan_range()
+
+
+def test_no_meshes_in_the_scene_is_a_warning_not_a_crash(scene, tmp_path):
+    from rls_addon.operators import LAST_RUN
+
+    add_lidar_op(out=tmp_path)
+    assert bpy.ops.rls.scan_frame() == {"FINISHED"}
+    assert LAST_RUN["points"] == 0
+    assert any("no geometry" in w for w in LAST_RUN["warnings"]), LAST_RUN["warnings"]
+
+
+def test_unwritable_output_directory_fails_before_scanning(scene, tmp_path):
+    labelled_ground()
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    add_lidar_op(out=blocker / "clouds")
+    with pytest.raises(RuntimeError, match="cannot create output folder .*a_file/clouds"):
+        bpy.ops.rls.scan_frame()
+    with pytest.raises(RuntimeError, match="cannot create output folder"):
+        bpy.ops.rls.scan_range(use_scene_range=False, frame_start=1, frame_end=3)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a_file"]
+    assert "LiDAR points" not in bpy.data.objects  # nothing scanned
+
+
+def test_blend_relative_output_needs_a_saved_file(scene):
+    labelled_ground()
+    add_lidar_op()  # default output '//lidar/'
+    with pytest.raises(RuntimeError, match="not saved yet"):
+        bpy.ops.rls.scan_frame()
+    assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}
+
+
+def test_bad_template_is_reported(scene, tmp_path):
+    labelled_ground()
+    add_lidar_op(out=tmp_path, name_template="{camera}_{frame}")
+    with pytest.raises(RuntimeError, match="unknown placeholder"):
+        bpy.ops.rls.scan_frame()
+
+
+def test_noise_override_changes_the_points(scene, tmp_path):
+    from rls_addon.operators import LAST_RUN
+
+    labelled_ground()
+    obj = add_lidar_op(out=tmp_path, noise=True, use_noise_sigma=True, noise_sigma=0.0,
+                       frame_space="WORLD")
+    assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}
+    z = np.array([v.co.z for v in bpy.data.objects["LiDAR points"].data.vertices])
+    assert np.abs(z).max() < 1e-4  # sigma overridden to 0: exact ground
+    obj.rls_lidar.noise_sigma = 0.05
+    assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}
+    z = np.array([v.co.z for v in bpy.data.objects["LiDAR points"].data.vertices])
+    assert 0.005 < z.std() < 0.05 and LAST_RUN["points"] > 1000  # range noise, seen in z
+
