@@ -14,6 +14,8 @@ def add_parser(sub):
                                    "pole, scan one frame and write a point cloud.")
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
     p.add_argument("--device", default="generic_uniform32", help="device preset id or name")
+    p.add_argument("--no-study", action="store_true",
+                   help="skip the placement study on the sample T-junction")
     p.set_defaults(func=run)
 
 
@@ -54,7 +56,46 @@ def run(args):
     summary = {"device": preset.name, "points": len(result.points), "rays": result.rays,
                "triangles": result.triangles, "seconds": round(seconds, 3),
                "point_cloud": str(os.path.abspath(path)), "scene": blend}
+    if not args.no_study:
+        summary["study"] = run_demo_study(args.out, preset.id)
     print(json.dumps(summary, indent=2))
     print(f"Scanned {summary['points']} points ({preset.name}, {result.rays} rays) in "
           f"{seconds:.2f} s.\nPoint cloud: {summary['point_cloud']}\nScene: {blend}")
+    if "study" in summary:
+        st = summary["study"]
+        best = st["best"][str(max(DEMO_K))]
+        print(f"Placement study ({st['candidates']} candidates on the T-junction, "
+              f"{st['seconds']:.1f} s): best {max(DEMO_K)} sensors "
+              f"{', '.join(best['sensors'])}: InfraD {best['infra_d']:.1f} points/m^2, "
+              f"InfraNUC {best['infra_nuc']:.3f}.\nStudy report: {st['report']}")
     return 0
+
+
+DEMO_K = (1, 2, 3)
+
+
+def run_demo_study(out_dir, device):
+    """The paper's scenario A in small: the sample T-junction, its five corner and
+    bar-side mounts, 1 to 3 sensors; report under ``out_dir/study``."""
+    import bpy
+
+    from ..blender.quiet import blender_output_silenced
+    from ..blender.scenes import build_scene
+    from ..blender.study import StudyConfig, run_study
+    from .study import write_report
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if not hasattr(bpy.types.Object, "rls_lidar"):
+        from .. import register
+
+        register()
+    build_scene("t_junction", bpy.context.scene)
+    study_dir = os.path.join(out_dir, "study")
+    check_output_dir(study_dir)
+    cfg = StudyConfig(device=device, k=DEMO_K,
+                      mounts=("TL NE", "TL NW", "TL SE", "TL SW", "SL S"))
+    result = run_study(bpy.context.scene, cfg)
+    with blender_output_silenced():
+        bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(os.path.join(study_dir,
+                                                                          "t_junction.blend")))
+    return write_report(result, study_dir, overwrite=True)

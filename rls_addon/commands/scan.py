@@ -1,6 +1,7 @@
 """``rls scan``: scan frames of LiDAR objects in a .blend and write point clouds."""
 
 import json
+import os
 import sys
 import time
 
@@ -26,6 +27,10 @@ def add_parser(sub):
     p.add_argument("--seed", type=int, default=None, help="override each LiDAR's seed")
     p.add_argument("--frame-space", choices=("sensor", "world"), default=None)
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
+    p.add_argument("--resume", action="store_true",
+                   help="skip scans whose cloud and sidecar already exist and agree "
+                        "(the cloud reads back and has the sidecar's point count); "
+                        "rescan and replace the others")
     p.set_defaults(func=run)
 
 
@@ -82,14 +87,61 @@ def check_output_dir(path):
         raise OutputError(f"output directory is not writable: {path}")
 
 
+def existing_output(path, sensor, frame):
+    """The point count of a finished earlier output at ``path``, or None when it is
+    missing or not valid: the cloud must read back, and its sidecar must exist and
+    name the same sensor, frame and point count."""
+    from ..core.errors import RLSError
+    from ..core.io import read_cloud, read_sidecar
+
+    if not os.path.isfile(path):
+        return None
+    try:
+        info = read_sidecar(path)
+        if not info or info.get("sensor") != sensor or info.get("frame") != frame:
+            return None
+        n = len(read_cloud(path))
+    except (RLSError, OSError, ValueError):
+        return None
+    return n if info.get("points") == n else None
+
+
+def _remove_orphan(path, existed):
+    """After an interrupted save: drop a cloud whose sidecar was never written."""
+    from ..core.io import sidecar_path
+
+    if not existed and os.path.isfile(path) and not sidecar_path(path).exists():
+        try:
+            os.unlink(path)
+        except OSError:
+            pass
+
+
 def run(args):
+    try:
+        return _run(args)
+    except KeyboardInterrupt:
+        done = _PROGRESS.get("done", 0)
+        jobs = _PROGRESS.get("jobs")
+        where = f" after {done} of {jobs} scans" if jobs else ""
+        print(f"rls: interrupted{where}; finished files are complete, nothing partial was "
+              "left; rerun with --resume to continue", file=sys.stderr)
+        return 130
+
+
+_PROGRESS = {}
+
+
+def _run(args):
     import dataclasses
 
     import bpy
 
     from ..blender.scan import ScanSession, save_scan
     from ..blender.sensor import find_lidar, lidar_objects, scan_inputs
+    from ..core.io import output_path
 
+    _PROGRESS.clear()
     scene = open_scene(args.blend)
     sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)
     if not sensors:
@@ -99,32 +151,60 @@ def run(args):
     outputs, total_points, t_start = [], 0, time.perf_counter()
     session = ScanSession()
     jobs = len(frames) * len(sensors)
-    done = 0
+    done = scanned = resumed = 0
+    scan_time = 0.0
+    _PROGRESS.update(done=0, jobs=jobs)
     for frame in frames:
-        scene.frame_set(frame)
-        depsgraph = bpy.context.evaluated_depsgraph_get()
+        frame_set = False
         for obj in sensors:
+            path = output_path(args.out, args.template, scene=scene.name, sensor=obj.name,
+                               frame=frame, fmt=args.format)
+            if args.resume:
+                n = existing_output(path, obj.name, frame)
+                if n is not None:
+                    done += 1
+                    resumed += 1
+                    _PROGRESS["done"] = done
+                    total_points += n
+                    outputs.append({"sensor": obj.name, "frame": frame, "points": n,
+                                    "seconds": 0.0, "file": str(path), "resumed": True})
+                    print(f"[{done}/{jobs}] frame {frame} {obj.name}: kept {n} points from "
+                          f"an earlier run", file=sys.stderr)
+                    continue
+            t_job = time.perf_counter()
+            if not frame_set:
+                scene.frame_set(frame)
+                depsgraph = bpy.context.evaluated_depsgraph_get()
+                frame_set = True
             _, settings = scan_inputs(obj)
             if args.seed is not None:
                 settings = dataclasses.replace(settings, seed=args.seed)
             if args.frame_space is not None:
                 settings = dataclasses.replace(settings, frame_space=args.frame_space)
             result, info = session.scan(depsgraph, obj, frame, settings=settings)
-            path = save_scan(result, info, args.out, args.template, args.format, scene.name,
-                             overwrite=args.overwrite)
+            existed = os.path.exists(path)
+            try:
+                path = save_scan(result, info, args.out, args.template, args.format, scene.name,
+                                 overwrite=args.overwrite or (args.resume and existed))
+            except BaseException:
+                _remove_orphan(path, existed)
+                raise
             done += 1
+            scanned += 1
+            _PROGRESS["done"] = done
+            scan_time += time.perf_counter() - t_job
             total_points += len(result.points)
             outputs.append({"sensor": obj.name, "frame": frame, "points": len(result.points),
                             "seconds": round(result.seconds, 4), "file": str(path)})
-            elapsed = time.perf_counter() - t_start
-            eta = elapsed / done * (jobs - done)
+            eta = scan_time / scanned * (jobs - done)
             print(f"[{done}/{jobs}] frame {frame} {obj.name}: {len(result.points)} points in "
-                  f"{result.seconds:.2f} s, about {eta:.1f} s left", file=sys.stderr)
+                  f"{result.seconds:.2f} s, about {eta:.1f} s left", file=sys.stderr, flush=True)
             for w in result.warnings:
                 print(f"rls: warning: {obj.name} frame {frame}: {w}", file=sys.stderr)
     summary = {"scene": scene.name, "frames": frames, "sensors": [o.name for o in sensors],
                "structure_builds": session.builds,
                "points": total_points, "seconds": round(time.perf_counter() - t_start, 3),
+               "scanned": scanned, "resumed": resumed,
                "outputs": outputs}
     print(json.dumps(summary, indent=2))
     return 0

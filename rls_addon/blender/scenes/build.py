@@ -17,7 +17,9 @@ Conventions the rest of RLS reads:
 import bpy
 import numpy as np
 
-BOX_FACES = [(0, 1, 2, 3), (4, 7, 6, 5), (0, 4, 5, 1), (1, 5, 6, 2), (2, 6, 7, 3), (3, 7, 4, 0)]
+# Outward-facing windings (counter-clockwise seen from outside): the engine warns when
+# a sensor sees mostly the backs of faces, as it would from inside an inward box.
+BOX_FACES = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
 MOUNT_PROPERTY = "rls_mount"
 MOUNT_OFFSET_PROPERTY = "rls_mount_offset"
 MOUNT_OFFSET_M = 0.25
