@@ -504,10 +504,12 @@ class RLS_OT_preset_save(bpy.types.Operator):
             return {"CANCELLED"}
         try:
             base = preset_catalog.resolve(s.preset_id)
+            # float32 properties: round to micrometres so 0.01 is saved as 0.01
             rng = RangeModel(
-                min_m=float(s.min_range) if s.use_min_range else base.range.min_m,
-                max_m=float(s.max_range) if s.use_max_range else base.range.max_m,
-                noise_sigma_m=float(s.noise_sigma) if s.use_noise_sigma else base.range.noise_sigma_m)
+                min_m=round(s.min_range, 6) if s.use_min_range else base.range.min_m,
+                max_m=round(s.max_range, 6) if s.use_max_range else base.range.max_m,
+                noise_sigma_m=(round(s.noise_sigma, 6) if s.use_noise_sigma
+                               else base.range.noise_sigma_m))
             source = base.source if base.id == pid else f"{base.source} [user preset based on {base.name}]"
             new = dataclasses.replace(base, id=pid, name=name, range=rng, source=source[:4000])
             path = save_user_preset(new, preset_catalog.user_dir(), overwrite=self.overwrite)
