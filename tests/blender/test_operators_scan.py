@@ -236,3 +236,33 @@ def test_noise_override_changes_the_points(scene, tmp_path):
     z = np.array([v.co.z for v in bpy.data.objects["LiDAR points"].data.vertices])
     assert 0.005 < z.std() < 0.05 and LAST_RUN["points"] > 1000  # range noise, seen in z
 
+
+
+def test_modal_path_progress_and_esc(scene, tmp_path):
+    """The modal loop (what a UI click runs), driven with synthetic timer and Esc events."""
+    from types import SimpleNamespace
+
+    from rls_addon.blender import batch
+    from rls_addon.operators import LAST_RUN, RLS_OT_scan_range as Op
+
+    labelled_ground()
+    scene.frame_start, scene.frame_end = 1, 5
+    add_lidar_op(out=tmp_path)
+    ctx = bpy.context
+    reports = []
+    fake = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append((kind, msg)))
+    fake._end = lambda c: Op._end(fake, c)
+    fake._status = lambda c, t: Op._status(fake, c, t)
+    fake._job = batch.ScanJob(ctx, [bpy.context.active_object], [1, 2, 3, 4, 5])
+    ctx.window_manager.progress_begin(0, fake._job.total)
+    timer = SimpleNamespace(type="TIMER")
+    assert Op.modal(fake, ctx, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
+    assert Op.modal(fake, ctx, timer) == {"RUNNING_MODAL"}
+    assert Op.modal(fake, ctx, timer) == {"RUNNING_MODAL"}
+    assert "2/5 done" in fake._job.status()
+    assert Op.modal(fake, ctx, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+    assert LAST_RUN["frames_done"] == [1, 2] and LAST_RUN["cancelled"]
+    assert ("WARNING", "Scan cancelled: 2 of 5 frames completed, 2 files written") in {
+        (next(iter(k)), m) for k, m in reports}
+    assert len(list(tmp_path.glob("*.pcd"))) == 2
+    assert scene.frame_current == 1
