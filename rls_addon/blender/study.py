@@ -193,9 +193,14 @@ def run_study(scene, cfg, progress=None):
     layout = DiskLayout.make(polygon, cfg.disks, cfg.radius, cfg.disk_seed, cfg.disk_placement)
     label_ids = resolve_labels(cfg.labels)
     cands = make_candidates(scene, cfg, polygon)
+    spots = len({c.mount for c in cands}) if cfg.one_per_mount else len(cands)
     for k in cfg.k:
         if k < 1:
             raise SceneError(f"k must be at least 1, got {k}")
+        if k > spots:
+            raise SceneError(f"k = {k} needs {k} distinct mounts; the candidates have {spots}"
+                             + (" (--allow-shared-mounts lets a mount hold several)"
+                                if cfg.one_per_mount and k <= len(cands) else ""))
     frame = scene.frame_current if cfg.frame is None else int(cfg.frame)
     scene.frame_set(frame)
     depsgraph = bpy.context.evaluated_depsgraph_get()
