@@ -142,10 +142,9 @@ def _set_label(self, value):
 class RLS_LidarSettings(bpy.types.PropertyGroup):
     is_lidar: BoolProperty(name="Is LiDAR", default=False,
                            description="This object is a LiDAR sensor; its axes are the sensor frame")
-    preset_id: StringProperty(name="Device Id", default=DEFAULT_PRESET,
+    preset_id: StringProperty(name="Device Id", default=DEFAULT_PRESET, update=_update_preset,
                               description="Id of the device preset (built-in or user preset)")
     preset: EnumProperty(name="Device", items=preset_items, get=_get_preset, set=_set_preset,
-                         update=_update_preset,
                          description="Device preset: scan pattern, range and noise of a real sensor")
     show_fov: BoolProperty(name="Show Field of View", default=False, update=_update_fov,
                            description="Outline the device's field of view in the viewport "

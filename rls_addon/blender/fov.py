@@ -5,9 +5,10 @@ never scanned) outlines the preset's angular extents at a chosen distance:
 
 - a spinning sensor with a full turn: the upper and lower elevation cones as circles,
   joined by four meridians and with rays from the sensor;
-- a Risley (Livox) sensor: an elliptic cone through its horizontal and vertical FOV;
-- anything else (MEMS, custom patterns, partial turns): a rectangular patch of the
-  sphere between the azimuth and elevation limits, with rays to its corners.
+- a pattern whose rays fill an ellipse (Livox rosettes): an elliptic cone through its
+  horizontal and vertical FOV;
+- anything else (MEMS rasters, wide Livox fields, custom patterns): a rectangular patch
+  of the sphere between the azimuth and elevation limits, with rays to its corners.
 
 Plain mesh data, so it works without a window (background mode) and in saved files.
 """
@@ -50,9 +51,15 @@ def fov_extents(preset):
         else:
             start = s[(k + 1) % len(s)]  # the extent runs from after the largest gap ...
             span = 2 * math.pi - gaps[k]
-            out = {"full_turn": False, "az": (float(start), float(start + span)),
-                   "shape": "ellipse" if preset.family == "risley" else "rect"}
+            out = {"full_turn": False, "az": (float(start), float(start + span))}
         out["el"] = (float(el.min()), float(el.max()))
+        if not out["full_turn"]:
+            # an ellipse when the rays stay inside the ellipse through the extents
+            # (Livox rosettes), else the rectangle (MEMS rasters, wide Livox fields)
+            a = np.mod(az - out["az"][0], 2 * math.pi)
+            half_a, half_e = max(span / 2, 1e-9), max((out["el"][1] - out["el"][0]) / 2, 1e-9)
+            r2 = ((a - span / 2) / half_a) ** 2 + ((el - (out["el"][0] + half_e)) / half_e) ** 2
+            out["shape"] = "ellipse" if np.quantile(r2, 0.999) <= 1.1 else "rect"
     _EXTENT_CACHE[key] = out
     return out
 

@@ -266,3 +266,11 @@ def test_modal_path_progress_and_esc(scene, tmp_path):
         (next(iter(k)), m) for k, m in reports}
     assert len(list(tmp_path.glob("*.pcd"))) == 2
     assert scene.frame_current == 1
+
+
+def test_fov_follows_a_preset_set_by_id(scene):
+    obj = add_lidar_op("velodyne_vlp16")
+    obj.rls_lidar.preset_id = "robosense_m1"  # scripts may set the id directly
+    fov = next(c for c in obj.children if c.get("rls_fov"))
+    assert fov["rls_fov_preset"] == "robosense_m1"
+    assert obj.rls_lidar.preset == "robosense_m1"
