@@ -23,6 +23,8 @@ Two ways to drive Embree, chosen automatically (``mode="auto"``):
 
 import ctypes
 import glob
+from collections import deque
+from itertools import repeat
 import os
 import threading
 
@@ -49,7 +51,8 @@ _ORG, _TNEAR, _DIR, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 48, 64, 112, 128, 144,
 _PRIM, _GEOM = 272, 288
 _STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
 _CHUNK_PACKETS = 2048  # at most 32768 rays per task (3 MiB of packet buffer per thread)
-_TASKS_PER_THREAD = 4  # smaller tasks balance the threads (a frame is a few 100k rays)
+_USE_MAP = True
+_TASKS_PER_THREAD = 2  # few tasks: each one costs GIL-bound numpy work; 2 per thread balances load
 
 
 def available():
@@ -339,8 +342,13 @@ class EmbreeCaster:
         fn, valid, scene = self._scene.lib.rtcIntersect16, self._valid.ctypes.data, \
             self._scene.handle
         base = b.ctypes.data
-        for addr in range(base, base + p * _STRIDE * 4, _STRIDE * 4):
-            fn(valid, scene, addr, None)
+        if _USE_MAP:
+            # One C-level loop: the GIL is held only for ctypes' own call setup.
+            deque(map(fn, repeat(valid, p), repeat(scene, p),
+                      range(base, base + p * _STRIDE * 4, _STRIDE * 4), repeat(None, p)), 0)
+        else:
+            for addr in range(base, base + p * _STRIDE * 4, _STRIDE * 4):
+                fn(valid, scene, addr, None)
         words = b.view(np.uint32)
         geom = words[:, _GEOM:_GEOM + _K].reshape(-1)[:m]
         hit = geom != _INVALID_ID
