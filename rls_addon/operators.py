@@ -453,9 +453,9 @@ class RLS_OT_preset_apply(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         s = lidar_settings(_active_lidar(context))
-        if preset_catalog.entry(p.id) is None:
-            properties.refresh_preset_items()
-        s.preset = p.id
+        if p.id not in [it[0] for it in preset_items(None, None) if it]:
+            properties.refresh_preset_items()  # found on disk since the list was built
+        s.preset_id = p.id
         self.report({"INFO"}, f"Device: {p.name}")
         return {"FINISHED"}
 
@@ -517,7 +517,7 @@ class RLS_OT_preset_save(bpy.types.Operator):
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
         properties.refresh_preset_items()
-        s.preset = pid
+        s.preset_id = pid
         self.report({"INFO"}, f"Saved user preset '{pid}' to {path}")
         return {"FINISHED"}
 
@@ -556,7 +556,7 @@ class RLS_OT_preset_import(bpy.types.Operator):
         properties.refresh_preset_items()
         obj = _active_lidar(context)
         if obj is not None:
-            lidar_settings(obj).preset = p.id
+            lidar_settings(obj).preset_id = p.id
         self.report({"INFO"}, f"Imported preset '{p.id}' ({p.name})")
         return {"FINISHED"}
 

@@ -14,7 +14,8 @@ from .blender.preview import COLOR_ATTRIBUTES
 from .blender.region import is_lob
 from .blender.sensor import DEFAULT_PRESET
 from .core.io import DEFAULT_FIELDS
-from .core.labels import DEFAULT_LABELS
+from .core.errors import RLSError
+from .core.labels import DEFAULT_LABELS, label_id
 
 FORMAT_ITEMS = [
     ("pcd_binary", "PCD binary", "PCD v0.7, binary"),
@@ -118,9 +119,6 @@ LABEL_ITEMS = [("NONE", "From Collections", "No rls_label property: the label co
 
 
 def _get_label(self):
-    from .core.labels import label_id
-    from .core.errors import RLSError
-
     value = self.id_data.get("rls_label")
     if value is None:
         return 0

@@ -4,6 +4,7 @@ import bpy
 
 from . import operators, properties, ui
 from .cli import blender_command
+from .core.errors import RLSError
 
 CLASSES = properties.CLASSES + operators.CLASSES + ui.CLASSES
 _register_classes, _unregister_classes = bpy.utils.register_classes_factory(CLASSES)
@@ -13,6 +14,10 @@ _state = {"cli": None}
 def register():
     _register_classes()
     properties.register_properties()
+    try:  # read the preset list now, so no panel or menu ever has to
+        properties.refresh_preset_items()
+    except RLSError as exc:
+        print(f"rls: warning: {exc}")
     bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
     _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
 
