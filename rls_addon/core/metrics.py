@@ -153,8 +153,16 @@ def infra_d(n_points, area_m2):
 
 
 def infra_nuc(disk_counts, n_points, p):
-    """Standard deviation of ``n_i / (N p)`` over the disks."""
-    x = np.asarray(disk_counts, dtype=np.float64) / (n_points * p)
+    """Standard deviation of ``n_i / (N p)`` over the disks.
+
+    Raises RegionError when no disk holds a point: the spread of all-zero counts is 0,
+    which would read as perfectly uniform when it is no estimate at all."""
+    counts = np.asarray(disk_counts, dtype=np.float64)
+    if counts.sum() == 0:
+        raise RegionError(
+            f"none of the {len(counts)} disks holds any of the {n_points} points, so InfraNUC "
+            "cannot be estimated: use larger or more disks (--radius, --disks)")
+    x = counts / (n_points * p)
     avg = x.mean()
     return math.sqrt(float(np.mean((x - avg) ** 2)))
 

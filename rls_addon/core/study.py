@@ -76,7 +76,8 @@ def set_metrics(n_points, disk_counts, area_m2, p):
 
     n_points     (S,) kept points per set
     disk_counts  (S, D) summed disk counts per set
-    Returns (infra_d (S,), infra_nuc (S,)); InfraNUC is NaN for a set with no points.
+    Returns (infra_d (S,), infra_nuc (S,)); InfraNUC is NaN for a set with no points or
+    with no point in any disk (no estimate, not 'perfectly uniform').
     """
     n = np.asarray(n_points, dtype=np.float64)
     c = np.asarray(disk_counts, dtype=np.float64)
@@ -84,7 +85,7 @@ def set_metrics(n_points, disk_counts, area_m2, p):
     with np.errstate(invalid="ignore", divide="ignore"):
         x = c / (n[:, None] * p)
         nuc = np.sqrt(np.mean((x - x.mean(axis=1, keepdims=True)) ** 2, axis=1))
-    nuc[n == 0] = np.nan
+    nuc[(n == 0) | (c.sum(axis=1) == 0)] = np.nan
     return d, nuc
 
 

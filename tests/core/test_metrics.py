@@ -222,3 +222,14 @@ def test_speed_one_million_points_six_thousand_disks():
     elapsed = time.perf_counter() - t0
     print(f"1e6 points, 6000 disks: {elapsed:.2f} s")
     assert elapsed < 5.0  # about 0.5-1 s on a laptop; generous for CI
+
+
+def test_no_point_in_any_disk_is_an_error_not_perfect_uniformity():
+    from rls_addon.core.errors import RegionError
+    from rls_addon.core.metrics import infra_nuc
+    from rls_addon.core.study import set_metrics
+
+    with pytest.raises(RegionError, match="none of the 3 disks"):
+        infra_nuc(np.zeros(3), 5, 0.01)
+    d, nuc = set_metrics([5, 5], [[0, 0, 0], [1, 0, 2]], 100.0, 0.01)
+    assert np.isnan(nuc[0]) and nuc[1] > 0
