@@ -282,13 +282,16 @@ def devices_section(geometry, pose, quick):
                      "frame_no_effects_s": frame_bare})
     p64 = next((p for label, p in presets if label == "Pandar64"), presets[0][1])
     ghosts = ghosting_cost(be.prepared["embree"], p64.pattern(), pose, p64)
+    profile = {name: frame_profile(be.prepared[name], p64.pattern(), pose, p64,
+                                   frames=5 if name == "embree" else 2)
+               for name in ("embree", "bvhtree")}
     from rls_addon.core.embree_caster import EmbreeCaster
 
     counts = {label: rays_cast_per_frame(geometry, pose, p, EmbreeCaster) for label, p in presets}
     for row in rows:
         row["rays_cast"] = counts[row["device"]]
     return {"rows": rows, "build_s": be.build, "notes": notes,
-            "triangles": int(len(be.triangles)), "ghosting": ghosts}
+            "triangles": int(len(be.triangles)), "ghosting": ghosts, "profile": profile}
 
 
 def _settings(cls, **want):
@@ -402,6 +405,31 @@ def motion_distortion_cost(geometry, pose, preset):
     a scene with moving objects. Returns rows for the report, or None while the engine
     has no motion modes to time. Later work fills this in."""
     return None
+
+
+def frame_profile(scene, pattern, pose, preset, frames=5, top=10):
+    """Where one default frame's time goes: cProfile over a few frames, the functions
+    with the most own time (ms per frame). Waiting for the caster's worker threads shows
+    as ``acquire``."""
+    import cProfile
+    import io
+    import pstats
+
+    from rls_addon.core.engine import ScanSettings, scan_frame
+
+    prof = cProfile.Profile()
+    prof.enable()
+    for _ in range(frames):
+        scan_frame(scene, pattern, pose, preset, ScanSettings())
+    prof.disable()
+    st = pstats.Stats(prof, stream=io.StringIO())
+    rows = []
+    for (fname, line, func), (_, ncalls, tt, ct, _) in st.stats.items():
+        where = f"{Path(fname).name}:{line}({func})" if line else func
+        rows.append({"function": where, "calls_per_frame": ncalls / frames,
+                     "own_ms": tt * 1000 / frames, "cumulative_ms": ct * 1000 / frames})
+    rows.sort(key=lambda r: -r["own_ms"])
+    return rows[:top]
 
 
 def ghosting_cost(scene, pattern, pose, preset, repeat=3):
@@ -699,6 +727,15 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         L.append(f"| {row['device']} | {c['pattern']:,} | {c['prepared_cast']:,} | "
                  f"{c['frame']:,} | {c['frame'] / c['pattern'] - 1:+.0%} |")
     L.append("")
+    for name, prof in dev.get("profile", {}).items():
+        L.append(f"Where a default Pandar64 frame's time goes with {name} (cProfile, own time "
+                 "per frame; profiling adds some overhead):\n")
+        L.append("| function | calls per frame | own ms | cumulative ms |")
+        L.append("|---|---|---|---|")
+        for p in prof:
+            L.append(f"| `{p['function']}` | {p['calls_per_frame']:g} | {p['own_ms']:.1f} | "
+                     f"{p['cumulative_ms']:.1f} |")
+        L.append("")
     L.append("Build times on the 1M-triangle street (s): "
              + ", ".join(f"{k} {val:.2f}" for k, val in dev["build_s"].items()) + "\n")
     L.append(f"Pattern generation, one Pandar128 frame from scratch: {pattern_s * 1000:.1f} ms\n")
