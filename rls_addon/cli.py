@@ -33,7 +33,8 @@ def main(argv=None):
         print(f"rls: error: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
-        print("rls: cancelled", file=sys.stderr)
+        print("rls: interrupted: files already written are complete, none is left half-written",
+              file=sys.stderr)
         return 130
 
 

@@ -14,10 +14,10 @@ import time
 import bpy
 
 from ..core.errors import OutputError, SceneError
-from ..core.io import output_path, write_cloud, write_sidecar
+from ..core.io import output_path
 from ..core.io.fields import resolve_fields
 from .preview import show_points
-from .scan import ScanSession
+from .scan import ScanSession, save_scan
 from .sensor import is_lidar, lidar_settings
 
 _cancel = {"requested": False}
@@ -61,15 +61,8 @@ def output_options(obj):
 
 def write_scan(result, info, opts, out_dir, scene_name, overwrite):
     """Write one cloud (only the chosen fields) and its sidecar; returns the cloud's path."""
-    from ..version import VERSION
-
-    fields = resolve_fields(list(opts["fields"]))
-    path = output_path(out_dir, opts["template"], scene=scene_name, sensor=info["sensor"],
-                       frame=info["frame"], fmt=opts["format"])
-    write_cloud(path, result.points, fmt=opts["format"], fields=fields, overwrite=overwrite)
-    write_sidecar(path, dict(info, format=opts["format"], fields=list(fields),
-                             software=f"rls {VERSION}"), overwrite=overwrite)
-    return path
+    return save_scan(result, info, out_dir, opts["template"], opts["format"], scene_name,
+                     overwrite=overwrite, fields=opts["fields"])
 
 
 class ScanJob:

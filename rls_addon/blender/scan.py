@@ -182,13 +182,17 @@ def scan_lidar(depsgraph, obj, frame, caster_factory=BVHCaster, settings=None, c
     return ScanSession(caster_factory).scan(depsgraph, obj, frame, settings, context)
 
 
-def save_scan(result, info, out_dir, template, fmt, scene_name, overwrite=False):
-    """Write the points and their JSON sidecar; return the cloud's path."""
+def save_scan(result, info, out_dir, template, fmt, scene_name, overwrite=False, fields=None):
+    """Write the points (``fields``: which point fields, default all) and their JSON
+    sidecar; return the cloud's path."""
     from ..core.io import output_path, write_cloud, write_sidecar
+    from ..core.io.fields import resolve_fields
     from ..version import VERSION
 
+    fields = resolve_fields(None if fields is None else list(fields))
     path = output_path(out_dir, template, scene=scene_name, sensor=info["sensor"],
                        frame=info["frame"], fmt=fmt)
-    write_cloud(path, result.points, fmt=fmt, overwrite=overwrite)
-    write_sidecar(path, dict(info, format=fmt, software=f"rls {VERSION}"), overwrite=overwrite)
+    write_cloud(path, result.points, fmt=fmt, fields=fields, overwrite=overwrite)
+    write_sidecar(path, dict(info, format=fmt, fields=list(fields), software=f"rls {VERSION}"),
+                  overwrite=overwrite)
     return path

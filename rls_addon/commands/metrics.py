@@ -56,18 +56,12 @@ def polygon_from_blend(spec):
     path, sep, name = spec.rpartition(":")
     if not sep or not path or not name:
         raise InputError(f"--lob expects SCENE.blend:OBJECT, got {spec!r}")
-    if not os.path.isfile(path):
-        raise InputError(f"scene file not found: {path}")
     import bpy  # only here: everything else in this command works without Blender
 
-    from ..blender.quiet import blender_output_silenced
+    from ..blender.files import open_blend
     from ..blender.region import lob_polygon_world
 
-    try:
-        with blender_output_silenced():
-            bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
-    except RuntimeError as exc:
-        raise InputError(f"cannot open scene {path}: {str(exc).strip()}") from None
+    open_blend(path, error=InputError)
     obj = bpy.data.objects.get(name)
     if obj is None:
         raise RegionError(f"no object named {name!r} in {path}")

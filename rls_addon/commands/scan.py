@@ -53,20 +53,12 @@ def parse_frames(text, current):
 def open_scene(path):
     """Load a .blend (or keep the loaded one when path is None) and make sure the
     extension's properties are registered."""
-    import os
-
     import bpy
 
     if path is not None:
-        if not os.path.isfile(path):
-            raise SceneError(f"scene file not found: {path}")
-        from ..blender.quiet import blender_output_silenced
+        from ..blender.files import open_blend
 
-        try:
-            with blender_output_silenced():
-                bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
-        except RuntimeError as exc:
-            raise SceneError(f"cannot open scene {path}: {str(exc).strip()}") from None
+        open_blend(path)
     if not hasattr(bpy.types.Object, "rls_lidar"):
         from .. import register
 
