@@ -33,8 +33,7 @@ import numpy as np
 _LOCK = threading.Lock()
 _LIB = None          # ctypes handle on libembree4, or False when not usable
 _LIB_ERROR = ""
-_POOL = None
-_POOL_SIZE = 0
+_POOLS = {}
 
 # Embree 4 constants (rtcore_common.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h).
 _GEOMETRY_TYPE_TRIANGLE = 0
@@ -81,16 +80,16 @@ def default_threads():
 
 
 def _pool(threads):
-    global _POOL, _POOL_SIZE
+    """A shared thread pool per size (kept for the process: threads are cheap to keep
+    and costly to recreate for every frame)."""
     from concurrent.futures import ThreadPoolExecutor
 
     with _LOCK:
-        if _POOL is None or _POOL_SIZE != threads:
-            if _POOL is not None:
-                _POOL.shutdown(wait=False)
-            _POOL = ThreadPoolExecutor(threads, thread_name_prefix="rls-embree")
-            _POOL_SIZE = threads
-        return _POOL
+        pool = _POOLS.get(threads)
+        if pool is None:
+            pool = _POOLS[threads] = ThreadPoolExecutor(threads,
+                                                        thread_name_prefix="rls-embree")
+        return pool
 
 
 def _find_library():
