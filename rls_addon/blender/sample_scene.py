@@ -6,22 +6,15 @@ region of interest is a flat rectangle marked ``rls_infralob``. The paper's thre
 placement scenes are in ``scenes/``.
 """
 
-from .scenes.build import box, collection as _collection, cylinder, material, plane
-
-
-def _material(name, rgb, roughness=0.5, metallic=0.0, reflectivity=None):
-    return material(name, rgb, roughness, metallic, reflectivity)
+from .scenes.build import box, collection as _collection, cylinder, plane, standard_materials
 
 
 def build_street(scene):
     """Fill ``scene`` with a straight two-way street; return the LiDAR mount point
     (x, y, z) on the first pole."""
-    asphalt = _material("Asphalt", (0.08, 0.08, 0.08), reflectivity=0.15)
-    concrete = _material("Concrete", (0.5, 0.5, 0.48), reflectivity=0.45)
-    facade = _material("Facade", (0.6, 0.55, 0.5))
-    glass = _material("Glass", (0.8, 0.85, 0.9), roughness=0.02, metallic=1.0)
-    paint = _material("CarPaint", (0.6, 0.05, 0.05), roughness=0.2)
-    steel = _material("Steel", (0.55, 0.55, 0.55), roughness=0.3, metallic=1.0)
+    m = standard_materials()
+    asphalt, concrete, facade = m["asphalt"], m["concrete"], m["facade"]
+    glass, paint, steel = m["glass"], m["paint"], m["steel"]
 
     road = _collection(scene, "Road")
     plane(road, "Road", -40, 40, -6, 6, 0.0, asphalt, cuts=8)

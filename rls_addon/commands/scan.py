@@ -26,12 +26,33 @@ def add_parser(sub):
                    help="file name template with {scene}, {sensor}, {frame:06d}")
     p.add_argument("--seed", type=int, default=None, help="override each LiDAR's seed")
     p.add_argument("--frame-space", choices=("sensor", "world"), default=None)
+    p.add_argument("--motion", choices=("exact", "substeps", "snapshot"), default=None,
+                   help="motion distortion: every ray at its own time (exact), the paper's "
+                        "N partial sweeps (substeps), or one state per frame (snapshot)")
+    p.add_argument("--substeps", type=int, default=None,
+                   help="sub-steps per frame for --motion substeps and deforming objects "
+                        "(0: adaptive)")
+    p.add_argument("--ghosting", choices=("on", "off"), default=None,
+                   help="ghost points from glossy surfaces (default: each LiDAR's setting)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="skip scans whose cloud and sidecar already exist and agree "
                         "(the cloud reads back and has the sidecar's point count); "
                         "rescan and replace the others")
     p.set_defaults(func=run)
+
+
+def apply_overrides(settings, args):
+    """The LiDAR's ScanSettings with the command line's overrides applied."""
+    import dataclasses
+
+    changes = {"seed": args.seed, "frame_space": args.frame_space, "motion": args.motion,
+               "substeps": args.substeps}
+    if args.ghosting is not None:
+        changes["ghosting"] = args.ghosting == "on"
+    if args.substeps is not None and args.substeps < 0:
+        raise SceneError(f"--substeps must be >= 0, got {args.substeps}")
+    return dataclasses.replace(settings, **{k: v for k, v in changes.items() if v is not None})
 
 
 def parse_frames(text, current):
@@ -125,8 +146,6 @@ _PROGRESS = {}
 
 
 def _run(args):
-    import dataclasses
-
     import bpy
 
     from ..blender.scan import ScanSession, save_scan
@@ -169,10 +188,7 @@ def _run(args):
                 depsgraph = bpy.context.evaluated_depsgraph_get()
                 frame_set = True
             _, settings = scan_inputs(obj)
-            if args.seed is not None:
-                settings = dataclasses.replace(settings, seed=args.seed)
-            if args.frame_space is not None:
-                settings = dataclasses.replace(settings, frame_space=args.frame_space)
+            settings = apply_overrides(settings, args)
             result, info = session.scan(depsgraph, obj, frame, settings=settings)
             existed = os.path.exists(path)
             try:

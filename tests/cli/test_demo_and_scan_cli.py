@@ -70,3 +70,21 @@ def test_bad_frame_range(demo_run, tmp_path):
     line = one_line_error(rls("scan", demo_run[0] / "street.blend", "--frames", "9-2",
                               "--out", tmp_path))
     assert "--frames" in line
+
+
+def test_scan_motion_and_ghosting_overrides(demo_run, tmp_path):
+    """The sample street has a car driving through and a glass facade."""
+    blend = demo_run[0] / "street.blend"
+    sides = {}
+    for name, extra in (("exact", []), ("snapshot", ["--motion", "snapshot"]),
+                        ("noghost", ["--ghosting", "off"])):
+        out = tmp_path / name
+        proc = rls("scan", blend, "--frames", "5", "--out", out, *extra)
+        assert proc.returncode == 0, proc.stderr
+        sides[name] = json.loads((out / "street_LiDAR_000005.json").read_text())
+    assert sides["exact"]["motion"]["rigid"] == ["Car 0"]
+    assert sides["snapshot"]["motion"]["rigid"] == []
+    assert sides["snapshot"]["effects"]["motion"] == "snapshot"
+    assert sides["exact"]["ghosts"] > 0 and sides["noghost"]["ghosts"] == 0
+    line = one_line_error(rls("scan", blend, "--substeps", "-1", "--out", tmp_path / "bad"))
+    assert "--substeps" in line

@@ -33,10 +33,18 @@ def collection(scene, name):
 
 
 def material(name, rgb, roughness=0.5, metallic=0.0, reflectivity=None, glossy=None):
+    """A material whose viewport settings and Principled BSDF agree (renders and the
+    LiDAR's glossy detection see the same surface)."""
     mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
     mat.diffuse_color = (*rgb, 1.0)
     mat.roughness = roughness
     mat.metallic = metallic
+    nodes = mat.node_tree.nodes if mat.node_tree is not None else []
+    for node in nodes:
+        if node.type == "BSDF_PRINCIPLED":
+            node.inputs["Base Color"].default_value = (*rgb, 1.0)
+            node.inputs["Roughness"].default_value = roughness
+            node.inputs["Metallic"].default_value = metallic
     if reflectivity is not None:
         mat["rls_reflectivity"] = reflectivity
     if glossy is not None:
