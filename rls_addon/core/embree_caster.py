@@ -348,13 +348,25 @@ class EmbreeCaster:
         else:
             for addr in range(base, base + p * _STRIDE * 4, _STRIDE * 4):
                 fn(valid, scene, addr, None)
+        # Results straight into the caller's arrays, whole packets as (P, 16) views:
+        # few temporaries (large ones are page-faulted fresh and slow the threads).
         words = b.view(np.uint32)
-        geom = words[:, _GEOM:_GEOM + _K].reshape(-1)[:m]
-        hit = geom != _INVALID_ID
-        far = b[:, _TFAR:_TFAR + _K].reshape(-1)[:m]
-        prim = words[:, _PRIM:_PRIM + _K].reshape(-1)[:m]
-        dist[lo:hi] = np.where(hit, far, np.inf)
-        tri[lo:hi] = np.where(hit, prim.astype(np.int64), -1)
+        full = m // _K
+        if full:
+            dv = dist[lo:lo + full * _K].reshape(full, _K)
+            tv = tri[lo:lo + full * _K].reshape(full, _K)
+            np.copyto(dv, b[:full, _TFAR:_TFAR + _K])
+            np.copyto(tv, words[:full, _PRIM:_PRIM + _K], casting="unsafe")
+            miss = words[:full, _GEOM:_GEOM + _K] == _INVALID_ID
+            dv[miss] = np.inf
+            tv[miss] = -1
+        rest = m - full * _K
+        if rest:
+            g = words[full, _GEOM:_GEOM + rest]
+            hit = g != _INVALID_ID
+            s = lo + full * _K
+            dist[s:hi] = np.where(hit, b[full, _TFAR:_TFAR + rest], np.inf)
+            tri[s:hi] = np.where(hit, words[full, _PRIM:_PRIM + rest].astype(np.int64), -1)
 
     def close(self):
         scene, self._scene = self._scene, None
