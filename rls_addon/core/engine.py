@@ -20,7 +20,7 @@ from . import effects, ghost
 from .geometry import clean_for_casting
 from .motion import Track, effective_times
 from .points import POINT_DTYPE
-from .raycast import WatertightCaster, refine_hits
+from .raycast import WatertightCaster, refine_hits, triangle_planes
 
 MOTION_MODES = ("exact", "substeps", "snapshot")
 
@@ -81,6 +81,7 @@ class PreparedScene:
         self.caster = _make_caster(caster_factory, self.vertices, self.triangles,
                                    geometry.tri_object[self.kept], watertight)
         self.backend = getattr(self.caster, "name", "none")
+        self.planes = triangle_planes(self.vertices, self.triangles)
 
     def covers(self, origin, max_range):
         """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
@@ -89,14 +90,17 @@ class PreparedScene:
         gap = np.linalg.norm(o - self.centre, axis=1).max()
         return gap + max_range <= self.reach * (1 + 1e-12)
 
-    def cast(self, origins, directions, max_range):
-        """Per ray: (dist, index into ``geometry``'s triangles or -1, unit normals)."""
+    def cast(self, origins, directions, max_range, watertight=True):
+        """Per ray: (dist, index into ``geometry``'s triangles or -1, unit normals).
+        ``watertight=False`` skips the re-check of misses (for secondary rays)."""
         n = directions.shape[0]
         if self.caster is None or n == 0:
             return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
         o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
-        dist, tri = self.caster.cast(o, directions, max_range)
-        dist, normals = refine_hits(self.vertices, self.triangles, o, directions, dist, tri)
+        caster = self.caster if watertight else getattr(self.caster, "primary", self.caster)
+        dist, tri = caster.cast(o, directions, max_range)
+        dist, normals = refine_hits(self.vertices, self.triangles, o, directions, dist, tri,
+                                    self.planes)
         return dist, np.where(tri >= 0, self.kept[np.maximum(tri, 0)], -1), normals
 
 
@@ -121,7 +125,7 @@ class RigidBody:
         mid = (c.min(0) + c.max(0)) / 2
         return mid, np.linalg.norm(c - mid, axis=1).max() + self.sphere_radius * stretch * 1.01
 
-    def cast(self, origins, directions, times, max_range):
+    def cast(self, origins, directions, times, max_range, watertight=True):
         n = directions.shape[0]
         dist = np.full(n, np.inf)
         tri = np.full(n, -1, np.int64)
@@ -145,7 +149,7 @@ class RigidBody:
         idx, inv, o_l, d_l, scale = idx[near], inv[near], o_l[near], d_l[near], scale[near]
         if len(idx) == 0:
             return dist, tri, normals
-        dl, tl, nl = self.scene.cast(o_l, d_l, max_range * scale.max())
+        dl, tl, nl = self.scene.cast(o_l, d_l, max_range * scale.max(), watertight)
         dw = dl / scale
         ok = (tl >= 0) & (dw <= max_range)
         nw = np.einsum("nji,nj->ni", inv[:, :3, :3], nl)  # inverse transpose
@@ -171,7 +175,7 @@ class TimedScene:
         self.scene, self.t0, self.t1 = scene, float(t0), float(t1)
         self.geometry = scene.geometry
 
-    def cast(self, origins, directions, times, max_range):
+    def cast(self, origins, directions, times, max_range, watertight=True):
         n = directions.shape[0]
         dist = np.full(n, np.inf)
         tri = np.full(n, -1, np.int64)
@@ -179,7 +183,7 @@ class TimedScene:
         idx = np.nonzero((times >= self.t0) & (times < self.t1))[0]
         if len(idx):
             o = np.broadcast_to(np.asarray(origins, np.float64).reshape(-1, 3), directions.shape)
-            d, t, nn = self.scene.cast(o[idx], directions[idx], max_range)
+            d, t, nn = self.scene.cast(o[idx], directions[idx], max_range, watertight)
             dist[idx], tri[idx], normals[idx] = d, t, nn
         return dist, tri, normals
 
@@ -196,25 +200,27 @@ class World:
     def bodies(self):
         return [self.static] + list(self.moving)
 
-    def cast(self, origins, directions, times, max_range):
+    def cast(self, origins, directions, times, max_range, watertight=True):
         """Nearest hit over all bodies: (dist, body index, triangle index, normals)."""
-        dist, tri, normals = self.static.cast(origins, directions, max_range)
+        dist, tri, normals = self.static.cast(origins, directions, max_range, watertight)
         body = np.where(tri >= 0, 0, -1)
         for k, b in enumerate(self.moving, start=1):
-            d2, t2, n2 = b.cast(origins, directions, times, max_range)
+            d2, t2, n2 = b.cast(origins, directions, times, max_range, watertight)
             closer = (t2 >= 0) & (d2 < dist)
             dist[closer], tri[closer], normals[closer], body[closer] = \
                 d2[closer], t2[closer], n2[closer], k
         return dist, body, tri, normals
 
-    def per_hit(self, body, tri, table):
-        """Gather a per-triangle array (``table(geometry)`` for each body) at hits."""
+    def per_hit(self, body, tri, name):
+        """Gather a per-triangle field (see ``SceneGeometry.per_triangle``) at hits."""
+        if not self.moving:
+            return self.static.geometry.per_triangle(name)[tri]
         out = None
         for k, b in enumerate(self.bodies):
             sel = body == k
             if not sel.any():
                 continue
-            values = table(b.geometry)[tri[sel]]
+            values = b.geometry.per_triangle(name)[tri[sel]]
             if out is None:
                 out = np.zeros(len(body), dtype=values.dtype)
             out[sel] = values
@@ -249,19 +255,6 @@ def resolve_range(preset, settings):
     return rmin, rmax
 
 
-def _material_table(name):
-    def table(geometry):
-        return np.array([getattr(m, name) for m in geometry.materials])[geometry.tri_material]
-    return table
-
-
-def _object_table(name):
-    def table(geometry):
-        vals = np.array([getattr(o, name) for o in geometry.objects] or [0], dtype=np.uint32)
-        return vals[geometry.tri_object]
-    return table
-
-
 @dataclass
 class Hits:
     """Hit records of the rays that returned something (one row per ray in ``idx``)."""
@@ -277,6 +270,9 @@ class Hits:
     mirror: np.ndarray    # reflectivity of the mirror a ghost came through (1 otherwise)
 
     def take(self, keep):
+        """The rows where boolean (or index) ``keep`` selects; self when it keeps all."""
+        if keep.dtype == bool and keep.all():
+            return self
         return Hits(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
 
 
@@ -304,7 +300,10 @@ def _ghosts(world, rng, origins, times, h, rmax):
     r = ghost.reflect(uc, h.normals[chosen])
     p = o + uc * a[:, None]
     start = ghost.bounce_origins(p, uc, h.normals[chosen], a)
-    b, body2, tri2, n2 = world.cast(start, r, times[h.idx[chosen]], rmax)
+    # Reflected beams start on a surface, inside its cluster box: the watertight re-check
+    # would re-cast every one that escapes to the sky. A crack missed by a ghost ray
+    # only loses one ghost point, so they are cast once.
+    b, body2, tri2, n2 = world.cast(start, r, times[h.idx[chosen]], rmax, watertight=False)
     found = tri2 >= 0
     # The second leg measured from the mirror point itself, not the lifted start.
     b = np.where(found, np.linalg.norm(start + r * np.where(found, b, 0)[:, None] - p, axis=1), b)
@@ -328,16 +327,16 @@ def _inside_warnings(world, h, min_hits=100, share=0.95):
     if len(h.idx) < min_hits:
         return []
     back = np.einsum("ij,ij->i", h.u_last, h.normals) > 0
-    names = world.per_hit(h.body, h.tri, _object_table("instance"))
-    out = []
+    inst = world.per_hit(h.body, h.tri, "instance").astype(np.int64)
+    total = np.bincount(inst)
+    behind = np.bincount(inst, weights=back)
+    suspects = np.nonzero((total >= min_hits) & (behind >= share * np.maximum(total, 1)))[0]
+    if len(suspects) == 0:
+        return []
     objects = {o.instance: o.name for b in world.bodies for o in b.geometry.objects}
-    for inst in np.unique(names):
-        sel = names == inst
-        if sel.sum() >= min_hits and back[sel].mean() >= share:
-            out.append(f"the sensor is inside '{objects.get(int(inst), inst)}' "
-                       f"({back[sel].mean():.0%} of its {int(sel.sum())} hits are on the back "
-                       "of its faces); fine for a room or tunnel, otherwise move the sensor")
-    return out
+    return [f"the sensor is inside '{objects.get(int(i), i)}' ({behind[i] / total[i]:.0%} of "
+            f"its {int(total[i])} hits are on the back of its faces); fine for a room or "
+            "tunnel, otherwise move the sensor" for i in suspects]
 
 
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
@@ -391,7 +390,7 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     if s.ghosting and len(idx):
         h, stats = _ghosts(world, ghost_rng, origins, tscene, h, rmax)
 
-    refl = world.per_hit(h.body, h.tri, _material_table("reflectivity")).astype(np.float64)
+    refl = world.per_hit(h.body, h.tri, "reflectivity").astype(np.float64)
     cosi = effects.incidence_cosine(h.u_last, h.normals)
     inten = effects.intensity(refl, cosi, h.dist, atten) * h.mirror
     # Noise and dropout are drawn per ray, not per hit, so a ray's draws never depend on
@@ -418,8 +417,8 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     pts["intensity"] = inten
     pts["ring"] = pattern.channels[idx]
     pts["time"] = pattern.times[idx]
-    pts["label"] = world.per_hit(h.body, h.tri, _object_table("label"))
-    pts["instance"] = world.per_hit(h.body, h.tri, _object_table("instance"))
+    pts["label"] = world.per_hit(h.body, h.tri, "label")
+    pts["instance"] = world.per_hit(h.body, h.tri, "instance")
     pts["ghost"] = h.ghost
     stats["moving_bodies"] = len(moving)
     return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats)

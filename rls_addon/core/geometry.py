@@ -40,6 +40,7 @@ class SceneGeometry:
     tri_material: np.ndarray
     objects: list = field(default_factory=list)
     materials: list = field(default_factory=lambda: [MaterialInfo("default")])
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self):
         self.vertices = np.asarray(self.vertices, dtype=np.float64).reshape(-1, 3)
@@ -71,6 +72,21 @@ class SceneGeometry:
             self.objects,
             self.materials,
         )
+
+    def per_triangle(self, name):
+        """A per-triangle array of a material field ('reflectivity', 'glossy',
+        'ghost_ratio') or an object field ('label', 'instance'), computed once."""
+        got = self._cache.get(name)
+        if got is None:
+            if name in ("label", "instance"):
+                table = np.array([getattr(o, name) for o in self.objects] or [0], np.uint32)
+                got = table[self.tri_object] if len(self.objects) else np.zeros(
+                    self.triangle_count, np.uint32)
+            else:
+                table = np.array([getattr(m, name) for m in self.materials])
+                got = table[self.tri_material]
+            self._cache[name] = got
+        return got
 
     def fingerprint(self):
         """A digest of the triangles, their objects and materials: equal digests mean

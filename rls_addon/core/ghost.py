@@ -25,14 +25,15 @@ def glossy_labels(table=None, threshold=SMOOTHNESS_THRESHOLD):
 
 def glossy_triangles(geometry, label_ids):
     """Per-triangle (glossy flag, ghost ratio, mirror reflectivity) arrays."""
-    mat_glossy = np.array([m.glossy for m in geometry.materials], dtype=bool)
-    ratio = np.array([m.ghost_ratio for m in geometry.materials], dtype=np.float64)
-    refl = np.array([m.reflectivity for m in geometry.materials], dtype=np.float64)
-    glossy = mat_glossy[geometry.tri_material]
-    if geometry.objects and label_ids:
-        obj_glossy = np.array([o.label in label_ids for o in geometry.objects], dtype=bool)
-        glossy |= obj_glossy[geometry.tri_object]
-    return glossy, ratio[geometry.tri_material], refl[geometry.tri_material]
+    key = ("glossy", frozenset(label_ids))
+    glossy = geometry._cache.get(key)
+    if glossy is None:
+        glossy = geometry.per_triangle("glossy").astype(bool)
+        if geometry.objects and label_ids:
+            obj = np.array([o.label in label_ids for o in geometry.objects], dtype=bool)
+            glossy = glossy | obj[geometry.tri_object]
+        geometry._cache[key] = glossy
+    return glossy, geometry.per_triangle("ghost_ratio"), geometry.per_triangle("reflectivity")
 
 
 def reflect(u, n):

@@ -64,18 +64,48 @@ class NumpyCaster:
         return dist, tri
 
 
-def refine_hits(vertices, triangles, origins, directions, dist, tri):
+def triangle_planes(vertices, triangles):
+    """Unit normals (T, 3) and plane offsets n . v0 (T,) of triangles, float64."""
+    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    v0 = vertices[t[:, 0]]
+    n = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+    return n, np.einsum("ij,ij->i", n, v0)
+
+
+def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None):
     """Recompute hit distances exactly in float64 against each hit triangle's plane.
 
     Backends that work in float32 (BVHTree, Embree) then only decide *which*
-    triangle was hit; the range itself is exact. Returns (dist, unit normals) with
-    the normal of every hit triangle (zeros for misses).
+    triangle was hit; the range itself is exact. ``planes`` are the triangles'
+    ``triangle_planes`` when precomputed. Returns (dist, unit normals) with the normal
+    of every hit triangle (zeros for misses).
     """
     dist = np.array(dist, dtype=np.float64, copy=True)
     normals = np.zeros((dist.shape[0], 3))
-    hit = tri >= 0
-    if not hit.any():
+    hit = np.nonzero(tri >= 0)[0]
+    if len(hit) == 0:
         return dist, normals
+    th = tri[hit]
+    if planes is None:
+        t = np.asarray(triangles, np.int64)[th]
+        unit, offset = triangle_planes(vertices, t)
+        n, off = unit, offset
+    else:
+        n, off = planes[0][th], planes[1][th]
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = directions[hit]
+    denom = np.einsum("ij,ij->i", n, d)
+    no = (n @ o[0]) if o.shape[0] == 1 else np.einsum("ij,ij->i", n, o[hit])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        exact = (off - no) / denom
+    # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
+    # where the float64 answer is ill-conditioned anyway.
+    use = np.isfinite(exact) & (np.abs(denom) > 1e-6) & (exact > 0)
+    dist[hit[use]] = exact[use]
+    normals[hit] = n
+    return dist, normals
     t = triangles[tri[hit]]
     v0 = vertices[t[:, 0]]
     n = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
