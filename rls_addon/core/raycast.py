@@ -147,17 +147,17 @@ def box_triangles(lo, hi):
 def cluster_boxes(vertices, triangles, groups, cell):
     """Bounding boxes of triangles grouped by (group, spatial cell of the centroid)."""
     tv = vertices[triangles]
-    cent = tv.mean(axis=1)
-    key = np.floor(cent / cell).astype(np.int64)
-    key = np.column_stack([np.asarray(groups, np.int64), key])
-    _, inv = np.unique(key, axis=0, return_inverse=True)
-    inv = inv.reshape(-1)
-    k = inv.max() + 1
-    lo = np.full((k, 3), np.inf)
-    hi = np.full((k, 3), -np.inf)
-    np.minimum.at(lo, inv, tv.min(axis=1))
-    np.maximum.at(hi, inv, tv.max(axis=1))
-    return lo, hi
+    tmin, tmax = tv.min(axis=1), tv.max(axis=1)
+    cells = np.floor((tmin + tmax) / (2 * cell)).astype(np.int64)
+    cells -= cells.min(axis=0)
+    span = cells.max(axis=0) + 1
+    key = np.asarray(groups, np.int64) * int(np.prod(span))
+    key += (cells[:, 0] * span[1] + cells[:, 1]) * span[2] + cells[:, 2]
+    order = np.argsort(key, kind="stable")
+    sk = key[order]
+    starts = np.r_[0, np.nonzero(sk[1:] != sk[:-1])[0] + 1]
+    return (np.minimum.reduceat(tmin[order], starts, axis=0),
+            np.maximum.reduceat(tmax[order], starts, axis=0))
 
 
 def outside_distance(vertices, triangles, tri, origins, directions):
