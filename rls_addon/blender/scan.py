@@ -5,7 +5,7 @@ from dataclasses import replace
 import bpy
 import numpy as np
 
-from ..core.engine import PreparedScene, RigidBody, TimedScene, resolve_range, scan_frame
+from ..core.engine import PreparedScene, RigidBodies, TimedScene, resolve_range, scan_frame
 from ..core.motion import Track
 from .bvh_caster import BVHCaster
 from .extract import object_table, read_instances, read_mesh, world_geometry, instance_key
@@ -116,7 +116,7 @@ class ScanSession:
                                                       sensor_moves)
             summary["samples"] = len(times)
             static_sel = set(range(len(instances)))
-            bodies = []
+            bodies, rigid = [], []
             tol = settings.motion_tolerance_m or preset.range.noise_sigma_m or 0.01
             for k in cand:
                 inst = instances[k]
@@ -131,13 +131,15 @@ class ScanSession:
                     static_sel.discard(k)
                 elif moved:
                     local = world_geometry(instances, objects, materials, select={k}, local=True)
-                    key = (inst.key, local.fingerprint())
-                    body = self._cached(self._bodies, key, lambda: RigidBody(
-                        local, Track(times, m), self.caster_factory))
-                    body.track = Track(times, m)
-                    bodies.append(body)
+                    rigid.append((inst.key, local, Track(times, m)))
                     summary["rigid"].append(inst.key)
                     static_sel.discard(k)
+            if rigid:
+                key = tuple((name, local.fingerprint()) for name, local, _ in rigid)
+                group = self._cached(self._bodies, key, lambda: RigidBodies(
+                    [(local, tr) for _, local, tr in rigid], self.caster_factory))
+                group.tracks = [tr for _, _, tr in rigid]  # this sweep's motion
+                bodies.append(group)
             track = None
             if sensor is not None and np.abs(sensor - sensor[0]).max() > 1e-12:
                 track = Track(times, sensor)

@@ -51,6 +51,7 @@ _PRIM, _GEOM = 272, 288
 _STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
 _CHUNK_PACKETS = 2048  # at most 32768 rays per task (3 MiB of packet buffer per thread)
 _USE_MAP = True
+_SERIAL_BELOW = 8192  # small batches (moving objects, re-checks): the pool's handoff costs more
 _TASKS_PER_THREAD = 2  # few tasks: each one costs GIL-bound numpy work; 2 per thread balances load
 
 
@@ -323,7 +324,7 @@ class EmbreeCaster:
         step = min(_CHUNK_PACKETS, max(64, -(-n // (tasks * _K)))) * _K
         spans = [(s, min(n, s + step)) for s in range(0, n, step)]
         work = lambda span: self._cast_span(o, d, tfar, dist, tri, *span)  # noqa: E731
-        if len(spans) == 1 or self.threads == 1:
+        if len(spans) == 1 or self.threads == 1 or n < _SERIAL_BELOW:
             for span in spans:
                 work(span)
         else:

@@ -57,11 +57,11 @@ class ScanResult:
     stats: dict = field(default_factory=dict)
 
 
-def _make_caster(factory, vertices, triangles, groups, watertight):
+def _make_caster(factory, vertices, triangles, groups, watertight, hull_cell=None):
     if not len(triangles):
         return None
     if watertight:
-        return WatertightCaster(factory, vertices, triangles, groups)
+        return WatertightCaster(factory, vertices, triangles, groups, hull_cell)
     return factory(vertices, triangles)
 
 
@@ -72,14 +72,14 @@ class PreparedScene:
     ``centre`` culled, and the caster built once (wrapped so that rays through shared
     edges and vertices never slip through, see ``WatertightCaster``)."""
 
-    def __init__(self, geometry, centre, reach, caster_factory, watertight=True):
+    def __init__(self, geometry, centre, reach, caster_factory, watertight=True, hull_cell=None):
         self.geometry = geometry
         self.centre = np.asarray(centre, dtype=np.float64).copy()
         self.reach = float(reach)
         self.vertices, self.triangles, self.kept, self.warnings = clean_for_casting(
             geometry, self.centre, self.reach)
         self.caster = _make_caster(caster_factory, self.vertices, self.triangles,
-                                   geometry.tri_object[self.kept], watertight)
+                                   geometry.tri_object[self.kept], watertight, hull_cell)
         self.backend = getattr(self.caster, "name", "none")
         self.planes = triangle_planes(self.vertices, self.triangles)
 
@@ -104,26 +104,78 @@ class PreparedScene:
         return dist, np.where(tri >= 0, self.kept[np.maximum(tri, 0)], -1), normals
 
 
-class RigidBody:
-    """A rigidly moving object: local-space triangles prepared once, and its Track."""
+class RigidBodies:
+    """Rigidly moving objects, cast together.
 
-    def __init__(self, geometry_local, track, caster_factory, watertight=True):
-        v = geometry_local.vertices
-        lo, hi = (v.min(0), v.max(0)) if len(v) else (np.zeros(3), np.zeros(3))
-        self.sphere_centre = (lo + hi) / 2
-        self.sphere_radius = float(np.linalg.norm(v - self.sphere_centre, axis=1).max()) if len(v) else 0.0
-        self.scene = PreparedScene(geometry_local, self.sphere_centre, np.inf, caster_factory,
-                                   watertight)
-        self.geometry = geometry_local
-        self.track = track
+    Each object's local-space triangles are laid side by side (each centred on its own
+    bounding sphere, spaced well apart) in one shared structure, built once. A ray that
+    may meet an object at the ray's scene time is carried into that object's frame by
+    the inverse of the object's matrix at that time and shifted to the object's slot;
+    all such (ray, object) pairs go through the caster in one batch, and each ray keeps
+    its nearest hit. Motion is exact with no sub-steps and no rebuilds.
 
-    def _swept_sphere(self):
-        """A sphere holding the body over the whole track (for a cheap first cull)."""
-        m = self.track.matrices
-        c = np.einsum("kij,j->ki", m[:, :3, :3], self.sphere_centre) + m[:, :3, 3]
+    parts  [(geometry in local coordinates, Track)], geometries sharing one object and
+           one material table
+    """
+
+    def __init__(self, parts, caster_factory, watertight=True):
+        from .geometry import concatenate
+
+        self.tracks = [tr for _, tr in parts]
+        self.centres, self.radii, self.slots, self.boxes, pieces = [], [], [], [], []
+        offset = 0.0
+        for g, _ in parts:
+            v = g.vertices
+            lo, hi = (v.min(0), v.max(0)) if len(v) else (np.zeros(3), np.zeros(3))
+            c = (lo + hi) / 2
+            r = float(np.linalg.norm(v - c, axis=1).max()) if len(v) else 0.0
+            slot = np.array([offset + r, 0.0, 0.0])
+            offset += 2 * r + 10.0
+            self.centres.append(c)
+            self.radii.append(r)
+            pad = 1e-6 * (r + 1.0)
+            self.boxes.append((lo - pad, hi + pad))
+            self.slots.append(slot)
+            pieces.append((v - c + slot, g.triangles, g.tri_object, g.tri_material))
+        first = parts[0][0] if parts else None
+        self.geometry = concatenate(pieces, first.objects if first else [],
+                                    first.materials if first else [])
+        # Fine hull cells: rays that enter an object's box but miss its surface (most of
+        # the pairs cast here) should not look like rays through a crack.
+        cell = max(min(self.radii, default=1.0) / 8.0, 0.05)
+        self.scene = PreparedScene(self.geometry, np.array([offset / 2, 0.0, 0.0]), np.inf,
+                                   caster_factory, watertight, hull_cell=cell)
+
+    def _swept_sphere(self, k):
+        """A sphere holding object k over its whole track (for a cheap first cull)."""
+        m = self.tracks[k].matrices
+        c = np.einsum("kij,j->ki", m[:, :3, :3], self.centres[k]) + m[:, :3, 3]
         stretch = np.linalg.norm(m[:, :3, :3], axis=1).max()
         mid = (c.min(0) + c.max(0)) / 2
-        return mid, np.linalg.norm(c - mid, axis=1).max() + self.sphere_radius * stretch * 1.01
+        return mid, np.linalg.norm(c - mid, axis=1).max() + self.radii[k] * stretch * 1.01
+
+    def _pairs_each(self, o1, directions, times, max_range):
+        """(ray index, object index, local origin, local direction, world-to-local linear
+        map) for every ray that passes an object's swept bounding sphere. (Vectorising
+        this over all objects at once measured slower: the (rays x objects) masks cost
+        more than the loop.)"""
+        o = np.broadcast_to(o1, directions.shape)
+        parts = []
+        for k, track in enumerate(self.tracks):
+            centre, radius = self._swept_sphere(k)
+            idx = np.nonzero(_ray_meets_sphere(o1, directions, centre, radius, max_range))[0]
+            if len(idx) == 0:
+                continue
+            a_inv, b_inv = track.inverse_at(times[idx])
+            if a_inv.ndim == 2:
+                a_inv = np.broadcast_to(a_inv, (len(idx), 3, 3))
+            o_l = np.einsum("nij,nj->ni", a_inv, o[idx]) + b_inv
+            d_l = np.einsum("nij,nj->ni", a_inv, directions[idx])
+            parts.append((idx, np.full(len(idx), k), o_l, d_l, a_inv))
+        if not parts:
+            z = np.zeros(0, np.int64)
+            return z, z, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3))
+        return tuple(np.concatenate([p[j] for p in parts]) for j in range(5))
 
     def cast(self, origins, directions, times, max_range, watertight=True):
         n = directions.shape[0]
@@ -132,39 +184,65 @@ class RigidBody:
         normals = np.zeros((n, 3))
         if self.scene.caster is None or n == 0:
             return dist, tri, normals
-        o = np.broadcast_to(np.asarray(origins, np.float64).reshape(-1, 3), directions.shape)
-        centre, radius = self._swept_sphere()
-        idx = np.nonzero(_ray_meets_sphere(o, directions, centre, radius, max_range))[0]
-        if len(idx) == 0:
+        o1 = np.asarray(origins, np.float64).reshape(-1, 3)
+        ray, obj, o_l, d_l, a = self._pairs_each(o1, directions, times, max_range)
+        if len(ray) == 0:
             return dist, tri, normals
-        m = self.track.at(times[idx])
-        inv = np.linalg.inv(m)
-        o_l = np.einsum("nij,nj->ni", inv[:, :3, :3], o[idx]) + inv[:, :3, 3]
-        d_l = np.einsum("nij,nj->ni", inv[:, :3, :3], directions[idx])
         scale = np.linalg.norm(d_l, axis=1)
-        d_l /= scale[:, None]
-        # Second cull in the body's own frame, now at each ray's own time.
-        near = _ray_meets_sphere(o_l, d_l, self.sphere_centre, self.sphere_radius * 1.01 + 1e-9,
-                                 max_range * scale)
-        idx, inv, o_l, d_l, scale = idx[near], inv[near], o_l[near], d_l[near], scale[near]
-        if len(idx) == 0:
+        d_l = d_l / scale[:, None]
+        # Second cull in each object's own frame at the ray's own time: its box.
+        lo = np.array([b[0] for b in self.boxes])[obj]
+        hi = np.array([b[1] for b in self.boxes])[obj]
+        near = _ray_meets_box(o_l, d_l, lo, hi, max_range * scale)
+        ray, obj, o_l, d_l, a, scale = ray[near], obj[near], o_l[near], d_l[near], a[near], scale[near]
+        if len(ray) == 0:
             return dist, tri, normals
-        dl, tl, nl = self.scene.cast(o_l, d_l, max_range * scale.max(), watertight)
-        dw = dl / scale
-        ok = (tl >= 0) & (dw <= max_range)
-        nw = np.einsum("nji,nj->ni", inv[:, :3, :3], nl)  # inverse transpose
+        shift = (np.array(self.slots) - np.array(self.centres))[obj]
+        dl, tl, nl = self.scene.cast(o_l + shift, d_l, max_range * scale.max(), watertight)
+        # Normals go back with the inverse transpose of each object's matrix: A^T.
+        nw = np.einsum("nji,nj->ni", a, nl)
         nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-300)
-        sel = idx[ok]
+        dw = dl / scale
+        ok = np.nonzero((tl >= 0) & (dw <= max_range))[0]
+        # Nearest hit per ray (a ray may meet several objects).
+        ok = ok[np.lexsort((dw[ok], ray[ok]))]
+        first = np.r_[True, ray[ok][1:] != ray[ok][:-1]] if len(ok) else np.zeros(0, bool)
+        ok = ok[first]
+        sel = ray[ok]
         dist[sel], tri[sel], normals[sel] = dw[ok], tl[ok], nw[ok]
         return dist, tri, normals
 
 
+def RigidBody(geometry_local, track, caster_factory, watertight=True):
+    """One rigidly moving object (see ``RigidBodies``)."""
+    return RigidBodies([(geometry_local, track)], caster_factory, watertight)
+
+
 def _ray_meets_sphere(o, d, centre, radius, max_range):
-    """Rays (unit d) that pass within ``radius`` of ``centre`` before ``max_range``."""
+    """Rays (unit d, origins o: one (1, 3) or one per ray) that pass within ``radius``
+    of ``centre`` before ``max_range``."""
     rel = centre - o
-    along = np.einsum("ij,ij->i", rel, d)
-    perp2 = np.einsum("ij,ij->i", rel, rel) - along ** 2
+    if rel.shape[0] == 1:  # one origin: a matrix-vector product, no (N, 3) temporaries
+        along = d @ rel[0]
+        perp2 = rel[0] @ rel[0] - along ** 2
+    else:
+        along = np.einsum("ij,ij->i", rel, d)
+        perp2 = np.einsum("ij,ij->i", rel, rel) - along ** 2
     return (perp2 <= radius ** 2) & (along + radius >= 0) & (along - radius <= max_range)
+
+
+def _ray_meets_box(o, d, lo, hi, max_range):
+    """Rays that enter the axis-aligned box [lo, hi] before ``max_range`` (slab test)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / d
+        t1 = (lo - o) * inv
+        t2 = (hi - o) * inv
+    # A ray parallel to a slab: inside it (0 * inf = nan there) passes, outside does not.
+    t1 = np.where(np.isnan(t1), -np.inf, t1)
+    t2 = np.where(np.isnan(t2), np.inf, t2)
+    near = np.minimum(t1, t2).max(axis=1)
+    far = np.maximum(t1, t2).min(axis=1)
+    return (near <= far) & (far >= 0) & (near <= max_range)
 
 
 class TimedScene:

@@ -85,6 +85,16 @@ def polar(linear):
     return r, np.swapaxes(r, -1, -2) @ linear
 
 
+def hermite(p0, v0, p1, v1, a, span):
+    """Cubic Hermite between (p0, v0) and (p1, v1), row-wise, at fractions ``a`` of
+    segments of length ``span`` (seconds)."""
+    a = a[:, None]
+    a2, a3 = a * a, a * a * a
+    dt = span[:, None]
+    return ((2 * a3 - 3 * a2 + 1) * p0 + (a3 - 2 * a2 + a) * dt * v0
+            + (3 * a2 - 2 * a3) * p1 + (a3 - a2) * dt * v1)
+
+
 @dataclass
 class Track:
     """Poses of one body over a sweep.
@@ -116,37 +126,74 @@ class Track:
     def at(self, t):
         """(N, 4, 4) matrices at times t (clamped to the sampled span)."""
         t = np.asarray(t, dtype=np.float64).reshape(-1)
-        k = len(self.times)
         out = np.empty((t.shape[0], 4, 4))
         out[:] = np.eye(4)
-        if k == 1 or self.is_static:
+        if len(self.times) == 1 or self.is_static:
             out[:] = self.matrices[0]
             return out
-        i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, k - 2)
-        span = self.times[i + 1] - self.times[i]
-        a = np.clip((t - self.times[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
-        m0, m1 = self.matrices[i], self.matrices[i + 1]
+        i, a, span = self._segments(t)
         out[:, :3, 3] = self._hermite(i, a, span)
         rot = matrix_from_quat(slerp(self._quat[i], self._quat[i + 1], a))
         scale = self._scale[i] * (1 - a)[:, None, None] + self._scale[i + 1] * a[:, None, None]
         out[:, :3, :3] = rot @ scale
         return out
 
+    def _segments(self, t):
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        k = len(self.times)
+        i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, k - 2)
+        span = self.times[i + 1] - self.times[i]
+        a = np.clip((t - self.times[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+        return i, a, span
+
+    @property
+    def linear_is_constant(self):
+        """True when only the translation changes (a car driving straight, a sliding door)."""
+        lin = self.matrices[:, :3, :3]
+        return bool(np.all(lin == lin[0]))
+
+    def inverse_at(self, t):
+        """World-to-local maps at times t: (A, b) with x_local = A x_world + b, A (N, 3, 3)
+        or one shared (3, 3) when the rotation and scale never change (then no per-ray
+        matrix is built at all)."""
+        if len(self.times) == 1 or self.is_static:
+            inv = np.linalg.inv(self.matrices[0])
+            return inv[:3, :3], np.broadcast_to(inv[:3, 3], (np.size(t), 3))
+        i, a, span = self._segments(t)
+        trans = self._hermite(i, a, span)
+        if self.linear_is_constant:
+            a_inv = np.linalg.inv(self.matrices[0, :3, :3])
+            return a_inv, -trans @ a_inv.T
+        rot = matrix_from_quat(slerp(self._quat[i], self._quat[i + 1], a))
+        scale = self._scale[i] * (1 - a)[:, None, None] + self._scale[i + 1] * a[:, None, None]
+        rt = np.swapaxes(rot, 1, 2)
+        if np.allclose(self._scale, np.eye(3), atol=1e-12):
+            a_inv = rt
+        else:
+            a_inv = np.linalg.inv(scale) @ rt
+        return a_inv, -np.einsum("nij,nj->ni", a_inv, trans)
+
+    @property
+    def velocities(self):
+        """(K, 3) finite-difference velocities at the samples (second order), cached."""
+        v = self.__dict__.get("_velocity")
+        if v is None:
+            p, t = self.matrices[:, :3, 3], self.times
+            if len(t) > 2:
+                v = np.gradient(p, t, axis=0, edge_order=2)
+            elif len(t) == 2:
+                v = np.repeat(((p[1] - p[0]) / max(t[1] - t[0], 1e-300))[None], 2, axis=0)
+            else:
+                v = np.zeros_like(p)
+            self._velocity = v
+        return v
+
     def _hermite(self, i, a, span):
         """Translation by cubic Hermite interpolation with finite-difference tangents
         (exact for constant velocity, O(dt^4) for smooth motion: far fewer samples than
         linear interpolation for eased keyframes)."""
-        p = self.matrices[:, :3, 3]
-        t = self.times
-        v = np.gradient(p, t, axis=0, edge_order=2) if len(t) > 2 else np.repeat(
-            ((p[1] - p[0]) / max(t[1] - t[0], 1e-300))[None], len(t), axis=0)
-        a = a[:, None]
-        h00 = 2 * a ** 3 - 3 * a ** 2 + 1
-        h10 = a ** 3 - 2 * a ** 2 + a
-        h01 = -2 * a ** 3 + 3 * a ** 2
-        h11 = a ** 3 - a ** 2
-        dt = span[:, None]
-        return h00 * p[i] + h10 * dt * v[i] + h01 * p[i + 1] + h11 * dt * v[i + 1]
+        p, v = self.matrices[:, :3, 3], self.velocities
+        return hermite(p[i], v[i], p[i + 1], v[i + 1], a, span)
 
     def max_displacement(self, points):
         """Largest distance any of ``points`` (local coordinates) travels between the

@@ -129,7 +129,7 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None
 _NUDGE_AXES = np.array([[0.7548776662, 0.5698402910, 0.3247179572],
                         [-0.2306, 0.8715, -0.4330],
                         [0.5773, -0.2113, 0.7887]])
-_NUDGE_SCALES = (8.0, 64.0, 512.0)  # in units of 1e-6 x (scene extent)
+_NUDGE_SCALES = (64.0,)  # in units of 1e-6 x (scene extent)
 
 
 def box_triangles(lo, hi):
@@ -186,13 +186,15 @@ class WatertightCaster:
     Backends in float32 (BVHTree) let a ray aimed exactly at a shared edge or vertex
     slip between the neighbouring triangles. Misses are re-checked against a small
     'hull' of padded bounding boxes (of triangle clusters): a miss that enters no box
-    is a real miss (sky rays cost one cheap extra cast); the others are re-cast up to
-    three times with the origin nudged perpendicular to the ray by a few float32 ulps
-    of the scene's extent. The caller refines the range against the hit triangle's
-    plane along the *original* ray, so the nudge does not show in the range.
+    is a real miss (sky rays cost one cheap extra cast); the others are re-cast once
+    with the origin nudged perpendicular to the ray by 64e-6 of the scene's extent
+    (a few hundred float32 ulps), and a nudged hit is kept only when the original ray
+    crosses that triangle within float32 noise, so silhouettes do not grow. The caller
+    refines the range against the hit triangle's plane along the *original* ray, so
+    the nudge does not show in the range.
     """
 
-    def __init__(self, factory, vertices, triangles, groups=None):
+    def __init__(self, factory, vertices, triangles, groups=None, cell=None):
         self.primary = factory(vertices, triangles)
         self.name = getattr(self.primary, "name", "caster")
         v = np.asarray(vertices, np.float64)
@@ -200,7 +202,7 @@ class WatertightCaster:
         lo_all, hi_all = tv.reshape(-1, 3).min(0), tv.reshape(-1, 3).max(0)
         self.extent = float(np.linalg.norm(hi_all - lo_all)) + 1.0
         groups = np.zeros(len(triangles), np.int64) if groups is None else groups
-        cell = max(self.extent / 32.0, 1.0)
+        cell = max(self.extent / 32.0, 1.0) if cell is None else float(cell)
         lo, hi = cluster_boxes(v, np.asarray(triangles, np.int64), groups, cell)
         pad = 1e-5 * self.extent
         hv, ht = box_triangles(lo - pad, hi + pad)
