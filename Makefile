@@ -48,16 +48,8 @@ demo: $(RUNTIME_STAMP)
 test: $(TEST_STAMP) system-deps build
 	$(PY) -m pytest
 
-# Benchmarks need what the tests need (embreex, open3d) plus matplotlib, from
-# requirements-bench.txt when that file exists.
-BENCH_STAMP := $(VENV)/.bench-installed
-BENCH_REQS  := $(wildcard requirements-bench.txt)
-
-$(BENCH_STAMP): $(TEST_STAMP) $(BENCH_REQS)
-	$(if $(BENCH_REQS),$(PY) -m pip install --quiet --disable-pip-version-check -r $(BENCH_REQS) -c requirements.txt)
-	@touch $@
-
-bench: $(BENCH_STAMP)
+# The benchmark needs what the tests need (embreex, open3d, matplotlib).
+bench: $(TEST_STAMP)
 	$(PY) bench/run.py --out docs
 
 clean:

@@ -172,6 +172,11 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
                                       "(0: chosen from how far they move)")
     ghosting: BoolProperty(name="Ghost Points", default=True,
                            description="Ghost points from glossy surfaces (mirror-like bounces)")
+    backend: EnumProperty(name="Ray Casting", default="auto", items=[
+        ("auto", "Automatic", "Embree (bundled, all cores) when available, else Blender's BVHTree"),
+        ("bvhtree", "BVHTree", "Blender's BVHTree: always available, one core"),
+        ("embree", "Embree", "Intel Embree from the bundled embreex wheel (falls back to "
+                             "BVHTree with a warning where it is missing)")])
     frame_space: EnumProperty(name="Frame", default="SENSOR", items=[
         ("SENSOR", "Sensor", "Point coordinates in the sensor frame"),
         ("WORLD", "World", "Point coordinates in world space")])

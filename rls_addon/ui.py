@@ -200,6 +200,7 @@ class OBJECT_PT_rls_lidar_motion(_LidarPanel, bpy.types.Panel):
         sub.active = s.motion == "substeps"
         sub.prop(s, "substeps")
         layout.prop(s, "ghosting")
+        layout.prop(s, "backend")
 
 
 class OBJECT_PT_rls_lidar_output(_LidarPanel, bpy.types.Panel):

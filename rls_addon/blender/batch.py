@@ -17,7 +17,7 @@ from ..core.errors import OutputError, SceneError
 from ..core.io import output_path
 from ..core.io.fields import resolve_fields
 from .preview import show_points
-from .scan import ScanSession, save_scan
+from .scan import save_scan, session_for
 from .sensor import is_lidar, lidar_settings
 
 _cancel = {"requested": False}
@@ -89,10 +89,11 @@ class ScanJob:
                             frame=self.frames[0], fmt=opts["format"])
                 resolve_fields(list(opts["fields"]))
                 self.outputs[obj.name] = (opts, out)
-        self.session = ScanSession()
+        backend = getattr(lidar_settings(sensors[0]), "backend", "auto")
+        self.session, notice = session_for(backend.lower())
         self.original_frame = self.scene.frame_current
         self.index = 0
-        self.paths, self.warnings = [], []
+        self.paths, self.warnings = [], [notice] if notice else []
         self.points = 0
         self.frames_done = []
         self.cancelled = False

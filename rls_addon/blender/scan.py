@@ -179,6 +179,19 @@ def _travel(matrices, inst):
     return float(np.linalg.norm(w - w[:1], axis=2).max())
 
 
+def session_for(backend="auto"):
+    """(ScanSession on the named ray-casting backend, notice or None): the notice says
+    when Embree was asked for but BVHTree is used (never silently)."""
+    from ..core.errors import SceneError
+    from .backends import caster_factory
+
+    try:
+        factory, notice = caster_factory(backend)
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
+    return ScanSession(factory), notice
+
+
 def scan_lidar(depsgraph, obj, frame, caster_factory=BVHCaster, settings=None, context=None):
     """Scan one frame of one LiDAR without reuse across calls (see ``ScanSession``)."""
     return ScanSession(caster_factory).scan(depsgraph, obj, frame, settings, context)

@@ -32,6 +32,8 @@ def add_parser(sub):
     p.add_argument("--substeps", type=int, default=None,
                    help="sub-steps per frame for --motion substeps and deforming objects "
                         "(0: adaptive)")
+    p.add_argument("--backend", choices=("auto", "bvhtree", "embree"), default="auto",
+                   help="ray casting: Embree when available (auto), or Blender's BVHTree")
     p.add_argument("--ghosting", choices=("on", "off"), default=None,
                    help="ghost points from glossy surfaces (default: each LiDAR's setting)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
@@ -148,7 +150,7 @@ _PROGRESS = {}
 def _run(args):
     import bpy
 
-    from ..blender.scan import ScanSession, save_scan
+    from ..blender.scan import save_scan, session_for
     from ..blender.sensor import find_lidar, lidar_objects, scan_inputs
     from ..core.io import output_path
 
@@ -160,7 +162,9 @@ def _run(args):
     frames = parse_frames(args.frames, scene.frame_current)
     check_output_dir(args.out)
     outputs, total_points, t_start = [], 0, time.perf_counter()
-    session = ScanSession()
+    session, notice = session_for(args.backend)
+    if notice:
+        print(f"rls: notice: {notice}", file=sys.stderr)
     jobs = len(frames) * len(sensors)
     done = scanned = resumed = 0
     scan_time = 0.0

@@ -123,14 +123,22 @@ class RigidBodies:
 
         self.tracks = [tr for _, tr in parts]
         self.centres, self.radii, self.slots, self.boxes, pieces = [], [], [], [], []
+        # Slots are spaced so that a ray started at its own object's box and cast no
+        # farther than across it can never reach a neighbour.
+        radii = [float(np.linalg.norm(g.vertices - (g.vertices.min(0) + g.vertices.max(0)) / 2,
+                                      axis=1).max()) if len(g.vertices) else 0.0
+                 for g, _ in parts]
+        gap = 2 * max(radii, default=0.0) + 10.0
         offset = 0.0
-        for g, _ in parts:
+        slot_of = []
+        for k, (g, _) in enumerate(parts):
             v = g.vertices
             lo, hi = (v.min(0), v.max(0)) if len(v) else (np.zeros(3), np.zeros(3))
             c = (lo + hi) / 2
-            r = float(np.linalg.norm(v - c, axis=1).max()) if len(v) else 0.0
+            r = radii[k]
             slot = np.array([offset + r, 0.0, 0.0])
-            offset += 2 * r + 10.0
+            offset += 2 * r + gap
+            slot_of.append(np.full(len(g.triangles), k))
             self.centres.append(c)
             self.radii.append(r)
             pad = 1e-6 * (r + 1.0)
@@ -140,6 +148,7 @@ class RigidBodies:
         first = parts[0][0] if parts else None
         self.geometry = concatenate(pieces, first.objects if first else [],
                                     first.materials if first else [])
+        self.tri_slot = np.concatenate(slot_of) if slot_of else np.zeros(0, np.int64)
         # Fine hull cells: rays that enter an object's box but miss its surface (most of
         # the pairs cast here) should not look like rays through a crack.
         cell = max(min(self.radii, default=1.0) / 8.0, 0.05)
@@ -190,15 +199,23 @@ class RigidBodies:
             return dist, tri, normals
         scale = np.linalg.norm(d_l, axis=1)
         d_l = d_l / scale[:, None]
-        # Second cull in each object's own frame at the ray's own time: its box.
+        # Second cull in each object's own frame at the ray's own time: its box. Each
+        # ray then starts where it enters the box, in the object's slot, and is cast no
+        # farther than across the box.
         lo = np.array([b[0] for b in self.boxes])[obj]
         hi = np.array([b[1] for b in self.boxes])[obj]
-        near = _ray_meets_box(o_l, d_l, lo, hi, max_range * scale)
+        t_in, t_out = _ray_box_span(o_l, d_l, lo, hi)
+        near = (t_in <= t_out) & (t_out >= 0) & (t_in <= max_range * scale)
         ray, obj, o_l, d_l, a, scale = ray[near], obj[near], o_l[near], d_l[near], a[near], scale[near]
+        t_in, t_out = t_in[near], t_out[near]
         if len(ray) == 0:
             return dist, tri, normals
+        start = np.maximum(t_in - 1e-6 * (1.0 + np.abs(t_in)), 0.0)
         shift = (np.array(self.slots) - np.array(self.centres))[obj]
-        dl, tl, nl = self.scene.cast(o_l + shift, d_l, max_range * scale.max(), watertight)
+        span = float((t_out - start).max()) * (1 + 1e-9) + 1e-6
+        dl, tl, nl = self.scene.cast(o_l + shift + d_l * start[:, None], d_l, span, watertight)
+        tl = np.where((tl >= 0) & (self.tri_slot[np.maximum(tl, 0)] == obj), tl, -1)
+        dl = dl + start
         # Normals go back with the inverse transpose of each object's matrix: A^T.
         nw = np.einsum("nji,nj->ni", a, nl)
         nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-300)
@@ -231,8 +248,9 @@ def _ray_meets_sphere(o, d, centre, radius, max_range):
     return (perp2 <= radius ** 2) & (along + radius >= 0) & (along - radius <= max_range)
 
 
-def _ray_meets_box(o, d, lo, hi, max_range):
-    """Rays that enter the axis-aligned box [lo, hi] before ``max_range`` (slab test)."""
+def _ray_box_span(o, d, lo, hi):
+    """(t_in, t_out) of rays against axis-aligned boxes [lo, hi] (slab test); the ray
+    misses where t_in > t_out."""
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = 1.0 / d
         t1 = (lo - o) * inv
@@ -240,9 +258,7 @@ def _ray_meets_box(o, d, lo, hi, max_range):
     # A ray parallel to a slab: inside it (0 * inf = nan there) passes, outside does not.
     t1 = np.where(np.isnan(t1), -np.inf, t1)
     t2 = np.where(np.isnan(t2), np.inf, t2)
-    near = np.minimum(t1, t2).max(axis=1)
-    far = np.maximum(t1, t2).min(axis=1)
-    return (near <= far) & (far >= 0) & (near <= max_range)
+    return np.minimum(t1, t2).max(axis=1), np.maximum(t1, t2).min(axis=1)
 
 
 class TimedScene:

@@ -17,7 +17,21 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 SCRIPT = r"""
-import json, sys
+import importlib.machinery, json, sys
+class OnlyBundledEmbree:
+    # A user's Blender has no embreex of its own: hide any copy outside the extensions'
+    # site-packages (this venv has one for the tests), so the bundled wheel must serve.
+    def find_spec(self, name, path=None, target=None):
+        if name.split('.')[0] != 'embreex':
+            return None
+        bundled = [p for p in sys.path if '/extensions/' in p]
+        if path is not None:
+            return None
+        spec = importlib.machinery.PathFinder.find_spec(name, bundled)
+        if spec is None:
+            raise ImportError('embreex: not in the extension site-packages')
+        return spec
+sys.meta_path.insert(0, OnlyBundledEmbree())
 import bpy
 zip_path, out_dir = sys.argv[1], sys.argv[2]
 res = bpy.ops.extensions.package_install_files(filepath=zip_path, repo='user_default',

@@ -1,0 +1,254 @@
+"""Engine-level costs for the benchmark: the BVHTree pipeline against the bare loop over
+exactly the rays it cast, motion distortion (exact vs snapshot vs the paper's N
+sub-steps) with ten moving cars, and the InfraNUC estimator's spread against disk count.
+"""
+
+import time
+
+import numpy as np
+
+from rls_addon.core.engine import PreparedScene, RigidBodies, ScanSettings, TimedScene, scan_frame
+from rls_addon.core.geometry import SceneGeometry
+from rls_addon.core.motion import Track
+
+
+def best(fn, repeat=3):
+    out, t_best = None, float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        out = fn()
+        t_best = min(t_best, time.perf_counter() - t)
+    return t_best, out
+
+
+class _Recorder:
+    """Wraps a caster; records every batch of rays it is asked to cast."""
+
+    def __init__(self, inner, log):
+        self.inner, self.log, self.name = inner, log, getattr(inner, "name", "caster")
+
+    def cast(self, origins, directions, max_dist):
+        self.log.append((self.inner, np.broadcast_to(origins, directions.shape).copy(),
+                         directions.copy(), float(max_dist)))
+        return self.inner.cast(origins, directions, max_dist)
+
+
+def same_rays(scene, pattern, pose, preset, repeat=3):
+    """Frame time of ``scan_frame`` (default settings, BVHTree) against the bare
+    ``ray_cast`` loop over exactly the rays that frame cast (primary rays, watertight
+    re-checks and re-casts, ghost rays), each with its own origin."""
+    caster = scene.caster
+    log = []
+    prim, hull = caster.primary, caster.hull
+    caster.primary, caster.hull = _Recorder(prim, log), _Recorder(hull, log)
+    try:
+        scan_frame(scene, pattern, pose, preset, ScanSettings())
+    finally:
+        caster.primary, caster.hull = prim, hull
+    lists = [(inner.tree.ray_cast, o.tolist(), d.tolist(), m) for inner, o, d, m in log]
+
+    def bare():
+        for rc, ol, dl, m in lists:
+            for o, d in zip(ol, dl):
+                rc(o, d, m)
+
+    t_bare, _ = best(bare, repeat)
+    t_frame, _ = best(lambda: scan_frame(scene, pattern, pose, preset, ScanSettings()), repeat)
+    return {"rays": sum(len(x[2]) for x in lists), "pattern_rays": len(pattern),
+            "bare_s": t_bare, "frame_s": t_frame, "ratio": t_frame / t_bare}
+
+
+def _translation(p):
+    m = np.eye(4)
+    m[:3, 3] = p
+    return m
+
+
+def moving_cars(g, pose, count=10, speed=15.0, period=0.1):
+    """Split the ``count`` cars nearest the sensor off the static street: (static
+    geometry, [(local geometry, track)]), cars driving along +-X at ``speed``."""
+    origin = pose[:3, 3]
+    cars = [k for k, o in enumerate(g.objects) if o.name.startswith("Car ")]
+    centres = {}
+    for k in cars:
+        v = g.vertices[np.unique(g.triangles[g.tri_object == k])]
+        centres[k] = (v.min(0) + v.max(0)) / 2
+    chosen = sorted(cars, key=lambda k: np.linalg.norm(centres[k] - origin))[:count]
+    static = g.subset(~np.isin(g.tri_object, chosen))
+    movers = []
+    for k in chosen:
+        sub = g.subset(g.tri_object == k)
+        c = centres[k]
+        local = SceneGeometry(sub.vertices - c, sub.triangles, sub.tri_object, sub.tri_material,
+                              g.objects, g.materials)
+        v = np.array([speed if c[1] < 0 else -speed, 0.0, 0.0])
+        movers.append((local, Track([0.0, period], [_translation(c), _translation(c + v * period)])))
+    return static, movers
+
+
+def motion(g, pose, preset, factory, substeps=(1, 2, 4, 8, 16, 32, 64), repeat=2):
+    """Ten moving cars on the static street.
+
+    snapshot   cars frozen at the sweep start, part of the static structure
+    exact      every ray at its own time (cars cast in their own frame)
+    N steps    the paper's method as a simulator runs it: for each of N sub-sweeps the
+               cars are placed at that sub-step and their structure rebuilt (the static
+               structure is reused); error = distance of car points from the exact scan
+    """
+    static, movers = moving_cars(g, pose)
+    pattern = preset.pattern()
+    origin = pose[:3, 3]
+    reach = preset.range.max_m
+    world = ScanSettings(frame_space="world", noise=False, dropout=False)
+    scene = PreparedScene(static, origin, reach, factory)
+    bodies = [RigidBodies(movers, factory)]
+    t_exact, exact = best(lambda: scan_frame(scene, pattern, pose, preset, world,
+                                             moving=bodies), repeat)
+    frozen = [_placed(local, tr.matrices[0]) for local, tr in movers]
+    snap_geom = _join([static] + frozen)
+    snap_scene = PreparedScene(snap_geom, origin, reach, factory)
+    t_snap, _ = best(lambda: scan_frame(snap_scene, pattern, pose, preset, world), repeat)
+    surface = _CarSurfaces(movers, factory)
+    exact_err = surface.error(exact.points)
+    rows = []
+    for n in substeps:
+        def run(n=n):
+            step = pattern.period / n
+            timed = []
+            for j in range(n):
+                t_mid = (j + 0.5) * step
+                cars = _join([_placed(local, tr.at([t_mid])[0]) for local, tr in movers])
+                sc = PreparedScene(cars, origin, reach, factory)
+                timed.append(TimedScene(sc, j * step if j else -np.inf,
+                                        (j + 1) * step if j < n - 1 else np.inf))
+            return scan_frame(scene, pattern, pose, preset, world, moving=timed)
+        t_n, res = best(run, repeat)
+        err = surface.error(res.points)
+        rows.append({"substeps": n, "seconds": t_n, "mean_err_m": err[0], "max_err_m": err[1]})
+    return {"cars": len(movers), "speed_mps": 15.0, "exact_s": t_exact, "snapshot_s": t_snap,
+            "exact_vs_snapshot": t_exact / t_snap, "substeps": rows,
+            "exact_mean_err_m": exact_err[0], "exact_max_err_m": exact_err[1],
+            "car_points": int((exact.points["label"] == 11).sum())}
+
+
+class _CarSurfaces:
+    """Distance of car points from their car's surface where the car really was at the
+    point's own time (BVHTree.find_nearest in each car's local frame). Ghost points
+    carry the car's label but lie at its mirror image, so they are left out."""
+
+    def __init__(self, movers, factory):
+        from mathutils.bvhtree import BVHTree
+
+        self.cars = {}
+        for local, tr in movers:
+            inst = int(local.per_triangle("instance")[0])
+            tree = BVHTree.FromPolygons(local.vertices.tolist(), local.triangles.tolist(),
+                                        all_triangles=True)
+            self.cars[inst] = (tree, tr)
+
+    def error(self, points):
+        d = []
+        for inst, (tree, tr) in self.cars.items():
+            sel = points[(points["instance"] == inst) & (points["ghost"] == 0)]
+            if len(sel) == 0:
+                continue
+            m = tr.at(sel["time"])
+            p = np.stack([sel["x"], sel["y"], sel["z"]], 1) - m[:, :3, 3]
+            d += [tree.find_nearest(q)[3] for q in p.tolist()]
+        return (float(np.mean(d)), float(np.max(d))) if d else (0.0, 0.0)
+
+
+def _placed(local, matrix):
+    v = local.vertices @ matrix[:3, :3].T + matrix[:3, 3]
+    return SceneGeometry(v, local.triangles, local.tri_object, local.tri_material,
+                         local.objects, local.materials)
+
+
+def _join(geoms):
+    verts, tris, off = [], [], 0
+    for g in geoms:
+        verts.append(g.vertices)
+        tris.append(g.triangles + off)
+        off += len(g.vertices)
+    first = geoms[0]
+    return SceneGeometry(np.concatenate(verts), np.concatenate(tris),
+                         np.concatenate([g.tri_object for g in geoms]),
+                         np.concatenate([g.tri_material for g in geoms]),
+                         first.objects, first.materials)
+
+
+def infranuc_disks(disk_counts=(100, 300, 1000, 3000, 6000, 20000), seeds=12):
+    """Spread (std over seeds) of InfraNUC and its time against the number of disks, on
+    a LiDAR-like cloud (density falling with distance from a pole) over 20 x 30 m."""
+    from rls_addon.core.metrics import infra_lob_metrics
+    from rls_addon.core.points import empty_points
+
+    rng = np.random.default_rng(3)
+    n = 200_000
+    r = np.sqrt(rng.uniform(4, 900, n))
+    a = rng.uniform(0, 2 * np.pi, n)
+    pts = empty_points(n)
+    pts["x"], pts["y"] = -10 + r * np.cos(a), -15 + r * np.sin(a)
+    pts["label"] = 1
+    poly = np.array([[-10, -15], [10, -15], [10, 15], [-10, 15]], float)
+    rows = []
+    for d in disk_counts:
+        vals, times = [], []
+        for s in range(seeds):
+            t = time.perf_counter()
+            res = infra_lob_metrics([pts], poly, disks=d, seed=s, with_density=False)
+            times.append(time.perf_counter() - t)
+            vals.append(res.infra_nuc)
+        rows.append({"disks": d, "mean": float(np.mean(vals)), "spread": float(np.std(vals)),
+                     "seconds": float(np.median(times))})
+    return rows
+
+
+def chart_motion(m, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = m["substeps"]
+    n = [r["substeps"] for r in rows]
+    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
+    ax[0].loglog(n, [r["max_err_m"] * 1000 for r in rows], "o-", label="max")
+    ax[0].loglog(n, [r["mean_err_m"] * 1000 for r in rows], "s-", label="mean")
+    ax[0].loglog(n, [m["speed_mps"] * 0.1 / (2 * k) * 1000 for k in n], "k--",
+                 label="v T / (2N)")
+    ax[0].set_xlabel("sub-steps N")
+    ax[0].set_ylabel("car point error (mm)")
+    ax[0].legend()
+    ax[0].set_title(f"{m['cars']} cars at {m['speed_mps']:g} m/s, 10 Hz sweep")
+    ax[1].semilogx(n, [r["seconds"] * 1000 for r in rows], "o-", label="N sub-steps")
+    ax[1].axhline(m["exact_s"] * 1000, color="g", label="exact (per-ray time)")
+    ax[1].axhline(m["snapshot_s"] * 1000, color="grey", ls=":", label="snapshot")
+    ax[1].set_xlabel("sub-steps N")
+    ax[1].set_ylabel("frame time (ms)")
+    ax[1].legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def chart_disks(rows, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    d = [r["disks"] for r in rows]
+    fig, ax1 = plt.subplots(figsize=(6, 4))
+    ax1.loglog(d, [r["spread"] for r in rows], "o-", label="spread over seeds")
+    ax1.set_xlabel("disks D")
+    ax1.set_ylabel("InfraNUC spread (std over 12 seeds)")
+    ax2 = ax1.twinx()
+    ax2.semilogx(d, [r["seconds"] * 1000 for r in rows], "s--", color="C1", label="time")
+    ax2.set_ylabel("time per estimate (ms)", color="C1")
+    ax1.set_title("InfraNUC: estimator spread and cost against disk count")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
