@@ -2,7 +2,7 @@
 #   make demo    set up .venv, scan the sample street scene, print where the output is
 #   make test    set up .venv and system tools, build the extension, run all tests
 #   make build   build and validate dist/rls_addon-<version>.zip with Blender's tooling
-#   make bench   benchmarks (about 10 minutes): docs/benchmarks.md and docs/bench_*.png
+#   make bench   benchmarks (about 3 minutes): docs/benchmarks.md and docs/bench_*.png
 
 PYTHON ?= python3.11
 VENV   := .venv
