@@ -14,7 +14,7 @@ import time
 import bpy
 
 from ..core.errors import OutputError, SceneError
-from ..core.io import output_path
+from ..core.io import output_path, writable_folder
 from ..core.io.fields import resolve_fields
 from .preview import show_points
 from .scan import save_scan, session_for
@@ -40,16 +40,7 @@ def resolve_output_dir(path):
     if path.startswith("//") and not bpy.data.filepath:
         raise OutputError(f"output folder '{path}' is relative to the .blend file, which is not "
                           f"saved yet: save the file or choose an absolute folder")
-    out = os.path.normpath(bpy.path.abspath(path))
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise OutputError(f"output folder {out} is a file, not a folder")
-    try:
-        os.makedirs(out, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create output folder {out}: {exc.strerror}") from None
-    if not os.access(out, os.W_OK):
-        raise OutputError(f"output folder {out} is not writable")
-    return out
+    return writable_folder(os.path.normpath(bpy.path.abspath(path)))
 
 
 def output_options(obj):

@@ -10,7 +10,6 @@ Clouds without a sidecar are taken as world-frame. Prints the result as JSON.
 """
 
 import json
-import os
 import sys
 
 import numpy as np

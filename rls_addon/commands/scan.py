@@ -5,7 +5,7 @@ import os
 import sys
 import time
 
-from ..core.errors import OutputError, SceneError
+from ..core.errors import SceneError
 from ..core.io import FORMATS
 
 DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
@@ -90,16 +90,10 @@ def open_scene(path):
 
 
 def check_output_dir(path):
-    import os
+    """The output folder, created and writable, or an OutputError (one line)."""
+    from ..core.io import writable_folder
 
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise OutputError(f"output path is not a directory: {path}")
-    try:
-        os.makedirs(path, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create output directory {path}: {exc.strerror}") from None
-    if not os.access(path, os.W_OK):
-        raise OutputError(f"output directory is not writable: {path}")
+    writable_folder(path)
 
 
 def existing_output(path, sensor, frame):

@@ -2,7 +2,6 @@
 
 import bpy
 import numpy as np
-import pytest
 
 from .conftest import add_lidar, mesh_object, scan
 

@@ -65,7 +65,7 @@ def test_unwritable_output_directory(demo_run, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a directory")
     line = one_line_error(rls("scan", demo_run[0] / "street.blend", "--out", blocker / "sub"))
-    assert "output directory" in line
+    assert "output folder" in line
 
 
 def test_bad_frame_range(demo_run, tmp_path):

@@ -3,7 +3,7 @@ binary_little_endian) that PCL, Open3D and plyfile read; atomic writes;
 output file names from templates; JSON sidecars. Pure numpy + stdlib.
 """
 
-from .atomic import atomic_write_bytes, ensure_directory
+from .atomic import atomic_write_bytes, ensure_directory, writable_folder
 from .cloud import encode_cloud, read_cloud, read_records, write_cloud
 from .fields import DEFAULT_FIELDS, FILE_TYPES, FORMAT_EXT, FORMATS
 from .paths import output_path, sanitize_name
@@ -25,4 +25,5 @@ __all__ = [
     "sidecar_path",
     "write_cloud",
     "write_sidecar",
+    "writable_folder",
 ]

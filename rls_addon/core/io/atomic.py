@@ -41,6 +41,20 @@ def ensure_directory(directory):
     return directory
 
 
+def writable_folder(path):
+    """Create the output folder ``path`` if needed and make sure files can be written
+    there; raise ``OutputError`` saying why not. Returns the path as given."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise OutputError(f"output folder {path} is a file, not a folder")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create output folder {path}: {exc.strerror}") from None
+    if not os.access(path, os.W_OK):
+        raise OutputError(f"output folder {path} is not writable")
+    return path
+
+
 def atomic_write_bytes(path, data, overwrite=False):
     """Write ``data`` (bytes-like, or a callable taking a binary file) to ``path``.
 
