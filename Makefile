@@ -12,7 +12,7 @@ TEST_STAMP    := $(VENV)/.test-installed
 VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP     := dist/rls_addon-$(VERSION).zip
 
-.PHONY: venv demo test build system-deps clean bench
+.PHONY: venv demo test build system-deps clean bench native
 
 venv: $(RUNTIME_STAMP)
 
@@ -39,17 +39,21 @@ system-deps:
 	    echo "make: error: PCL's command-line tools are missing: run 'sudo apt-get install pcl-tools'" >&2; exit 1; \
 	  fi; }
 
-build: $(RUNTIME_STAMP)
+# The optional C loop over Embree packets (needs gcc; without it Embree runs slower).
+native: $(RUNTIME_STAMP)
+	$(PY) tools/build_native.py
+
+build: native
 	$(PY) tools/build_extension.py --out dist
 
-demo: $(RUNTIME_STAMP)
+demo: native
 	$(PY) -m rls_addon demo --out out/demo
 
 test: $(TEST_STAMP) system-deps build
 	$(PY) -m pytest
 
 # The benchmark needs what the tests need (embreex, open3d, matplotlib).
-bench: $(TEST_STAMP)
+bench: $(TEST_STAMP) native
 	$(PY) bench/run.py --out docs
 
 clean:

@@ -12,10 +12,12 @@ float32; the engine recomputes every range exactly in float64 afterwards
 Two ways to drive Embree, chosen automatically (``mode="auto"``):
 
 ``packets``  Calls ``rtcIntersect16`` of the Embree library that the ``embreex`` wheel
-             bundles, through ``ctypes``, on 16-ray packets laid out by numpy. ``ctypes``
-             releases the GIL during each call, so chunks of rays run on a thread pool
-             and use every core. The packet layout is checked once per process by a
-             probe ray before it is trusted.
+             bundles. With the compiled loop (``rls_addon/native``, built by
+             ``tools/build_native.py`` and shipped in the Linux zip) one ``ctypes`` call
+             casts every ray on its own threads without the GIL; without it, 16-ray
+             packets laid out by numpy go through ``ctypes`` from a thread pool (the
+             GIL changes hands every packet, which scales poorly). The packet layout is
+             checked once per process by a probe ray before either is trusted.
 ``embreex``  ``embreex``'s own ``EmbreeScene.run``: one ray at a time in a Cython loop.
              Measured with embreex 4.4.0.post1: it holds the GIL for the whole call,
              so threads do not help and it uses one core.
@@ -138,6 +140,30 @@ def _bind(lib):
     for name, (res, args) in sigs.items():
         fn = getattr(lib, name)
         fn.restype, fn.argtypes = res, args
+
+
+_NATIVE = None  # ctypes handle on rls_addon/native/_rls_embree_loop.so, or False
+
+
+def _native_loop():
+    """The compiled packet loop (tools/build_native.py), or None when it is not built
+    for this platform: then packets are cast from Python on a thread pool."""
+    global _NATIVE
+    with _LOCK:
+        if _NATIVE is None:
+            path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                "native", "_rls_embree_loop.so")
+            try:
+                lib = ctypes.CDLL(path)
+                fn = lib.rls_embree_cast
+                fn.restype = ctypes.c_int
+                fn.argtypes = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
+                               ctypes.c_void_p, ctypes.c_int64, ctypes.c_float,
+                               ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
+                _NATIVE = fn
+            except (OSError, AttributeError):
+                _NATIVE = False
+        return _NATIVE or None
 
 
 def _aligned(words, dtype=np.float32):
@@ -269,12 +295,14 @@ class EmbreeCaster:
 
     name = "embree"
 
-    def __init__(self, vertices, triangles, threads=None, mode="auto", robust=True):
+    def __init__(self, vertices, triangles, threads=None, mode="auto", robust=True,
+                 native=True):
         v = np.ascontiguousarray(np.asarray(vertices, dtype=np.float64).reshape(-1, 3),
                                  dtype=np.float32)
         t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
         self.triangle_count = len(t)
         self.threads = int(threads) if threads else default_threads()
+        self.use_native = bool(native)
         lib = _packet_library() if mode in ("auto", "packets") else None
         if mode == "packets" and lib is None:
             raise RuntimeError(f"Embree packet mode is not usable here ({_LIB_ERROR})")
@@ -299,7 +327,10 @@ class EmbreeCaster:
 
     def describe(self):
         threads = self.threads if self.mode == "packets" else 1
-        return f"embree ({self.mode}, {threads} thread{'s' if threads != 1 else ''})"
+        mode = self.mode
+        if mode == "packets" and self.use_native and _native_loop() is not None:
+            mode = "packets, C loop"
+        return f"embree ({mode}, {threads} thread{'s' if threads != 1 else ''})"
 
     def cast(self, origins, directions, max_dist):
         d = np.ascontiguousarray(np.asarray(directions, dtype=np.float64).reshape(-1, 3),
@@ -320,6 +351,16 @@ class EmbreeCaster:
             dist[hit] = res["tfar"][hit]
             tri[hit] = res["primID"][hit]
             return dist, tri
+        native = _native_loop() if self.use_native else None
+        if native is not None:
+            # One call; the C loop runs its own threads while Python waits without the GIL.
+            org = np.ascontiguousarray(o)
+            threads = 1 if n < _SERIAL_BELOW else self.threads
+            rc = native(ctypes.cast(self._scene.lib.rtcIntersect16, ctypes.c_void_p).value,
+                        self._scene.handle, org.ctypes.data, int(org.shape[0] == n and n > 1),
+                        d.ctypes.data, n, tfar, dist.ctypes.data, tri.ctypes.data, threads)
+            if rc == 0:
+                return dist, tri
         tasks = max(self.threads * _TASKS_PER_THREAD, -(-n // (_CHUNK_PACKETS * _K)))
         step = min(_CHUNK_PACKETS, max(64, -(-n // (tasks * _K)))) * _K
         spans = [(s, min(n, s + step)) for s in range(0, n, step)]

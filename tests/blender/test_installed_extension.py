@@ -66,7 +66,7 @@ if site:
     factory, notice = backends.caster_factory('embree')
     c = factory(np.array([[-1.0, -1, 0], [3, -1, 0], [-1, 3, 0]]), np.array([[0, 1, 2]]))
     dist, tri = c.cast(np.array([[0.0, 0, 2]]), np.array([[0.0, 0, -1], [0, 0, 1]]), 10.0)
-    embree.update(notice=notice, name=c.name, mode=getattr(c, 'mode', None),
+    embree.update(notice=notice, name=c.name, mode=getattr(c, 'mode', None), describe=c.describe(),
                   dist=[float(x) for x in dist], tri=[int(x) for x in tri])
 print(json.dumps({'modules': mods, 'preview_points': len(preview.data.vertices),
                   'package': type(lidar.rls_lidar).__module__, 'embree': embree}))
@@ -103,4 +103,5 @@ def test_install_zip_and_scan_through_installed_operator(tmp_path):
     assert embree["embreex_file"].startswith(str(tmp_path / "user")), embree
     assert embree["notice"] is None and embree["name"] == "embree", embree
     assert embree["mode"] == "packets", embree
+    assert "C loop" in embree["describe"], embree  # the compiled loop shipped in the zip
     assert abs(embree["dist"][0] - 2.0) < 1e-5 and embree["tri"] == [0, -1], embree
