@@ -850,23 +850,21 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
     L.append("")
     L.append("## How the Embree backend runs\n")
     L.append("embreex 4.4.0.post1's own `EmbreeScene.run` casts one ray at a time and holds "
-             "the GIL for the whole call (measured: two threads take as long as one), so RLS "
-             "calls `rtcIntersect16` of the Embree library inside the embreex wheel through "
-             "`ctypes` on 16-ray packets laid out with numpy; `ctypes` releases the GIL during "
-             "each call, so a few chunks per thread run on a thread pool. A probe packet checks "
-             "the packet layout once per process; if anything is off, RLS falls back to "
-             "`EmbreeScene.run`, and without embreex to BVHTree, with a notice.\n")
-    L.append("Each call still gives the GIL back and takes it again every 16 rays (a few "
-             "microseconds). On this virtual machine a thread that waits for the GIL sleeps "
-             "on a futex, and waking it on an idle virtual CPU is slow: measured in isolation, "
-             "two threads cast a Pandar64 frame 1.3-1.6x faster than one right after other "
-             "work kept both CPUs awake, and about 1.0x after 0.2 s idle, which is how the "
-             "rounds above run. Open3D's TBB workers spin instead of sleeping and scale 1.9x. "
-             "Single-threaded, RLS's Embree is within 0.65-0.95x of Open3D (robust mode, which "
-             "keeps rays through shared edges and vertices from slipping through, costs "
-             "about 12%; without it 6.6% of rays aimed at the vertices and edges of a closed "
-             "sphere escaped in a test, against 0.03% with it). A future embreex whose `run` "
-             "releases the GIL over a TBB loop would remove the handoffs.\n")
+             "the GIL for the whole call (measured: two threads take as long as one). RLS "
+             "builds its own Embree scene through `ctypes` on the library inside the embreex "
+             "wheel and casts 16-ray packets with `rtcIntersect16`. A probe packet checks "
+             "the packet layout once per process. The packets are cast by a small C loop "
+             "(`rls_addon/native/embree_loop.c`, compiled by `tools/build_native.py` and "
+             "shipped in the Linux zip) on its own threads in one `ctypes` call, so Python "
+             "waits without the GIL; without the compiled loop, packets are cast from a "
+             "Python thread pool, which hands the GIL back and forth every 16 rays and "
+             "scales poorly on this virtual machine; without embreex, BVHTree is used with a "
+             "notice. Robust mode (rays through shared edges and vertices never slip "
+             "through) costs about 12%.\n")
+    L.append("What keeps a whole Embree frame from 4x real time is no longer casting: the "
+             "per-frame numpy work of the engine (exact range refinement, the watertight "
+             "re-check of misses, ghost bounces, noise, dropout, intensity, building the "
+             "point records) costs several times the cast itself; see the profile above.\n")
     Path(path).write_text("\n".join(L))
     return r
 
