@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.geometry import MaterialInfo, ObjectInfo, SceneGeometry, concatenate
+from ..core.geometry import MaterialInfo, ObjectInfo, concatenate
 from .labels import object_label
 from .materials import material_info
 from .sensor import is_lidar
@@ -165,7 +165,3 @@ def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):
     Returns (SceneGeometry, stats dict)."""
     instances, materials, stats = read_instances(depsgraph, centre, max_range, exclude)
     return world_geometry(instances, object_table(instances), materials), stats
-
-
-def empty_geometry_like(objects, materials):
-    return SceneGeometry(np.zeros((0, 3)), np.zeros((0, 3), np.int64), [], [], objects, materials)

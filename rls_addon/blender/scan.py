@@ -51,7 +51,7 @@ class ScanSession:
         preset, obj_settings = scan_inputs(obj)
         settings = settings or obj_settings
         pose = sensor_pose(obj.evaluated_get(depsgraph))
-        _, rmax = resolve_range(preset, settings)
+        rmin, rmax = resolve_range(preset, settings)
         centre = pose[:3, 3]
         instances, materials, stats = read_instances(
             depsgraph, centre=centre, max_range=rmax + MOVER_MARGIN_M, exclude={obj.name})
@@ -78,7 +78,7 @@ class ScanSession:
             "sensor_to_world": pose.tolist(),
             "seed": settings.seed,
             "effects": {"noise": settings.noise, "dropout": settings.dropout,
-                        "range_m": [resolve_range(preset, settings)[0], rmax],
+                        "range_m": [rmin, rmax],
                         "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
                         "motion": settings.motion, "substeps": settings.substeps,
                         "ghosting": settings.ghosting},
@@ -124,7 +124,9 @@ class ScanSession:
                 moved = bool(np.abs(m - m[0]).max() > 1e-12)
                 deform = deformation(verts[k]) if k in verts else 0.0
                 if deform > 1e-9:
-                    n = substep_count(deform + _travel(m, inst), tol, settings.substeps)
+                    corners = np.array([inst.vertices.min(0), inst.vertices.max(0)])
+                    travel = Track(times, m).max_displacement(corners)
+                    n = substep_count(deform + travel, tol, settings.substeps)
                     bodies += self._substeps(context, clock, inst, k, objects, materials, n)
                     summary["deforming"].append(inst.key)
                     summary["substeps"][inst.key] = n
@@ -169,14 +171,6 @@ class ScanSession:
                     out.append(TimedScene(scene, j * step if j else -np.inf, t1))
                     break
         return out
-
-
-def _travel(matrices, inst):
-    """How far the instance's bounding-box corners travel over the samples."""
-    corners = np.array([inst.vertices.min(0), inst.vertices.max(0)])
-    p = np.c_[corners, np.ones(2)]
-    w = np.einsum("kij,nj->kni", matrices[:, :3, :], p)
-    return float(np.linalg.norm(w - w[:1], axis=2).max())
 
 
 def session_for(backend="auto"):

@@ -1,10 +1,12 @@
 """``rls pattern``: write the rays of a device's scan pattern to CSV (no bpy)."""
 
+import io
 from pathlib import Path
 
 import numpy as np
 
 from ..core.errors import OutputError
+from ..core.io import atomic_write_bytes
 
 
 def add_parser(sub):
@@ -35,14 +37,13 @@ def run(args):
     duration = preset.period if args.duration is None else args.duration
     times, dirs, channels = pattern_span(preset, duration)
     az, el = angles_from_directions(dirs)
-    tmp = out.with_name(out.name + ".tmp")
-    try:
-        write_pattern_csv(tmp, times, np.degrees(az), np.degrees(el), channels)
-        tmp.replace(out)
-    except OSError as exc:
-        raise OutputError(f"{out}: cannot write ({exc.strerror})") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+
+    def write(binary):
+        text = io.TextIOWrapper(binary, encoding="utf-8", newline="\n")
+        write_pattern_csv(text, times, np.degrees(az), np.degrees(el), channels)
+        text.flush()
+        text.detach()  # the atomic writer closes the file itself
+
+    atomic_write_bytes(out, write, overwrite=args.overwrite)
     print(f"{out}: {len(times)} rays of {preset.name} over {duration:g} s")
     return 0

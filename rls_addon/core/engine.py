@@ -18,7 +18,7 @@ import numpy as np
 
 from . import effects, ghost
 from .geometry import clean_for_casting
-from .motion import Track, effective_times
+from .motion import Track, effective_times, polar
 from .points import POINT_DTYPE
 from .raycast import WatertightCaster, refine_hits, triangle_planes
 
@@ -322,24 +322,11 @@ class World:
 
 
 def sensor_axes(sensor_to_world):
-    """Origin and orthonormal rotation of a 4x4 pose (scale and shear are removed)."""
+    """Origins and orthonormal rotations of 4x4 poses (one (4, 4) or a stack (N, 4, 4));
+    scale and shear are removed, and a mirrored sensor still looks along its own axes."""
     m = np.asarray(sensor_to_world, dtype=np.float64)
-    u, _, vt = np.linalg.svd(m[:3, :3])
-    r = u @ vt
-    if np.linalg.det(r) < 0:  # a mirrored sensor still looks along its own axes
-        u[:, -1] *= -1
-        r = u @ vt
-    return m[:3, 3].copy(), r
-
-
-def _axes_many(mats):
-    u, _, vt = np.linalg.svd(mats[:, :3, :3])
-    r = u @ vt
-    flip = np.linalg.det(r) < 0
-    if flip.any():
-        u[flip, :, -1] *= -1
-        r = u @ vt
-    return mats[:, :3, 3].copy(), r
+    rot, _ = polar(m.reshape(-1, 4, 4)[:, :3, :3])
+    return m[..., :3, 3].copy(), rot.reshape(m.shape[:-2] + (3, 3))
 
 
 def resolve_range(preset, settings):
@@ -462,7 +449,7 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
         origins = origin.reshape(1, 3)
         dirs = dirs_sensor @ rot.T
     else:
-        origins, rots = _axes_many(track.at(tscene))
+        origins, rots = sensor_axes(track.at(tscene))
         dirs = np.einsum("nij,nj->ni", rots, dirs_sensor)
     if not isinstance(scene, PreparedScene):
         scene = PreparedScene(scene, origins.mean(axis=0),
