@@ -16,11 +16,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import effects, ghost
-from .geometry import clean_for_casting
+from . import blas, effects, ghost
+from .geometry import ObjectInfo, SceneGeometry, clean_for_casting, concatenate
 from .motion import Track, effective_times, polar
 from .points import POINT_DTYPE
-from .raycast import WatertightCaster, refine_hits, triangle_planes
+from .raycast import WatertightCaster, cast_exact, triangle_planes
 
 MOTION_MODES = ("exact", "substeps", "snapshot")
 
@@ -82,6 +82,8 @@ class PreparedScene:
                                    geometry.tri_object[self.kept], watertight, hull_cell)
         self.backend = getattr(self.caster, "name", "none")
         self.planes = triangle_planes(self.vertices, self.triangles)
+        # Caster triangle -> geometry triangle, with a trailing -1 that misses (-1) pick.
+        self._to_geometry = np.append(self.kept, -1).astype(np.int64)
 
     def covers(self, origin, max_range):
         """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
@@ -98,10 +100,28 @@ class PreparedScene:
             return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
         o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
         caster = self.caster if watertight else getattr(self.caster, "primary", self.caster)
-        dist, tri = caster.cast(o, directions, max_range)
-        dist, normals = refine_hits(self.vertices, self.triangles, o, directions, dist, tri,
-                                    self.planes)
-        return dist, np.where(tri >= 0, self.kept[np.maximum(tri, 0)], -1), normals
+        dist, tri, normals = cast_exact(caster, o, directions, max_range, self.planes)
+        return dist, self._to_geometry[tri], normals
+
+    def start_cast(self, origins, directions, max_range):
+        """Start ``cast(..., watertight=False)`` and return a function that gives its
+        result. Backends that cast without Python (the compiled Embree loop) run
+        meanwhile, so the caller can do other work; the others cast right here."""
+        caster = getattr(self.caster, "primary", self.caster)
+        start = getattr(caster, "start_refined", None)
+        pending = None
+        if start is not None and len(directions):
+            o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
+            pending = start(o, directions, max_range, self.planes)
+        if pending is None:
+            got = self.cast(origins, directions, max_range, watertight=False)
+            return lambda: got
+
+        def result():
+            dist, tri, normals = pending()
+            return dist, self._to_geometry[tri], normals
+
+        return result
 
 
 class RigidBodies:
@@ -119,8 +139,6 @@ class RigidBodies:
     """
 
     def __init__(self, parts, caster_factory, watertight=True):
-        from .geometry import concatenate
-
         self.tracks = [tr for _, tr in parts]
         self.centres, self.radii, self.slots, self.boxes, pieces = [], [], [], [], []
         # Slots are spaced so that a ray started at its own object's box and cast no
@@ -284,11 +302,25 @@ class TimedScene:
 
 @dataclass
 class World:
-    """Everything a sweep can hit. Body 0 is the static scene; the geometries of all
-    bodies share one object table and one material table."""
+    """Everything a sweep can hit. Body 0 is the static scene. The scene extraction
+    gives every body the same object and material tables; bodies built with their own
+    tables (tests, scripts) get them joined, with per-body index offsets."""
 
     static: PreparedScene
     moving: list = field(default_factory=list)  # RigidBody and TimedScene
+
+    def __post_init__(self):
+        geos = [b.geometry for b in self.bodies]
+        base = geos[0]
+        self._offsets = None
+        if all(g.objects == base.objects and g.materials == base.materials for g in geos[1:]):
+            self._tables = base
+            return
+        self._offsets = np.cumsum([[0, 0]] + [[len(g.objects) or 1, len(g.materials)]
+                                              for g in geos[:-1]], axis=0).astype(np.int32)
+        self._tables = SceneGeometry(np.zeros((0, 3)), np.zeros((0, 3), np.int64), [], [],
+                                     [o for g in geos for o in (g.objects or [ObjectInfo("")])],
+                                     [m for g in geos for m in g.materials])
 
     @property
     def bodies(self):
@@ -305,20 +337,42 @@ class World:
                 d2[closer], t2[closer], n2[closer], k
         return dist, body, tri, normals
 
-    def per_hit(self, body, tri, name):
-        """Gather a per-triangle field (see ``SceneGeometry.per_triangle``) at hits."""
+    def start_cast(self, origins, directions, times, max_range):
+        """Start ``cast(..., watertight=False)``; returns a function giving its result
+        (see ``PreparedScene.start_cast``: with moving bodies, cast right here)."""
+        if self.moving:
+            got = self.cast(origins, directions, times, max_range, watertight=False)
+            return lambda: got
+        pending = self.static.start_cast(origins, directions, max_range)
+
+        def result():
+            dist, tri, normals = pending()
+            return dist, np.where(tri >= 0, 0, -1), tri, normals
+
+        return result
+
+    @property
+    def geometry(self):
+        """A geometry holding the object and material tables of every body (the
+        indices ``surface_ids`` gives point into them)."""
+        return self._tables
+
+    def surface_ids(self, body, tri):
+        """(N, 2) int32 (object index, material index) of the surface each ray hit, into
+        the shared tables (see ``SceneGeometry.surface_ids``); rows with no hit (body
+        -1) hold arbitrary valid indices."""
         if not self.moving:
-            return self.static.geometry.per_triangle(name)[tri]
-        out = None
+            t = self.static.geometry.surface_ids()
+            # take(axis=0): numpy's fancy indexing copies rows one by one, ~8x slower
+            return t.take(tri, axis=0) if len(t) else np.zeros((len(tri), 2), np.int32)
+        out = np.zeros((len(tri), 2), np.int32)
         for k, b in enumerate(self.bodies):
-            sel = body == k
-            if not sel.any():
-                continue
-            values = b.geometry.per_triangle(name)[tri[sel]]
-            if out is None:
-                out = np.zeros(len(body), dtype=values.dtype)
-            out[sel] = values
-        return out if out is not None else np.zeros(len(body))
+            sel = np.nonzero(body == k)[0]
+            if len(sel):
+                out[sel] = b.geometry.surface_ids().take(tri[sel], axis=0)
+                if self._offsets is not None:
+                    out[sel] += self._offsets[k]
+        return out
 
 
 def sensor_axes(sensor_to_world):
@@ -337,87 +391,97 @@ def resolve_range(preset, settings):
 
 
 @dataclass
-class Hits:
-    """Hit records of the rays that returned something (one row per ray in ``idx``)."""
+class Returns:
+    """What each ray of the pattern brought back, one row per ray (kept per ray, not
+    compacted per hit, so no step copies the records: rows are selected once, for the
+    points)."""
 
-    idx: np.ndarray       # ray index into the pattern
+    valid: np.ndarray     # the ray returned a point within range
     dist: np.ndarray      # range (for ghosts: total path a + b)
-    body: np.ndarray      # body index in World.bodies
-    tri: np.ndarray       # triangle index in that body's geometry
-    normals: np.ndarray   # unit normal of the surface that sent the light back
-    u: np.ndarray         # beam direction (world)
-    u_last: np.ndarray    # direction of the last leg (reflected direction for ghosts)
-    ghost: np.ndarray     # uint8 flag
-    mirror: np.ndarray    # reflectivity of the mirror a ghost came through (1 otherwise)
-
-    def take(self, keep):
-        """The rows where boolean (or index) ``keep`` selects; self when it keeps all."""
-        if keep.dtype == bool and keep.all():
-            return self
-        return Hits(*(getattr(self, f)[keep] for f in self.__dataclass_fields__))
+    surface: np.ndarray   # (N, 2) object and material index of what sent the light back
+    normals: np.ndarray   # unit normal of that surface
+    ghost: np.ndarray | None = None  # uint8 flag per ray (None: no ghosts)
 
 
-def _ghosts(world, rng, origins, times, h, rmax):
-    """Turn a seeded share of glossy hits into ghost points at total path a + b along
-    the beam, labelled as the object the reflected beam found; glossy hits whose
-    reflected beam finds nothing return nothing. Returns (Hits, stats)."""
-    n = len(h.dist)
-    labels = ghost.glossy_labels()
-    glossy, ratio, mirror = np.zeros(n, bool), np.zeros(n), np.ones(n)
-    for k, b in enumerate(world.bodies):
-        sel = h.body == k
-        if sel.any():
-            g, r, refl = ghost.glossy_triangles(b.geometry, labels)
-            glossy[sel], ratio[sel], mirror[sel] = g[h.tri[sel]], r[h.tri[sel]], refl[h.tri[sel]]
-    gi = np.nonzero(glossy)[0]
-    stats = {"glossy_hits": int(len(gi)), "ghosts": 0, "bounce_rays": 0}
-    if len(gi) == 0:
-        return h, stats
-    chosen = gi[rng.random(len(gi)) < ratio[gi]]
-    if len(chosen) == 0:
-        return h, stats
-    a, uc = h.dist[chosen], h.u[chosen]
-    o = origins if origins.shape[0] == 1 else origins[h.idx[chosen]]
-    r = ghost.reflect(uc, h.normals[chosen])
-    p = o + uc * a[:, None]
-    start = ghost.bounce_origins(p, uc, h.normals[chosen], a)
-    # Reflected beams start on a surface, inside its cluster box: the watertight re-check
-    # would re-cast every one that escapes to the sky. A crack missed by a ghost ray
-    # only loses one ghost point, so they are cast once.
-    b, body2, tri2, n2 = world.cast(start, r, times[h.idx[chosen]], rmax, watertight=False)
-    found = tri2 >= 0
-    # The second leg measured from the mirror point itself, not the lifted start.
-    b = np.where(found, np.linalg.norm(start + r * np.where(found, b, 0)[:, None] - p, axis=1), b)
-    found &= a + b <= rmax
-    g = chosen[found]
-    out = h.take(np.arange(n))  # a copy
-    out.dist[g] = a[found] + b[found]
-    out.body[g], out.tri[g], out.normals[g] = body2[found], tri2[found], n2[found]
-    out.u_last[g] = r[found]
-    out.ghost[g] = 1
-    out.mirror[g] = mirror[g]
-    keep = np.ones(n, bool)
-    keep[chosen[~found]] = False
-    stats.update(ghosts=int(len(g)), bounce_rays=int(len(chosen)))
-    return out.take(keep), stats
+class _Bounces:
+    """Ghost points from glossy surfaces, in two steps around the frame's other work.
+
+    ``__init__`` picks a seeded share of the glossy returns (drawn per ray, so one
+    ray's fate never depends on which other rays returned) and starts casting their
+    reflected beams (see ``World.start_cast``: with the compiled Embree loop the
+    frame's per-ray shading goes on meanwhile).
+    ``finish`` turns the beams that found something into ghost points at total path
+    a + b along the original beam, labelled as what the reflected beam found; glossy
+    returns whose reflected beam finds nothing return nothing."""
+
+    def __init__(self, world, rng, origins, dirs, times, ret, rmax):
+        self.world, self.rmax = world, rmax
+        obj_glossy, mat_glossy, mat_ratio = ghost.glossy_tables(world.geometry,
+                                                                ghost.glossy_labels())
+        obj, mat = ret.surface[:, 0], ret.surface[:, 1]
+        glossy = mat_glossy[mat]
+        if obj_glossy.any():
+            glossy |= obj_glossy[obj]
+        cand = np.nonzero(glossy & ret.valid)[0]
+        self.stats = {"glossy_hits": int(len(cand)), "ghosts": 0, "bounce_rays": 0}
+        self.chosen = cand[rng.random(len(ret.dist))[cand] < mat_ratio[mat[cand]]] \
+            if len(cand) else cand
+        self.stats["bounce_rays"] = int(len(self.chosen))
+        self.pending = None
+        if len(self.chosen) == 0:
+            return
+        c = self.chosen
+        self.a = ret.dist[c]
+        uc, nc = dirs.take(c, axis=0), ret.normals.take(c, axis=0)
+        o = origins if origins.shape[0] == 1 else origins[c]
+        self.r = ghost.reflect(uc, nc)
+        self.p = o + uc * self.a[:, None]
+        # Reflected beams start on a surface, inside its cluster box: the watertight
+        # re-check would re-cast every one that escapes to the sky. A crack missed by a
+        # ghost ray only loses one ghost point, so they are cast once.
+        self.start = ghost.bounce_origins(self.p, uc, nc, self.a)
+        self.pending = world.start_cast(self.start, self.r, times[c], rmax)
+
+    def finish(self, ret):
+        """Apply the bounces to ``ret``; returns (ghost rows, their last-leg
+        directions, their mirrors' reflectivity)."""
+        none = np.zeros(0, np.int64)
+        if len(self.chosen) == 0:
+            return none, np.zeros((0, 3)), np.zeros(0)
+        b, body2, tri2, n2 = self.pending()
+        found = tri2 >= 0
+        # The second leg measured from the mirror point itself, not the lifted start.
+        b = np.where(found, np.linalg.norm(
+            self.start + self.r * np.where(found, b, 0)[:, None] - self.p, axis=1), b)
+        found &= self.a + b <= self.rmax
+        fi = np.nonzero(found)[0]
+        g = self.chosen[fi]
+        ret.valid[self.chosen[~found]] = False
+        self.stats["ghosts"] = int(len(g))
+        if len(g) == 0:
+            return none, np.zeros((0, 3)), np.zeros(0)
+        mirror = self.world.geometry.material_field("reflectivity")[ret.surface[g, 1]]
+        ret.dist[g] = self.a[fi] + b[fi]
+        ret.surface[g] = self.world.surface_ids(body2[fi], tri2[fi])
+        ret.normals[g] = n2.take(fi, axis=0)
+        ret.ghost = np.zeros(len(ret.dist), np.uint8)
+        ret.ghost[g] = 1
+        return g, self.r.take(fi, axis=0), mirror
 
 
-def _inside_warnings(world, h, min_hits=100, share=0.95):
-    """Warn when nearly all hits on an object land on the back of its faces: the sensor
-    is inside it (fine for a tunnel or a room; a mistake for a solid object)."""
-    if len(h.idx) < min_hits:
+def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
+    """Warn when nearly all points on an object land on the back of its faces: the
+    sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
+    ``obj`` (index into ``world.geometry.objects``) and ``back`` (bool) are per point."""
+    if len(obj) < min_hits:
         return []
-    back = np.einsum("ij,ij->i", h.u_last, h.normals) > 0
-    inst = world.per_hit(h.body, h.tri, "instance").astype(np.int64)
-    total = np.bincount(inst)
-    behind = np.bincount(inst, weights=back)
-    suspects = np.nonzero((total >= min_hits) & (behind >= share * np.maximum(total, 1)))[0]
-    if len(suspects) == 0:
-        return []
-    objects = {o.instance: o.name for b in world.bodies for o in b.geometry.objects}
-    return [f"the sensor is inside '{objects.get(int(i), i)}' ({behind[i] / total[i]:.0%} of "
-            f"its {int(total[i])} hits are on the back of its faces); fine for a room or "
-            "tunnel, otherwise move the sensor" for i in suspects]
+    objects = world.geometry.objects
+    total = np.bincount(obj, minlength=len(objects))
+    behind = np.bincount(obj[back], minlength=len(objects))
+    suspects = np.nonzero((total >= min_hits) & (behind >= share * total))[0]
+    return [f"the sensor is inside '{objects[i].name if i < len(objects) else i}' "
+            f"({behind[i] / total[i]:.0%} of its {int(total[i])} hits are on the back of its "
+            "faces); fine for a room or tunnel, otherwise move the sensor" for i in suspects]
 
 
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
@@ -433,6 +497,13 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
+    with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
+        return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
+                           frame, sensor, sensor_track, moving)
+
+
+def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
+                sensor, sensor_track, moving):
     t0 = time.perf_counter()
     s = settings
     rmin, rmax = resolve_range(preset, s)
@@ -464,42 +535,59 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
         warnings.append(f"no geometry within {rmax:g} m of the sensor")
 
     dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax)
-    idx = np.nonzero((tri >= 0) & (dist >= rmin) & (dist <= rmax))[0]
-    h = Hits(idx, dist[idx], body[idx], tri[idx], normals[idx], dirs[idx], dirs[idx].copy(),
-             np.zeros(len(idx), np.uint8), np.ones(len(idx)))
-    stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
-    if s.ghosting and len(idx):
-        h, stats = _ghosts(world, ghost_rng, origins, tscene, h, rmax)
+    ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
+                  world.surface_ids(body, tri), normals)
+    bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
+        if s.ghosting and ret.valid.any() else None
 
-    refl = world.per_hit(h.body, h.tri, "reflectivity").astype(np.float64)
-    cosi = effects.incidence_cosine(h.u_last, h.normals)
-    inten = effects.intensity(refl, cosi, h.dist, atten) * h.mirror
+    # Per ray from here on (misses carry harmless values and are dropped at the end);
+    # ghost rows are redone once their reflected beams are back.
+    g = world.geometry
+    refl = g.material_field("reflectivity").astype(np.float64)
+    dot = np.einsum("ij,ij->i", dirs, ret.normals)  # > 0: the back of a face
+    inten = effects.intensity(refl[ret.surface[:, 1]], np.abs(dot),
+                              np.where(ret.valid, ret.dist, 0.0), atten)
     # Noise and dropout are drawn per ray, not per hit, so a ray's draws never depend on
     # which other rays returned (ghosting or moving objects change only their own rays).
-    d = h.dist
-    if s.noise:
-        d = d + effects.range_noise(rng, n, sigma)[h.idx]
+    noise = effects.range_noise(rng, n, sigma) if s.noise else None
+    stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
+    if bounces is not None:
+        rows, last_leg, mirror = bounces.finish(ret)
+        stats = bounces.stats
+        if len(rows):
+            dot[rows] = np.einsum("ij,ij->i", last_leg, ret.normals.take(rows, axis=0))
+            inten[rows] = mirror * effects.intensity(refl[ret.surface[rows, 1]],
+                                                     np.abs(dot[rows]), ret.dist[rows], atten)
+    d = ret.dist if noise is None else ret.dist + noise
+    keep = ret.valid
     if s.dropout:
-        keep = effects.dropout_keep(rng, inten, preset.dropout.general_rate,
-                                    preset.dropout.intensity_limit, preset.dropout.intensity_zero,
-                                    rays=h.idx, n_rays=n)
-    else:
-        keep = np.ones(len(d), bool)
+        keep &= effects.dropout_keep(rng, inten, preset.dropout.general_rate,
+                                     preset.dropout.intensity_limit,
+                                     preset.dropout.intensity_zero)
     keep &= d > 0
-    h, d, inten = h.take(keep), d[keep], inten[keep]
-    idx = h.idx
-    o_hit = origins if origins.shape[0] == 1 else origins[idx]
+    idx = np.nonzero(keep)[0]
+    obj = ret.surface[:, 0]
+    d = d[idx]
+    o_idx = obj[idx]
+    instance = g.object_field("instance")[o_idx]
+    warnings += _inside_warnings(world, o_idx, dot[idx] > 0)
 
-    warnings += _inside_warnings(world, h)
-    pts = np.zeros(len(idx), dtype=POINT_DTYPE)
-    xyz = o_hit + h.u * d[:, None] if s.frame_space == "world" else dirs_sensor[idx] * d[:, None]
-    pts["x"], pts["y"], pts["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    pts = np.empty(len(idx), dtype=POINT_DTYPE)
+    if s.frame_space == "world":
+        cols = dirs.T
+        for k, f in enumerate("xyz"):
+            np.multiply(cols[k][idx], d, out=pts[f])
+            pts[f] += origins[0, k] if origins.shape[0] == 1 else origins[idx, k]
+    else:
+        cols = pattern.columns
+        for k, f in enumerate("xyz"):
+            np.multiply(cols[k].take(idx), d, out=pts[f])
     pts["range"] = d
-    pts["intensity"] = inten
-    pts["ring"] = pattern.channels[idx]
-    pts["time"] = pattern.times[idx]
-    pts["label"] = world.per_hit(h.body, h.tri, "label")
-    pts["instance"] = world.per_hit(h.body, h.tri, "instance")
-    pts["ghost"] = h.ghost
+    pts["intensity"] = inten.take(idx)
+    pts["ring"] = pattern.channels.take(idx)
+    pts["time"] = pattern.times.take(idx)
+    pts["label"] = g.object_field("label")[o_idx]
+    pts["instance"] = instance
+    pts["ghost"] = 0 if ret.ghost is None else ret.ghost.take(idx)
     stats["moving_bodies"] = len(moving)
     return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats)

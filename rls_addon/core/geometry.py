@@ -73,18 +73,46 @@ class SceneGeometry:
             self.materials,
         )
 
+    def object_field(self, name):
+        """A per-object array of an ``ObjectInfo`` field ('label', 'instance'; uint32),
+        computed once; one zero entry when there are no objects."""
+        key = ("object", name)
+        got = self._cache.get(key)
+        if got is None:
+            got = self._cache[key] = np.array(
+                [getattr(o, name) for o in self.objects] or [0], np.uint32)
+        return got
+
+    def material_field(self, name):
+        """A per-material array of a ``MaterialInfo`` field, computed once."""
+        key = ("material", name)
+        got = self._cache.get(key)
+        if got is None:
+            got = self._cache[key] = np.array([getattr(m, name) for m in self.materials])
+        return got
+
+    def surface_ids(self):
+        """(T, 2) int32 rows (object index, material index), computed once: one gather
+        at the hit triangles gives both, and every field then comes from the small
+        per-object and per-material tables."""
+        got = self._cache.get("surface_ids")
+        if got is None:
+            got = np.empty((self.triangle_count, 2), np.int32)
+            got[:, 0] = self.tri_object if len(self.objects) else 0
+            got[:, 1] = self.tri_material
+            self._cache["surface_ids"] = got
+        return got
+
     def per_triangle(self, name):
         """A per-triangle array of a material field ('reflectivity', 'glossy',
         'ghost_ratio') or an object field ('label', 'instance'), computed once."""
         got = self._cache.get(name)
         if got is None:
             if name in ("label", "instance"):
-                table = np.array([getattr(o, name) for o in self.objects] or [0], np.uint32)
-                got = table[self.tri_object] if len(self.objects) else np.zeros(
-                    self.triangle_count, np.uint32)
+                got = self.object_field(name)[self.tri_object if len(self.objects) else
+                                              np.zeros(self.triangle_count, np.int32)]
             else:
-                table = np.array([getattr(m, name) for m in self.materials])
-                got = table[self.tri_material]
+                got = self.material_field(name)[self.tri_material]
             self._cache[name] = got
         return got
 

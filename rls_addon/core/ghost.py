@@ -23,17 +23,17 @@ def glossy_labels(table=None, threshold=SMOOTHNESS_THRESHOLD):
     return {NAME_TO_ID[name] for name, s in table.items() if s > threshold and name in NAME_TO_ID}
 
 
-def glossy_triangles(geometry, label_ids):
-    """Per-triangle (glossy flag, ghost ratio, mirror reflectivity) arrays."""
-    key = ("glossy", frozenset(label_ids))
-    glossy = geometry._cache.get(key)
-    if glossy is None:
-        glossy = geometry.per_triangle("glossy").astype(bool)
-        if geometry.objects and label_ids:
-            obj = np.array([o.label in label_ids for o in geometry.objects], dtype=bool)
-            glossy = glossy | obj[geometry.tri_object]
-        geometry._cache[key] = glossy
-    return glossy, geometry.per_triangle("ghost_ratio"), geometry.per_triangle("reflectivity")
+def glossy_tables(geometry, label_ids):
+    """(per-object glossy flag, per-material glossy flag, per-material ghost ratio): a
+    surface is glossy when its material is, or its object's label is in
+    ``label_ids``. Computed once per geometry."""
+    key = ("glossy_objects", frozenset(label_ids))
+    obj = geometry._cache.get(key)
+    if obj is None:
+        obj = geometry._cache[key] = np.array(
+            [o.label in label_ids for o in geometry.objects] or [False], dtype=bool)
+    return (obj, geometry.material_field("glossy").astype(bool),
+            geometry.material_field("ghost_ratio").astype(np.float64))
 
 
 def reflect(u, n):

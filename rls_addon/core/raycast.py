@@ -65,22 +65,26 @@ class NumpyCaster:
 
 
 def triangle_planes(vertices, triangles):
-    """Unit normals (T, 3) and plane offsets n . v0 (T,) of triangles, float64."""
+    """Plane of each triangle as a (T, 4) float64 table: unit normal (nx, ny, nz) and
+    offset n . v0 (degenerate triangles get NaN rows)."""
     t = np.asarray(triangles, np.int64).reshape(-1, 3)
     v0 = vertices[t[:, 0]]
-    n = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
+    out = np.empty((len(t), 4))
+    n = out[:, :3]
+    n[:] = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
     with np.errstate(invalid="ignore", divide="ignore"):
         n /= np.linalg.norm(n, axis=1, keepdims=True)
-    return n, np.einsum("ij,ij->i", n, v0)
+    out[:, 3] = np.einsum("ij,ij->i", n, v0)
+    return out
 
 
 def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None):
     """Recompute hit distances exactly in float64 against each hit triangle's plane.
 
     Backends that work in float32 (BVHTree, Embree) then only decide *which*
-    triangle was hit; the range itself is exact. ``planes`` are the triangles'
-    ``triangle_planes`` when precomputed. Returns (dist, unit normals) with the normal
-    of every hit triangle (zeros for misses).
+    triangle was hit; the range itself is exact. ``planes`` is the triangles'
+    ``triangle_planes`` table when precomputed. Returns (dist, unit normals) with the
+    normal of every hit triangle (zeros for misses).
     """
     dist = np.array(dist, dtype=np.float64, copy=True)
     normals = np.zeros((dist.shape[0], 3))
@@ -88,12 +92,9 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None
     if len(hit) == 0:
         return dist, normals
     th = tri[hit]
-    if planes is None:
-        t = np.asarray(triangles, np.int64)[th]
-        unit, offset = triangle_planes(vertices, t)
-        n, off = unit, offset
-    else:
-        n, off = planes[0][th], planes[1][th]
+    pl = triangle_planes(vertices, np.asarray(triangles, np.int64)[th]) if planes is None \
+        else planes[th]
+    n, off = pl[:, :3], pl[:, 3]
     o = np.asarray(origins, np.float64).reshape(-1, 3)
     d = directions[hit]
     denom = np.einsum("ij,ij->i", n, d)
@@ -106,23 +107,20 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None
     dist[hit[use]] = exact[use]
     normals[hit] = n
     return dist, normals
-    t = triangles[tri[hit]]
-    v0 = vertices[t[:, 0]]
-    n = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    o = np.broadcast_to(np.asarray(origins, np.float64).reshape(-1, 3), directions.shape)[hit]
-    d = directions[hit]
-    denom = np.einsum("ij,ij->i", n, d)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        exact = np.einsum("ij,ij->i", n, v0 - o) / denom
-    # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
-    # where the float64 answer is ill-conditioned anyway.
-    use = np.isfinite(exact) & (np.abs(denom) > 1e-6) & (exact > 0)
-    dh = dist[hit]
-    dh[use] = exact[use]
-    dist[hit] = dh
-    normals[hit] = n
-    return dist, normals
+
+
+def cast_exact(caster, origins, directions, max_dist, planes):
+    """Cast and refine: (dist, tri, unit normals), every hit's range recomputed in
+    float64 against its plane (``planes`` from ``triangle_planes`` of the caster's
+    triangles). Backends that can fuse the two (``cast_refined``, the compiled Embree
+    loop) do it while casting; the others are refined here with ``refine_hits``."""
+    fused = getattr(caster, "cast_refined", None)
+    got = fused(origins, directions, max_dist, planes) if fused is not None else None
+    if got is not None:
+        return got
+    dist, tri = caster.cast(origins, directions, max_dist)
+    dist, normals = refine_hits(None, None, origins, directions, dist, tri, planes)
+    return dist, tri, normals
 
 
 # Generic (irrational-ish) vectors used to pick a perpendicular nudge for each retry.
@@ -195,7 +193,9 @@ class WatertightCaster:
     """
 
     def __init__(self, factory, vertices, triangles, groups=None, cell=None):
-        self.primary = factory(vertices, triangles)
+        # A backend may offer a faster build for use behind this wrapper (Embree without
+        # its robust mode): edge-exactness is this class's job then.
+        self.primary = getattr(factory, "behind_watertight", factory)(vertices, triangles)
         self.name = getattr(self.primary, "name", "caster")
         v = np.asarray(vertices, np.float64)
         tv = v[np.asarray(triangles, np.int64)]
@@ -215,9 +215,29 @@ class WatertightCaster:
         d = np.asarray(directions, np.float64)
         o = np.asarray(origins, np.float64).reshape(-1, 3)
         dist, tri = self.primary.cast(o, d, max_dist)
+        self._recheck(o, d, max_dist, dist, tri)
+        return dist, tri
+
+    def cast_refined(self, origins, directions, max_dist, planes):
+        """``cast`` with every hit refined (see ``cast_exact``): the primary cast is
+        refined by its backend, the few rays won back by the re-check here."""
+        d = np.asarray(directions, np.float64)
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        dist, tri, normals = cast_exact(self.primary, o, d, max_dist, planes)
+        got = self._recheck(o, d, max_dist, dist, tri)
+        if len(got):
+            dist[got], normals[got] = refine_hits(None, None, o if o.shape[0] == 1 else o[got],
+                                                  d[got], dist[got], tri[got], planes)
+        return dist, tri, normals
+
+    def _recheck(self, o, d, max_dist, dist, tri):
+        """Re-cast the misses that may have slipped through a crack (see the class
+        docstring), writing what they find into ``dist`` and ``tri``; returns the
+        indices of the rays won back."""
+        won = []
         miss = np.nonzero(tri < 0)[0]
         if len(miss) == 0:
-            return dist, tri
+            return np.zeros(0, np.int64)
         om = np.broadcast_to(o, d.shape)[miss]
         _, inside = self.hull.cast(om, d[miss], max_dist)
         keep = inside >= 0
@@ -236,5 +256,6 @@ class WatertightCaster:
             got = t2 >= 0
             got[got] = outside_distance(self.v, self.t, t2[got], om[got], dm[got]) <= self.tol
             dist[miss[got]], tri[miss[got]] = d2[got], t2[got]
+            won.append(miss[got])
             miss, om = miss[~got], om[~got]
-        return dist, tri
+        return np.concatenate(won) if won else np.zeros(0, np.int64)

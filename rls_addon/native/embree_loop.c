@@ -1,6 +1,12 @@
 /* The Embree packet loop of RLS, in C: casts N rays through rtcIntersect16 on a few
  * threads while Python holds no lock (ctypes releases the GIL for the whole call).
  *
+ * Rays come in float64 (origins centre-relative, unit directions) and are rounded to
+ * float32 only for Embree's traversal. With a plane table, every hit is then refined
+ * in float64 against its triangle's plane along the original ray (what
+ * rls_addon/core/raycast.py:refine_hits does in numpy), and the triangle's unit normal
+ * is written out, in the same worker thread while the triangle's data is warm.
+ *
  * No Embree header is needed: the caller passes the address of rtcIntersect16 from
  * the libembree4 already loaded by the embreex wheel, and the RTCRayHit16 layout
  * (offsets in 4-byte words) is the one rls_addon/core/embree_caster.py checks with a
@@ -10,6 +16,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define K 16
@@ -25,19 +32,24 @@
 #define GEOM 288
 #define STRIDE 384
 #define INVALID 0xFFFFFFFFu
+/* Below this |cos| between ray and plane the float64 plane answer is ill-conditioned
+ * (grazing): Embree's own distance is kept, as refine_hits does. */
+#define GRAZING 1e-6
 
 typedef void (*isect16_fn)(const int *valid, void *scene, void *rayhit, void *args);
 
 typedef struct {
     isect16_fn fn;
     void *scene;
-    const float *org;  /* 3 floats, or 3 per ray when org_per_ray */
+    const double *org;    /* 3 doubles, or 3 per ray when org_per_ray */
     int org_per_ray;
-    const float *dir;  /* 3 floats per ray */
+    const double *dir;    /* 3 doubles per ray */
     float tfar;
+    const double *plane;  /* per triangle: nx, ny, nz, n.v0; or NULL (no refinement) */
     double *dist;
     int64_t *tri;
-    int64_t lo, hi;    /* ray range of this worker */
+    double *normal;       /* 3 per ray, or NULL */
+    int64_t lo, hi;       /* ray range of this worker */
 } job_t;
 
 static void *work(void *arg) {
@@ -49,15 +61,15 @@ static void *work(void *arg) {
         memset(&buf, 0, sizeof(buf));
         for (int l = 0; l < K; l++) {
             int64_t r = s + (l < m ? l : 0);
-            const float *o = j->org_per_ray ? j->org + 3 * r : j->org;
-            const float *d = j->dir + 3 * r;
+            const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+            const double *d = j->dir + 3 * r;
             valid[l] = l < m ? -1 : 0;
-            buf.f[ORG + l] = o[0];
-            buf.f[ORG + K + l] = o[1];
-            buf.f[ORG + 2 * K + l] = o[2];
-            buf.f[DIR + l] = d[0];
-            buf.f[DIR + K + l] = d[1];
-            buf.f[DIR + 2 * K + l] = d[2];
+            buf.f[ORG + l] = (float)o[0];
+            buf.f[ORG + K + l] = (float)o[1];
+            buf.f[ORG + 2 * K + l] = (float)o[2];
+            buf.f[DIR + l] = (float)d[0];
+            buf.f[DIR + K + l] = (float)d[1];
+            buf.f[DIR + 2 * K + l] = (float)d[2];
             buf.f[TFAR + l] = j->tfar;
             buf.u[MASK + l] = INVALID;
             buf.u[PRIM + l] = INVALID;
@@ -65,38 +77,82 @@ static void *work(void *arg) {
         }
         j->fn(valid, j->scene, &buf, NULL);
         for (int l = 0; l < m; l++) {
+            int64_t r = s + l;
+            double *nrm = j->normal ? j->normal + 3 * r : NULL;
             if (buf.u[GEOM + l] == INVALID) {
-                j->dist[s + l] = INFINITY;
-                j->tri[s + l] = -1;
-            } else {
-                j->dist[s + l] = buf.f[TFAR + l];
-                j->tri[s + l] = (int64_t)buf.u[PRIM + l];
+                j->dist[r] = INFINITY;
+                j->tri[r] = -1;
+                if (nrm) nrm[0] = nrm[1] = nrm[2] = 0.0;
+                continue;
             }
+            uint32_t p = buf.u[PRIM + l];
+            double t = buf.f[TFAR + l];
+            if (j->plane) {
+                const double *pl = j->plane + 4 * (int64_t)p;
+                const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+                const double *d = j->dir + 3 * r;
+                double denom = pl[0] * d[0] + pl[1] * d[1] + pl[2] * d[2];
+                double exact = (pl[3] - (pl[0] * o[0] + pl[1] * o[1] + pl[2] * o[2])) / denom;
+                if (isfinite(exact) && fabs(denom) > GRAZING && exact > 0) t = exact;
+                if (nrm) { nrm[0] = pl[0]; nrm[1] = pl[1]; nrm[2] = pl[2]; }
+            }
+            j->dist[r] = t;
+            j->tri[r] = (int64_t)p;
         }
     }
     return NULL;
 }
 
-/* Returns 0 on success, -1 when a thread could not be started (results then partial). */
-int rls_embree_cast(void *fn, void *scene, const float *org, int org_per_ray,
-                    const float *dir, int64_t n, float tfar, double *dist, int64_t *tri,
-                    int threads) {
+#define MAX_THREADS 64
+
+typedef struct {
+    int count;
+    int running[MAX_THREADS];
+    pthread_t ids[MAX_THREADS];
+    job_t jobs[MAX_THREADS];
+} batch_t;
+
+/* Starts casting N rays on `threads` worker threads and returns at once (the caller
+ * collects with rls_embree_finish, keeping every array alive until then). A worker
+ * that cannot be started runs its share here before returning. NULL when out of
+ * memory (nothing was cast). */
+void *rls_embree_start64(void *fn, void *scene, const double *org, int org_per_ray,
+                         const double *dir, int64_t n, float tfar, const double *plane,
+                         double *dist, int64_t *tri, double *normal, int threads) {
+    batch_t *b = (batch_t *)calloc(1, sizeof(batch_t));
+    if (!b) return NULL;
     if (threads < 1) threads = 1;
-    if (threads > 64) threads = 64;
+    if (threads > MAX_THREADS) threads = MAX_THREADS;
     int64_t per = (n + threads - 1) / threads;
     per = (per + K - 1) / K * K;  /* whole packets per worker */
-    job_t jobs[64];
-    pthread_t ids[64];
-    int started = 0, rc = 0;
     for (int t = 0; t < threads; t++) {
         int64_t lo = t * per, hi = lo + per < n ? lo + per : n;
         if (lo >= n) break;
-        jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, tfar, dist, tri, lo, hi};
-        if (t == 0) continue;  /* the calling thread takes the first range */
-        if (pthread_create(&ids[t], NULL, work, &jobs[t]) != 0) { rc = -1; break; }
-        started = t;
+        b->jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, tfar, plane,
+                             dist, tri, normal, lo, hi};
+        b->running[t] = pthread_create(&b->ids[t], NULL, work, &b->jobs[t]) == 0;
+        if (!b->running[t]) work(&b->jobs[t]);
+        b->count = t + 1;
     }
-    if (n > 0) work(&jobs[0]);
-    for (int t = 1; t <= started; t++) pthread_join(ids[t], NULL);
-    return rc;
+    return b;
+}
+
+/* Waits for a batch from rls_embree_start64 and frees it. */
+void rls_embree_finish(void *batch) {
+    batch_t *b = (batch_t *)batch;
+    if (!b) return;
+    for (int t = 0; t < b->count; t++)
+        if (b->running[t]) pthread_join(b->ids[t], NULL);
+    free(b);
+}
+
+/* Casts N rays and returns when done: 0, or -1 when out of memory (nothing cast). */
+int rls_embree_cast64(void *fn, void *scene, const double *org, int org_per_ray,
+                      const double *dir, int64_t n, float tfar, const double *plane,
+                      double *dist, int64_t *tri, double *normal, int threads) {
+    void *b = rls_embree_start64(fn, scene, org, org_per_ray, dir, n, tfar, plane, dist, tri,
+                                 normal, threads);
+    if (!b) return -1;
+    rls_embree_finish(b);
+    return 0;
 }

@@ -1,6 +1,7 @@
 """The scan-pattern contract shared by every family."""
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -34,6 +35,12 @@ class ScanPattern:
 
     def __len__(self):
         return self.directions.shape[0]
+
+    @cached_property
+    def columns(self):
+        """The directions as a contiguous (3, N) array (x, y and z rows): gathering
+        one coordinate of many rays then reads one contiguous row."""
+        return np.ascontiguousarray(self.directions.T)
 
 
 def directions_from_angles(azimuth_rad, elevation_rad):
