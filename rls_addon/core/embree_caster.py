@@ -156,8 +156,9 @@ def _native_loop():
             try:
                 lib = ctypes.CDLL(path)
                 args = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
-                        ctypes.c_void_p, ctypes.c_int64, ctypes.c_float, ctypes.c_void_p,
-                        ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int]
+                        ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64, ctypes.c_float,
+                        ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
+                        ctypes.c_int]
                 # A stale build without these names: Python packets instead.
                 start, finish = lib.rls_embree_start64, lib.rls_embree_finish
                 start.restype, start.argtypes = ctypes.c_void_p, args
@@ -399,21 +400,23 @@ class EmbreeCaster:
             list(_pool(self.threads).map(work, spans))
         return dist, tri
 
-    def cast_refined(self, origins, directions, max_dist, planes):
+    def cast_refined(self, origins, directions, max_dist, planes, order=None):
         """(dist, tri, unit normals) with every hit refined in float64 against its
         triangle's plane (``planes``: (T, 4) rows nx, ny, nz, n.v0, see
         ``raycast.triangle_planes``), fused into the compiled loop; None when the loop
-        is not available (the caller then refines in numpy)."""
-        pending = self.start_refined(origins, directions, max_dist, planes)
+        is not available (the caller then refines in numpy). ``order``: an optional
+        permutation of the rays to trace them in (neighbours in it share packets: a
+        coherent order is faster); the results are the same."""
+        pending = self.start_refined(origins, directions, max_dist, planes, order)
         return None if pending is None else pending()
 
-    def start_refined(self, origins, directions, max_dist, planes):
+    def start_refined(self, origins, directions, max_dist, planes, order=None):
         """Start ``cast_refined`` on the compiled loop's own threads and return at once:
         a function that waits and gives its result. Python (and the GIL) is free
         meanwhile. None when the loop is not available."""
-        return self._start_native(origins, directions, max_dist, planes)
+        return self._start_native(origins, directions, max_dist, planes, order)
 
-    def _start_native(self, origins, directions, max_dist, planes):
+    def _start_native(self, origins, directions, max_dist, planes, order=None):
         if self.mode != "packets" or not self.use_native:
             return None
         native = _native_loop()
@@ -430,6 +433,10 @@ class EmbreeCaster:
             pl = np.ascontiguousarray(planes, dtype=np.float64)
             if pl.shape != (self.triangle_count, 4):
                 raise ValueError("planes must hold one (nx, ny, nz, offset) row per triangle")
+        if order is not None:
+            order = np.ascontiguousarray(order, dtype=np.int64)
+            if order.shape != (n,):
+                raise ValueError("order must hold one index per ray")
         dist = np.empty(n)
         tri = np.empty(n, dtype=np.int64)
         normals = np.empty((n, 3)) if pl is not None else None
@@ -439,12 +446,13 @@ class EmbreeCaster:
         threads = 1 if n < _SERIAL_BELOW else self.threads
         batch = start(ctypes.cast(self._scene.lib.rtcIntersect16, ctypes.c_void_p).value,
                       self._scene.handle, o.ctypes.data, int(o.shape[0] == n and n > 1),
-                      d.ctypes.data, n, tfar, None if pl is None else pl.ctypes.data,
+                      d.ctypes.data, None if order is None else order.ctypes.data, n, tfar,
+                      None if pl is None else pl.ctypes.data,
                       dist.ctypes.data, tri.ctypes.data,
                       None if normals is None else normals.ctypes.data, threads)
         if not batch:
             return None
-        return _Batch(finish, batch, (self, o, d, pl), (dist, tri, normals))
+        return _Batch(finish, batch, (self, o, d, pl, order), (dist, tri, normals))
 
     def _cast_span(self, o, d, tfar, dist, tri, lo, hi):
         buf = getattr(self._local, "buf", None)

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import blas, effects, ghost
 from .geometry import ObjectInfo, SceneGeometry, clean_for_casting, concatenate
-from .motion import Track, effective_times, polar
+from .motion import effective_times, polar
 from .points import POINT_DTYPE
 from .raycast import WatertightCaster, cast_exact, triangle_planes
 
@@ -92,15 +92,16 @@ class PreparedScene:
         gap = np.linalg.norm(o - self.centre, axis=1).max()
         return gap + max_range <= self.reach * (1 + 1e-12)
 
-    def cast(self, origins, directions, max_range, watertight=True):
+    def cast(self, origins, directions, max_range, watertight=True, order=None):
         """Per ray: (dist, index into ``geometry``'s triangles or -1, unit normals).
-        ``watertight=False`` skips the re-check of misses (for secondary rays)."""
+        ``watertight=False`` skips the re-check of misses (for secondary rays);
+        ``order`` is a trace order (see ``raycast.cast_exact``)."""
         n = directions.shape[0]
         if self.caster is None or n == 0:
             return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
         o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
         caster = self.caster if watertight else getattr(self.caster, "primary", self.caster)
-        dist, tri, normals = cast_exact(caster, o, directions, max_range, self.planes)
+        dist, tri, normals = cast_exact(caster, o, directions, max_range, self.planes, order)
         return dist, self._to_geometry[tri], normals
 
     def start_cast(self, origins, directions, max_range):
@@ -362,9 +363,11 @@ class World:
     def bodies(self):
         return [self.static] + list(self.moving)
 
-    def cast(self, origins, directions, times, max_range, watertight=True):
-        """Nearest hit over all bodies: (dist, body index, triangle index, normals)."""
-        dist, tri, normals = self.static.cast(origins, directions, max_range, watertight)
+    def cast(self, origins, directions, times, max_range, watertight=True, order=None):
+        """Nearest hit over all bodies: (dist, body index, triangle index, normals);
+        ``order``: a trace order for the static scene (see ``raycast.cast_exact``)."""
+        dist, tri, normals = self.static.cast(origins, directions, max_range, watertight,
+                                              order)
         body = np.where(tri >= 0, 0, -1)
         for k, b in enumerate(self.moving, start=1):
             d2, t2, n2 = b.cast(origins, directions, times, max_range, watertight)
@@ -509,7 +512,7 @@ def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
     """Warn when nearly all points on an object land on the back of its faces: the
     sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
     ``obj`` (index into ``world.geometry.objects``) and ``back`` (bool) are per point."""
-    if len(obj) < min_hits:
+    if len(obj) < min_hits or np.count_nonzero(back) < min_hits:
         return []
     objects = world.geometry.objects
     total = np.bincount(obj, minlength=len(objects))
@@ -549,14 +552,14 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
 
     n = len(pattern)
     tscene = effective_times(pattern.times, pattern.period, s.motion, s.substeps)
-    track = sensor_track if sensor_track is not None else Track.fixed(sensor_to_world)
     dirs_sensor = pattern.directions
-    if track.is_static:
-        origin, rot = sensor_axes(track.matrices[0])
+    if sensor_track is None or sensor_track.is_static:
+        origin, rot = sensor_axes(sensor_to_world if sensor_track is None
+                                  else sensor_track.matrices[0])
         origins = origin.reshape(1, 3)
-        dirs = dirs_sensor @ rot.T
+        dirs = pattern.rotated(rot)
     else:
-        origins, rots = sensor_axes(track.at(tscene))
+        origins, rots = sensor_axes(sensor_track.at(tscene))
         dirs = np.einsum("nij,nj->ni", rots, dirs_sensor)
     if not isinstance(scene, PreparedScene):
         scene = PreparedScene(scene, origins.mean(axis=0),
@@ -570,7 +573,8 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     elif len(scene.triangles) == 0 and not moving:
         warnings.append(f"no geometry within {rmax:g} m of the sensor")
 
-    dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax)
+    dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax,
+                                         order=pattern.trace_order)
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
     bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
@@ -582,7 +586,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     refl = g.material_field("reflectivity").astype(np.float64)
     dot = np.einsum("ij,ij->i", dirs, ret.normals)  # > 0: the back of a face
     inten = effects.intensity(refl[ret.surface[:, 1]], np.abs(dot),
-                              np.where(ret.valid, ret.dist, 0.0), atten)
+                              np.where(ret.valid, ret.dist, 0.0) if atten else None, atten)
     # Noise and dropout are drawn per ray, not per hit, so a ray's draws never depend on
     # which other rays returned (ghosting or moving objects change only their own rays).
     noise = effects.range_noise(rng, n, sigma) if s.noise else None

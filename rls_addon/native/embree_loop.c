@@ -2,10 +2,13 @@
  * threads while Python holds no lock (ctypes releases the GIL for the whole call).
  *
  * Rays come in float64 (origins centre-relative, unit directions) and are rounded to
- * float32 only for Embree's traversal. With a plane table, every hit is then refined
+ * float32 only for Embree's traversal, 16 at a time in the given trace order (rays
+ * that are neighbours in that order share a packet; results go back to each ray's own
+ * slot). With a plane table, every hit is then refined
  * in float64 against its triangle's plane along the original ray (what
  * rls_addon/core/raycast.py:refine_hits does in numpy), and the triangle's unit normal
  * is written out, in the same worker thread while the triangle's data is warm.
+ * rls_embree_start64 returns while the workers run; rls_embree_finish collects them.
  *
  * No Embree header is needed: the caller passes the address of rtcIntersect16 from
  * the libembree4 already loaded by the embreex wheel, and the RTCRayHit16 layout
@@ -44,6 +47,7 @@ typedef struct {
     const double *org;    /* 3 doubles, or 3 per ray when org_per_ray */
     int org_per_ray;
     const double *dir;    /* 3 doubles per ray */
+    const int64_t *order; /* trace order (a permutation of the rays), or NULL */
     float tfar;
     const double *plane;  /* per triangle: nx, ny, nz, n.v0; or NULL (no refinement) */
     double *dist;
@@ -59,8 +63,11 @@ static void *work(void *arg) {
     for (int64_t s = j->lo; s < j->hi; s += K) {
         int m = (int)((j->hi - s) < K ? (j->hi - s) : K);
         memset(&buf, 0, sizeof(buf));
+        int64_t ray[K];
         for (int l = 0; l < K; l++) {
-            int64_t r = s + (l < m ? l : 0);
+            int64_t at = s + (l < m ? l : 0);
+            int64_t r = j->order ? j->order[at] : at;
+            ray[l] = r;
             const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
             const double *d = j->dir + 3 * r;
             valid[l] = l < m ? -1 : 0;
@@ -77,7 +84,7 @@ static void *work(void *arg) {
         }
         j->fn(valid, j->scene, &buf, NULL);
         for (int l = 0; l < m; l++) {
-            int64_t r = s + l;
+            int64_t r = ray[l];
             double *nrm = j->normal ? j->normal + 3 * r : NULL;
             if (buf.u[GEOM + l] == INVALID) {
                 j->dist[r] = INFINITY;
@@ -117,8 +124,9 @@ typedef struct {
  * that cannot be started runs its share here before returning. NULL when out of
  * memory (nothing was cast). */
 void *rls_embree_start64(void *fn, void *scene, const double *org, int org_per_ray,
-                         const double *dir, int64_t n, float tfar, const double *plane,
-                         double *dist, int64_t *tri, double *normal, int threads) {
+                         const double *dir, const int64_t *order, int64_t n, float tfar,
+                         const double *plane, double *dist, int64_t *tri, double *normal,
+                         int threads) {
     batch_t *b = (batch_t *)calloc(1, sizeof(batch_t));
     if (!b) return NULL;
     if (threads < 1) threads = 1;
@@ -128,8 +136,8 @@ void *rls_embree_start64(void *fn, void *scene, const double *org, int org_per_r
     for (int t = 0; t < threads; t++) {
         int64_t lo = t * per, hi = lo + per < n ? lo + per : n;
         if (lo >= n) break;
-        b->jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, tfar, plane,
-                             dist, tri, normal, lo, hi};
+        b->jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar,
+                             plane, dist, tri, normal, lo, hi};
         b->running[t] = pthread_create(&b->ids[t], NULL, work, &b->jobs[t]) == 0;
         if (!b->running[t]) work(&b->jobs[t]);
         b->count = t + 1;
@@ -148,10 +156,11 @@ void rls_embree_finish(void *batch) {
 
 /* Casts N rays and returns when done: 0, or -1 when out of memory (nothing cast). */
 int rls_embree_cast64(void *fn, void *scene, const double *org, int org_per_ray,
-                      const double *dir, int64_t n, float tfar, const double *plane,
-                      double *dist, int64_t *tri, double *normal, int threads) {
-    void *b = rls_embree_start64(fn, scene, org, org_per_ray, dir, n, tfar, plane, dist, tri,
-                                 normal, threads);
+                      const double *dir, const int64_t *order, int64_t n, float tfar,
+                      const double *plane, double *dist, int64_t *tri, double *normal,
+                      int threads) {
+    void *b = rls_embree_start64(fn, scene, org, org_per_ray, dir, order, n, tfar, plane,
+                                 dist, tri, normal, threads);
     if (!b) return -1;
     rls_embree_finish(b);
     return 0;

@@ -94,3 +94,22 @@ def test_started_cast_runs_while_python_works_and_may_be_dropped():
     import gc
 
     gc.collect()
+
+
+def test_trace_order_changes_speed_not_results():
+    """Rays traced in another order (shared packets) land in their own slots."""
+    from rls_addon.core.raycast import triangle_planes
+
+    v, t = scene(7)
+    planes = triangle_planes(v, t)
+    rng = np.random.default_rng(8)
+    d = rng.normal(size=(20011, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    c = embree_caster.EmbreeCaster(v, t, threads=2)
+    order = rng.permutation(len(d))
+    a = c.cast_refined(np.zeros((1, 3)), d, 30.0, planes)
+    b = c.cast_refined(np.zeros((1, 3)), d, 30.0, planes, order=order)
+    for x, y in zip(a, b):
+        assert np.array_equal(x, y)
+    with pytest.raises(ValueError, match="order"):
+        c.cast_refined(np.zeros((1, 3)), d, 30.0, planes, order=order[:-1])

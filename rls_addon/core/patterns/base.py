@@ -36,6 +36,33 @@ class ScanPattern:
     def __len__(self):
         return self.directions.shape[0]
 
+    def rotated(self, rotation):
+        """The directions turned by the 3x3 ``rotation`` (sensor to world), (N, 3); the
+        last result is kept, so a sensor that does not move pays once per scan."""
+        rotation = np.asarray(rotation, np.float64)
+        last = self.__dict__.get("_rotated")
+        if last is not None and np.array_equal(last[0], rotation):
+            return last[1]
+        out = self.directions @ rotation.T
+        out.flags.writeable = False  # shared between frames
+        self.__dict__["_rotated"] = (rotation.copy(), out)
+        return out
+
+    @cached_property
+    def trace_order(self):
+        """A permutation of the rays that keeps neighbours in direction next to each
+        other (a Z-order curve over azimuth and elevation), for backends that trace
+        rays in 16-ray packets (Embree); None when the firing order is coherent enough
+        already. Computed once.
+
+        Only worth it where consecutive rays point far apart: measured on the benchmark
+        street, RoboSense M1 (packets spanning 53 deg in firing order, 1.2 deg in
+        Z-order) cast 8.6 -> 5.8 ms, while Pandar64 and Pandar128 (7-9 deg) got 7-10%
+        slower from the scattered reads and writes."""
+        if len(self) < 2 * _PACKET or _packet_spread_deg(self.directions) <= _COHERENT_DEG:
+            return None
+        return z_order(*angles_from_directions(self.directions))
+
     @cached_property
     def columns(self):
         """The directions as a contiguous (3, N) array (x, y and z rows): gathering
@@ -58,3 +85,37 @@ def angles_from_directions(directions):
     az = np.arctan2(d[:, 1], d[:, 0])
     el = np.arctan2(d[:, 2], np.hypot(d[:, 0], d[:, 1]))
     return az, el
+
+
+_PACKET = 16
+_COHERENT_DEG = 20.0
+
+
+def _packet_spread_deg(directions):
+    """Mean over 16-ray packets (in firing order) of the largest angle between a ray
+    and its packet's mean direction, in degrees."""
+    n = len(directions) // _PACKET * _PACKET
+    p = directions[:n].reshape(-1, _PACKET, 3)
+    m = p.mean(axis=1, keepdims=True)
+    m /= np.maximum(np.linalg.norm(m, axis=2, keepdims=True), 1e-300)
+    cos = np.clip(np.einsum("pkj,pkj->pk", p, np.broadcast_to(m, p.shape)), -1.0, 1.0)
+    return float(np.degrees(np.arccos(cos.min(axis=1))).mean())
+
+
+def z_order(u, v, bits=10):
+    """Indices sorting points (u, v) along a Z-order (Morton) curve over their
+    bounding box, at ``bits`` bits per axis."""
+    def cells(x):
+        x = np.asarray(x, np.float64)
+        span = float(np.ptp(x)) if x.size else 0.0
+        q = (x - (x.min() if x.size else 0.0)) * (((1 << bits) - 1) / span if span > 0 else 0.0)
+        return np.clip(q, 0, (1 << bits) - 1).astype(np.uint64)
+
+    def spread(x):  # bit k of x goes to bit 2k
+        out = np.zeros_like(x)
+        for k in range(bits):
+            out |= ((x >> np.uint64(k)) & np.uint64(1)) << np.uint64(2 * k)
+        return out
+
+    key = spread(cells(u)) | (spread(cells(v)) << np.uint64(1))
+    return np.argsort(key, kind="stable")
