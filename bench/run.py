@@ -266,13 +266,13 @@ def devices_section(geometry, pose, quick):
         dirs = np.ascontiguousarray(pat.directions)
         log(f"bench: {label}: {rays:,} rays per frame")
         rmax = p.range.max_m
-        times = be.cast_times(dirs, rmax, repeat=2 if quick else 3)
+        times = be.cast_times(dirs, rmax, repeat=2 if quick else 5)
         settings = ScanSettings()
         bare_settings = _settings(ScanSettings, ghosting=False, noise=False, dropout=False)
         frame, prepared_cast, frame_bare = {}, {}, {}
         for name in ("embree", "bvhtree"):
             scene = be.prepared[name]
-            k = 5 if name == "embree" else 2
+            k = 7 if name == "embree" else 2
             frame[name], res = best(lambda: scan_frame(scene, pat, pose, p, settings), k)
             prepared_cast[name], _ = best(lambda: scene.cast(origin, dirs, rmax), k)
             frame_bare[name], _ = best(lambda: scan_frame(scene, pat, pose, p, bare_settings), k)
