@@ -18,11 +18,6 @@ def scan_rng(seed, sensor, frame):
     return [np.random.default_rng(s) for s in seq.spawn(2)]
 
 
-def incidence_cosine(directions, normals):
-    """|cos| of the angle between each ray and the surface normal it hit."""
-    return np.abs(np.einsum("ij,ij->i", directions, normals))
-
-
 def intensity(reflectivity, cos_incidence, distance, attenuation_per_m=0.0):
     """Lambertian return: reflectivity * cos(incidence) * exp(-a * d), clipped to 0..1.
 
@@ -40,22 +35,20 @@ def range_noise(rng, n, sigma):
     return rng.standard_normal(n) * sigma  # the same draws as rng.normal(0, sigma, n)
 
 
-def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0,
-                 rays=None, n_rays=None):
+def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
     """CARLA's dropout: drop a random ``general_rate`` share of points; then a point with
     intensity I <= limit survives with probability (zero / limit) * I + (1 - zero).
 
-    With ``rays`` (the ray index of each point) and ``n_rays``, the uniform draws are made
-    per ray, so each ray's fate is independent of which other rays returned.
+    One uniform draw per entry for each rule: the engine passes one intensity per ray of
+    the pattern (misses included), so each ray's fate is independent of which other
+    rays returned.
     """
     n = intensities.shape[0]
-    rays = np.arange(n) if rays is None else rays
-    n_rays = n if n_rays is None else n_rays
     keep = np.ones(n, dtype=bool)
     if general_rate > 0:
-        keep &= rng.random(n_rays)[rays] >= general_rate
+        keep &= rng.random(n) >= general_rate
     if intensity_limit > 0 and intensity_zero > 0:
         p = (intensity_zero / intensity_limit) * intensities + (1.0 - intensity_zero)
         low = intensities <= intensity_limit
-        keep &= ~low | (rng.random(n_rays)[rays] < p)
+        keep &= ~low | (rng.random(n) < p)
     return keep

@@ -117,10 +117,7 @@ def cast_exact(caster, origins, directions, max_dist, planes, order=None):
     ``order``: an optional permutation to trace the rays in (a coherent order is
     faster where the backend traces rays in packets; the results do not change)."""
     fused = getattr(caster, "cast_refined", None)
-    got = None
-    if fused is not None:
-        got = fused(origins, directions, max_dist, planes) if order is None else \
-            fused(origins, directions, max_dist, planes, order=order)
+    got = fused(origins, directions, max_dist, planes, order) if fused is not None else None
     if got is not None:
         return got
     dist, tri = caster.cast(origins, directions, max_dist)

@@ -1,5 +1,5 @@
-/* The Embree packet loop of RLS, in C: casts N rays through rtcIntersect16 on a few
- * threads while Python holds no lock (ctypes releases the GIL for the whole call).
+/* The Embree packet loop of RLS, in C: casts N rays through rtcIntersect16 on worker
+ * threads of its own, which need no Python lock.
  *
  * Rays come in float64 (origins centre-relative, unit directions) and are rounded to
  * float32 only for Embree's traversal, 16 at a time in the given trace order (rays
@@ -152,16 +152,4 @@ void rls_embree_finish(void *batch) {
     for (int t = 0; t < b->count; t++)
         if (b->running[t]) pthread_join(b->ids[t], NULL);
     free(b);
-}
-
-/* Casts N rays and returns when done: 0, or -1 when out of memory (nothing cast). */
-int rls_embree_cast64(void *fn, void *scene, const double *org, int org_per_ray,
-                      const double *dir, const int64_t *order, int64_t n, float tfar,
-                      const double *plane, double *dist, int64_t *tri, double *normal,
-                      int threads) {
-    void *b = rls_embree_start64(fn, scene, org, org_per_ray, dir, order, n, tfar, plane,
-                                 dist, tri, normal, threads);
-    if (!b) return -1;
-    rls_embree_finish(b);
-    return 0;
 }
