@@ -32,13 +32,16 @@ import threading
 
 import numpy as np
 
-_LOCK = threading.Lock()
+_LOCK = threading.RLock()
 _LIB = None          # ctypes handle on libembree4, or False when not usable
 _LIB_ERROR = ""
 _POOLS = {}
 
 # Embree 4 constants (rtcore_common.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h).
 _GEOMETRY_TYPE_TRIANGLE = 0
+_GEOMETRY_TYPE_INSTANCE = 121
+_FORMAT_FLOAT3X4_ROW_MAJOR = 0x9134
+_MAX_TIME_STEPS = 129  # RTC_MAX_TIME_STEP_COUNT
 _BUFFER_TYPE_INDEX = 0
 _BUFFER_TYPE_VERTEX = 1
 _FORMAT_UINT3 = 0x5003
@@ -49,7 +52,7 @@ _INVALID_ID = 0xFFFFFFFF
 # RTCRayHit16: structure-of-arrays, 16 lanes each, offsets in 4-byte words.
 _K = 16
 _ORG, _TNEAR, _DIR, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 48, 64, 112, 128, 144, 160, 176
-_PRIM, _GEOM = 272, 288
+_PRIM, _GEOM, _INST = 272, 288, 304
 _STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
 _CHUNK_PACKETS = 2048  # at most 32768 rays per task (3 MiB of packet buffer per thread)
 _USE_MAP = True
@@ -136,6 +139,9 @@ def _bind(lib):
         "rtcAttachGeometry": (u, [vp, vp]),
         "rtcReleaseGeometry": (None, [vp]),
         "rtcIntersect16": (None, [vp, vp, vp, vp]),
+        "rtcSetGeometryInstancedScene": (None, [vp, vp]),
+        "rtcSetGeometryTimeStepCount": (None, [vp, u]),
+        "rtcSetGeometryTransform": (None, [vp, u, i, vp]),
     }
     for name, (res, args) in sigs.items():
         fn = getattr(lib, name)
@@ -155,12 +161,11 @@ def _native_loop():
                                 "native", "_rls_embree_loop.so")
             try:
                 lib = ctypes.CDLL(path)
-                args = [ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int,
-                        ctypes.c_void_p, ctypes.c_void_p, ctypes.c_int64, ctypes.c_float,
-                        ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p, ctypes.c_void_p,
-                        ctypes.c_int]
+                vp = ctypes.c_void_p
+                args = [vp, vp, vp, ctypes.c_int, vp, vp, ctypes.c_int64, ctypes.c_float,
+                        vp, vp, vp, vp, vp, ctypes.c_int, vp, vp, vp, vp, ctypes.c_int]
                 # A stale build without these names: Python packets instead.
-                start, finish = lib.rls_embree_start64, lib.rls_embree_finish
+                start, finish = lib.rls_embree_launch, lib.rls_embree_finish
                 start.restype, start.argtypes = ctypes.c_void_p, args
                 finish.restype, finish.argtypes = None, [ctypes.c_void_p]
                 _NATIVE = (start, finish)
@@ -248,14 +253,28 @@ def _fill(buf, origins, dirs, max_dist, n):
     words[:, _PRIM:_GEOM + _K] = _INVALID_ID
 
 
+_DEVICES = {}
+
+
+def _device(lib):
+    """The process's one Embree device (scenes must share a device to instance each
+    other); kept for the life of the process."""
+    with _LOCK:
+        dev = _DEVICES.get(id(lib))
+        if dev is None:
+            dev = lib.rtcNewDevice(None)
+            if not dev:
+                raise OSError("rtcNewDevice failed")
+            _DEVICES[id(lib)] = dev
+        return dev
+
+
 class _Scene:
-    """One Embree device + committed triangle scene, released explicitly."""
+    """One committed Embree triangle scene on the shared device, released explicitly."""
 
     def __init__(self, lib, vertices32, triangles_u32, robust=True, quality=None):
         self.lib = lib
-        self.device = lib.rtcNewDevice(None)
-        if not self.device:
-            raise OSError("rtcNewDevice failed")
+        self.device = _device(lib)
         self.handle = lib.rtcNewScene(self.device)
         if robust:
             lib.rtcSetSceneFlags(self.handle, _SCENE_FLAG_ROBUST)
@@ -283,10 +302,104 @@ class _Scene:
 
     def release(self):
         lib, self.lib = self.lib, None
-        if lib is not None:
-            if self.handle:
-                lib.rtcReleaseScene(self.handle)
-            lib.rtcReleaseDevice(self.device)
+        if lib is not None and self.handle:
+            lib.rtcReleaseScene(self.handle)
+
+
+class _MotionScene:
+    """A top-level Embree scene of instances: each an Embree scene placed by one
+    transform, or by transforms at evenly spaced time steps over ray times [0, 1]
+    (Embree interpolates the matrices linearly between steps and bounds the motion)."""
+
+    def __init__(self, lib, instances):
+        self.lib = lib
+        self.device = _device(lib)
+        self.handle = lib.rtcNewScene(self.device)
+        for scene, matrices in instances:
+            m = np.ascontiguousarray(np.asarray(matrices, np.float64).reshape(-1, 4, 4)[:, :3, :],
+                                     dtype=np.float32)
+            if not 1 <= len(m) <= _MAX_TIME_STEPS:
+                self.release()
+                raise ValueError(f"an instance needs 1 to {_MAX_TIME_STEPS} time steps")
+            geom = lib.rtcNewGeometry(self.device, _GEOMETRY_TYPE_INSTANCE)
+            lib.rtcSetGeometryInstancedScene(geom, scene.handle)
+            lib.rtcSetGeometryTimeStepCount(geom, len(m))
+            for k in range(len(m)):
+                lib.rtcSetGeometryTransform(geom, k, _FORMAT_FLOAT3X4_ROW_MAJOR, m[k].ctypes.data)
+            lib.rtcCommitGeometry(geom)
+            lib.rtcAttachGeometry(self.handle, geom)
+            lib.rtcReleaseGeometry(geom)
+        lib.rtcCommitScene(self.handle)
+        err = lib.rtcGetDeviceError(self.device)
+        if err:
+            self.release()
+            raise OSError(f"Embree error {err} while building the instance scene")
+
+    def release(self):
+        lib, self.lib = self.lib, None
+        if lib is not None and self.handle:
+            lib.rtcReleaseScene(self.handle)
+
+    def __del__(self):
+        try:
+            self.release()
+        except Exception:
+            pass
+
+
+def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=None,
+            times=None, instances=None, threads=1, keep=None):
+    """Start a cast of ``scene`` (a ``_Scene`` or ``_MotionScene``) on the compiled
+    loop's threads: a ``_Batch`` giving (dist, tri, normals[, instance]), or None
+    when the loop is not available. ``planes`` (``triangle_count`` rows) refine hits
+    on the scene's own triangles; for a ``_MotionScene`` pass ``instances`` (its
+    ``refine_tables()``) instead. ``times`` are per-ray times in [0, 1] for instances
+    with motion time steps."""
+    native = _native_loop()
+    if native is None:
+        return None
+    start, finish = native
+    d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
+    o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
+    n = d.shape[0]
+    if o.shape[0] not in (1, n):
+        raise ValueError("origins must be (1, 3) or one per direction")
+    pl = None
+    if planes is not None:
+        pl = np.ascontiguousarray(planes, dtype=np.float64)
+        if pl.shape != (triangle_count, 4):
+            raise ValueError("planes must hold one (nx, ny, nz, offset) row per triangle")
+    if order is not None:
+        order = np.ascontiguousarray(order, dtype=np.int64)
+        if order.shape != (n,):
+            raise ValueError("order must hold one index per ray")
+    tm = None
+    if times is not None:
+        tm = np.ascontiguousarray(np.clip(np.broadcast_to(times, (n,)), 0.0, 1.0),
+                                  dtype=np.float32)
+    dist = np.empty(n)
+    tri = np.empty(n, dtype=np.int64)
+    refine = pl is not None or instances is not None
+    normals = np.empty((n, 3)) if refine else None
+    inst = np.empty(n, dtype=np.int32) if instances is not None else None
+    outputs = (dist, tri, normals) + ((inst,) if inst is not None else ())
+    if n == 0:
+        if refine:
+            outputs = (dist, tri, np.zeros((0, 3))) + outputs[3:]
+        return lambda: outputs
+    tfar = np.float32(min(float(max_dist), 3.0e38))
+    ptr = lambda a: None if a is None else a.ctypes.data  # noqa: E731
+    steps, info, planes_of = instances if instances is not None else (None, None, None)
+    batch = start(ctypes.cast(scene.lib.rtcIntersect16, ctypes.c_void_p).value,
+                  scene.handle, o.ctypes.data, int(o.shape[0] == n and n > 1),
+                  d.ctypes.data, ptr(order), n, tfar, ptr(tm), ptr(inst), ptr(steps),
+                  ptr(info), None if planes_of is None else ctypes.addressof(planes_of),
+                  0 if info is None else len(info), ptr(pl),
+                  dist.ctypes.data, tri.ctypes.data, ptr(normals),
+                  1 if n < _SERIAL_BELOW else threads)
+    if not batch:
+        return None
+    return _Batch(finish, batch, (keep, scene, o, d, pl, order, tm, instances), outputs)
 
 
 class _Batch:
@@ -419,40 +532,8 @@ class EmbreeCaster:
     def _start_native(self, origins, directions, max_dist, planes, order=None):
         if self.mode != "packets" or not self.use_native:
             return None
-        native = _native_loop()
-        if native is None:
-            return None
-        start, finish = native
-        d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
-        o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
-        n = d.shape[0]
-        if o.shape[0] not in (1, n):
-            raise ValueError("origins must be (1, 3) or one per direction")
-        pl = None
-        if planes is not None:
-            pl = np.ascontiguousarray(planes, dtype=np.float64)
-            if pl.shape != (self.triangle_count, 4):
-                raise ValueError("planes must hold one (nx, ny, nz, offset) row per triangle")
-        if order is not None:
-            order = np.ascontiguousarray(order, dtype=np.int64)
-            if order.shape != (n,):
-                raise ValueError("order must hold one index per ray")
-        dist = np.empty(n)
-        tri = np.empty(n, dtype=np.int64)
-        normals = np.empty((n, 3)) if pl is not None else None
-        if n == 0:
-            return lambda: (dist, tri, np.zeros((0, 3)) if pl is not None else None)
-        tfar = np.float32(min(float(max_dist), 3.0e38))
-        threads = 1 if n < _SERIAL_BELOW else self.threads
-        batch = start(ctypes.cast(self._scene.lib.rtcIntersect16, ctypes.c_void_p).value,
-                      self._scene.handle, o.ctypes.data, int(o.shape[0] == n and n > 1),
-                      d.ctypes.data, None if order is None else order.ctypes.data, n, tfar,
-                      None if pl is None else pl.ctypes.data,
-                      dist.ctypes.data, tri.ctypes.data,
-                      None if normals is None else normals.ctypes.data, threads)
-        if not batch:
-            return None
-        return _Batch(finish, batch, (self, o, d, pl, order), (dist, tri, normals))
+        return _launch(self._scene, self.triangle_count, origins, directions, max_dist,
+                       planes, order, threads=self.threads, keep=self)
 
     def _cast_span(self, o, d, tfar, dist, tri, lo, hi):
         buf = getattr(self._local, "buf", None)
@@ -503,6 +584,115 @@ class EmbreeCaster:
             self.close()
         except Exception:
             pass
+
+
+_INSTANCING = None  # True/False once checked
+
+
+class EmbreeInstances:
+    """Embree scenes of several ``EmbreeCaster`` s traced together in one traversal,
+    each placed by a 4x4 matrix (its triangles' coordinates to the common frame), or
+    by matrices at evenly spaced time steps over ray times [0, 1] for an object that
+    moves. Embree interpolates between steps linearly, bounds each instance's motion
+    and finds the nearest hit over all of them; ``start`` reports for every hit which
+    instance it lies in (``placed`` order) and the triangle within it.
+
+    placed  [(caster, matrices (4, 4) or (S, 4, 4), planes or None)]; an instance's
+            planes (``raycast.triangle_planes`` of its caster's triangles) let the
+            compiled loop refine its hits in float64: in the instance's coordinates,
+            with the matrix interpolated at the ray's time as Embree does.
+
+    Only with the compiled loop (``usable``); checked once per process by casting at a
+    moving probe instance, so a library that lays out instance ids differently is
+    never used blindly."""
+
+    def __init__(self, placed):
+        if not self.usable(*(c for c, _, _ in placed)):
+            raise RuntimeError("Embree instancing needs the compiled loop and packet mode")
+        lib = _packet_library()
+        self.casters = [c for c, _, _ in placed]
+        self.threads = max((c.threads for c in self.casters), default=1)
+        mats = [np.asarray(m, np.float64).reshape(-1, 4, 4) for _, m, _ in placed]
+        self._scene = _MotionScene(lib, [(c._scene, m) for c, m in zip(self.casters, mats)])
+        # Refinement tables for the loop: matrices (3x4 rows) of every instance, and per
+        # instance its first step and step count (0: the identity, no transform).
+        identity = [len(m) == 1 and np.array_equal(m[0], np.eye(4)) for m in mats]
+        counts = np.array([0 if i else len(m) for i, m in zip(identity, mats)], np.int64)
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+        steps = [m[:, :3, :].reshape(-1, 12) for i, m in zip(identity, mats) if not i]
+        self._steps = np.ascontiguousarray(np.concatenate(steps) if steps
+                                           else np.zeros((1, 12)))
+        self._info = np.ascontiguousarray(np.stack([first, counts], 1))
+        self._planes = []
+        for c, (_, _, pl) in zip(self.casters, placed):
+            if pl is not None:
+                pl = np.ascontiguousarray(pl, dtype=np.float64)
+                if pl.shape != (c.triangle_count, 4):
+                    raise ValueError("planes must hold one row per triangle of the instance")
+            self._planes.append(pl)
+        self._planes_of = (ctypes.c_void_p * max(len(placed), 1))(
+            *[None if pl is None else pl.ctypes.data for pl in self._planes])
+
+    @staticmethod
+    def usable(*casters):
+        """True when these casters can be instanced (packet mode, compiled loop, and
+        the per-process instancing check passed)."""
+        if not all(getattr(c, "mode", None) == "packets" and getattr(c, "use_native", False)
+                   for c in casters):
+            return False
+        return _instancing_works()
+
+    def start(self, origins, directions, max_dist, times=None, order=None):
+        """Start the cast: a function giving (dist, tri, normals, instance) per ray
+        (instance and tri -1, dist inf for a miss; normals zero where an instance has
+        no planes). ``times``: per ray in [0, 1] (None: 0)."""
+        got = _launch(self._scene, 0, origins, directions, max_dist, None, order,
+                      times=times, instances=(self._steps, self._info, self._planes_of),
+                      threads=self.threads, keep=self)
+        if got is None:
+            raise RuntimeError("the compiled Embree loop could not start")
+        return got
+
+    def close(self):
+        scene, self._scene = self._scene, None
+        if scene is not None:
+            scene.release()
+
+
+EmbreeCaster.instances = EmbreeInstances  # what instancing.InstancedWorld looks for
+
+
+def _instancing_works():
+    """Cast at a probe: a unit triangle instanced twice, the second moving from x=+10
+    to x=+20 over ray times [0, 1]; checks instance ids, distances and time."""
+    global _INSTANCING
+    if _INSTANCING is None:
+        ok = False
+        try:
+            if _packet_library() is not None and _native_loop() is not None:
+                tri = EmbreeCaster(np.array([[-1, -1, 0], [3, -1, 0], [-1, 3, 0]], float),
+                                   np.array([[0, 1, 2]]))
+                move = np.repeat(np.eye(4)[None], 2, axis=0)
+                move[0, :3, 3], move[1, :3, 3] = (10, 0, 0), (20, 0, 0)
+                lib = _packet_library()
+                move[:, 2, 3] = -0.5
+                scene = _MotionScene(lib, [(tri._scene, np.eye(4)), (tri._scene, move)])
+                o = np.array([[0.0, 0, 5], [12.0, 0, 5], [12.0, 0, 5], [50.0, 0, 5]])
+                d = np.tile([0.0, 0, -1], (4, 1))
+                tables = (move[:, :3, :].reshape(-1, 12).copy(),
+                          np.array([[0, 0], [0, 2]], np.int64),
+                          (ctypes.c_void_p * 2)(None, None))
+                dist, t, _, inst = _launch(scene, 0, o, d, 100.0, None,
+                                           times=np.array([0.0, 0.25, 0.75, 0.0]),
+                                           instances=tables, keep=(tri, scene))()
+                ok = (list(inst) == [0, 1, -1, -1] and list(t) == [0, 0, -1, -1]
+                      and abs(dist[0] - 5) < 1e-5 and abs(dist[1] - 5.5) < 1e-5)
+                scene.release()
+                tri.close()
+        except Exception:  # any surprise: moving objects are cast the portable way
+            ok = False
+        _INSTANCING = ok
+    return _INSTANCING
 
 
 def packet_mode_error():

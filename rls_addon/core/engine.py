@@ -18,6 +18,7 @@ import numpy as np
 
 from . import blas, effects, ghost
 from .geometry import ObjectInfo, SceneGeometry, clean_for_casting, concatenate
+from .instancing import InstancedWorld
 from .motion import effective_times, polar
 from .points import POINT_DTYPE
 from .raycast import WatertightCaster, cast_exact, triangle_planes
@@ -140,8 +141,10 @@ class RigidBodies:
     """
 
     def __init__(self, parts, caster_factory, watertight=True):
+        self.factory, self.watertight = caster_factory, watertight
         self.tracks = [tr for _, tr in parts]
         self.centres, self.radii, self.slots, self.boxes, pieces = [], [], [], [], []
+        self.local = []  # per object: (vertices centred on self.centres[k], triangles)
         # Slots are spaced so that a ray started at its own object's box and cast no
         # farther than across it can never reach a neighbour.
         radii = [float(np.linalg.norm(g.vertices - (g.vertices.min(0) + g.vertices.max(0)) / 2,
@@ -164,18 +167,40 @@ class RigidBodies:
             self.boxes.append((lo - pad, hi + pad))
             self.slots.append(slot)
             pieces.append((v - c + slot, g.triangles, g.tri_object, g.tri_material))
+            self.local.append((v - c, np.asarray(g.triangles, np.int64).reshape(-1, 3)))
         first = parts[0][0] if parts else None
         self.geometry = concatenate(pieces, first.objects if first else [],
                                     first.materials if first else [])
-        self._swept_boxes = {}
+        self.tri_start = np.cumsum([0] + [len(t) for _, t in self.local])
         self._box_lo = np.array([b[0] for b in self.boxes]).reshape(-1, 3)
         self._box_hi = np.array([b[1] for b in self.boxes]).reshape(-1, 3)
         self.tri_slot = np.concatenate(slot_of) if slot_of else np.zeros(0, np.int64)
-        # Fine hull cells: rays that enter an object's box but miss its surface (most of
-        # the pairs cast here) should not look like rays through a crack.
-        cell = max(min(self.radii, default=1.0) / 8.0, 0.05)
-        self.scene = PreparedScene(self.geometry, np.array([offset / 2, 0.0, 0.0]), np.inf,
-                                   caster_factory, watertight, hull_cell=cell)
+        self._span = offset
+        self._scene = None
+
+    @property
+    def tracks(self):
+        return self._tracks
+
+    @tracks.setter
+    def tracks(self, tracks):
+        """This sweep's motion (a cached body is reused over frames with new tracks:
+        what was derived from the old ones goes)."""
+        self._tracks = list(tracks)
+        self._swept_boxes = {}
+        self.derived = {}  # other users' values derived from the tracks
+
+    @property
+    def scene(self):
+        """The objects side by side in their slots, built on first use (a world traced
+        with Embree instancing never needs it)."""
+        if self._scene is None:
+            # Fine hull cells: rays that enter an object's box but miss its surface
+            # (most of the pairs cast here) should not look like rays through a crack.
+            cell = max(min(self.radii, default=1.0) / 8.0, 0.05)
+            self._scene = PreparedScene(self.geometry, np.array([self._span / 2, 0.0, 0.0]),
+                                        np.inf, self.factory, self.watertight, hull_cell=cell)
+        return self._scene
 
     def _swept_sphere(self, k):
         """A sphere holding object k over its whole track (for a cheap first cull)."""
@@ -347,6 +372,7 @@ class World:
     moving: list = field(default_factory=list)  # RigidBody and TimedScene
 
     def __post_init__(self):
+        self._instanced = False  # not built yet
         geos = [b.geometry for b in self.bodies]
         base = geos[0]
         self._offsets = None
@@ -363,32 +389,59 @@ class World:
     def bodies(self):
         return [self.static] + list(self.moving)
 
+    @property
+    def instanced(self):
+        """The static scene and the rigidly moving bodies as one Embree traversal
+        (``instancing.InstancedWorld``), or None (other backends, or nothing moves
+        rigidly): built on first use."""
+        if self._instanced is False:
+            self._instanced = InstancedWorld.build(self.static, self.moving) \
+                if self.moving else None
+        return self._instanced
+
     def cast(self, origins, directions, times, max_range, watertight=True, order=None):
         """Nearest hit over all bodies: (dist, body index, triangle index, normals);
         ``order``: a trace order for the static scene (see ``raycast.cast_exact``)."""
-        dist, tri, normals = self.static.cast(origins, directions, max_range, watertight,
-                                              order)
-        body = np.where(tri >= 0, 0, -1)
-        for k, b in enumerate(self.moving, start=1):
-            d2, t2, n2 = b.cast(origins, directions, times, max_range, watertight)
-            closer = (t2 >= 0) & (d2 < dist)
-            dist[closer], tri[closer], normals[closer], body[closer] = \
-                d2[closer], t2[closer], n2[closer], k
-        return dist, body, tri, normals
+        return self._start(origins, directions, times, max_range, watertight, order)()
 
     def start_cast(self, origins, directions, times, max_range):
-        """Start ``cast(..., watertight=False)``; returns a function giving its result
-        (see ``PreparedScene.start_cast``: with moving bodies, cast right here)."""
-        if self.moving:
-            got = self.cast(origins, directions, times, max_range, watertight=False)
-            return lambda: got
-        pending = self.static.start_cast(origins, directions, max_range)
+        """Start ``cast(..., watertight=False)``; returns a function giving its result.
+        With the compiled Embree loop the cast runs meanwhile (see
+        ``PreparedScene.start_cast``); bodies cast on their own are cast right here."""
+        return self._start(origins, directions, times, max_range, False, None)
 
-        def result():
-            dist, tri, normals = pending()
-            return dist, np.where(tri >= 0, 0, -1), tri, normals
+    def _start(self, origins, directions, times, max_range, watertight, order):
+        inst = self.instanced
+        rest = list(enumerate(self.moving, start=1))
+        if inst is not None:
+            pending = inst.start(origins, directions, times, max_range, order, watertight)
+            rest = [(k, b) for k, b in rest if not hasattr(b, "tracks")]
+        elif not rest and not watertight:
+            started = self.static.start_cast(origins, directions, max_range)
 
-        return result
+            def pending():
+                dist, tri, normals = started()
+                return dist, np.where(tri >= 0, 0, -1), tri, normals
+        else:
+            dist, tri, normals = self.static.cast(origins, directions, max_range, watertight,
+                                                  order)
+            got = (dist, np.where(tri >= 0, 0, -1), tri, normals)
+            pending = lambda: got  # noqa: E731
+        if not rest:
+            return pending
+        # Bodies cast on their own (deforming sub-steps; every body on backends that
+        # cannot instance): their nearest hits are merged in.
+        more = [(k, b.cast(origins, directions, times, max_range, watertight)) for k, b in rest]
+
+        def merged():
+            dist, body, tri, normals = pending()
+            for k, (d2, t2, n2) in more:
+                closer = (t2 >= 0) & (d2 < dist)
+                dist[closer], tri[closer], normals[closer], body[closer] = \
+                    d2[closer], t2[closer], n2[closer], k
+            return dist, body, tri, normals
+
+        return merged
 
     @property
     def geometry(self):
@@ -404,8 +457,11 @@ class World:
             t = self.static.geometry.surface_ids()
             # take(axis=0): numpy's fancy indexing copies rows one by one, ~8x slower
             return t.take(tri, axis=0) if len(t) else np.zeros((len(tri), 2), np.int32)
-        out = np.zeros((len(tri), 2), np.int32)
-        for k, b in enumerate(self.bodies):
+        # Most rows are static: one gather for all, then the few others redone.
+        t = self.static.geometry.surface_ids()
+        out = t.take(np.where(body == 0, tri, 0), axis=0) if len(t) \
+            else np.zeros((len(tri), 2), np.int32)
+        for k, b in enumerate(self.moving, start=1):
             sel = np.nonzero(body == k)[0]
             if len(sel):
                 out[sel] = b.geometry.surface_ids().take(tri[sel], axis=0)

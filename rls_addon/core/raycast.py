@@ -207,7 +207,8 @@ class WatertightCaster:
         cell = max(self.extent / 32.0, 1.0) if cell is None else float(cell)
         lo, hi = cluster_boxes(v, np.asarray(triangles, np.int64), groups, cell)
         pad = 1e-5 * self.extent
-        hv, ht = box_triangles(lo - pad, hi + pad)
+        self.box_lo, self.box_hi = lo - pad, hi + pad
+        hv, ht = box_triangles(self.box_lo, self.box_hi)
         self.hull = factory(hv, ht)
         self.v, self.t = v, np.asarray(triangles, np.int64)
         self.tol = 1e-6 * self.extent
@@ -226,23 +227,34 @@ class WatertightCaster:
         d = np.asarray(directions, np.float64)
         o = np.asarray(origins, np.float64).reshape(-1, 3)
         dist, tri, normals = cast_exact(self.primary, o, d, max_dist, planes, order)
-        got = self._recheck(o, d, max_dist, dist, tri)
+        self.win_back(o, d, max_dist, planes, dist, tri, normals)
+        return dist, tri, normals
+
+    def win_back(self, o, d, max_dist, planes, dist, tri, normals, limit=None):
+        """Re-check the misses (``tri`` -1) of a refined cast of the primary build and
+        write what they find, refined, into ``dist``, ``tri`` and ``normals``;
+        returns the indices of the rays won back. ``limit`` (per ray): only a crack
+        nearer than this matters (a ray that hit something else there)."""
+        got = self._recheck(o, d, max_dist, dist, tri, limit)
         if len(got):
             dist[got], normals[got] = refine_hits(None, None, o if o.shape[0] == 1 else o[got],
                                                   d[got], dist[got], tri[got], planes)
-        return dist, tri, normals
+        return got
 
-    def _recheck(self, o, d, max_dist, dist, tri):
+    def _recheck(self, o, d, max_dist, dist, tri, limit=None):
         """Re-cast the misses that may have slipped through a crack (see the class
         docstring), writing what they find into ``dist`` and ``tri``; returns the
-        indices of the rays won back."""
+        indices of the rays won back. With ``limit`` (per ray), a miss whose path
+        meets no hull box before its limit is not re-cast."""
         won = []
         miss = np.nonzero(tri < 0)[0]
         if len(miss) == 0:
             return np.zeros(0, np.int64)
         om = np.broadcast_to(o, d.shape)[miss]
-        _, inside = self.hull.cast(om, d[miss], max_dist)
+        entry, inside = self.hull.cast(om, d[miss], max_dist)
         keep = inside >= 0
+        if limit is not None and not self._starts_inside(o):
+            keep &= entry <= limit[miss]
         miss, om = miss[keep], om[keep]
         for axis, scale in zip(_NUDGE_AXES, _NUDGE_SCALES):
             if len(miss) == 0:
@@ -261,3 +273,10 @@ class WatertightCaster:
             won.append(miss[got])
             miss, om = miss[~got], om[~got]
         return np.concatenate(won) if won else np.zeros(0, np.int64)
+
+    def _starts_inside(self, o):
+        """True unless ``o`` is one origin outside every hull box (then a ray's first
+        hull hit is where it enters one; per-ray origins are not checked)."""
+        if o.shape[0] != 1:
+            return True
+        return bool(np.any(np.all((self.box_lo <= o[0]) & (o[0] <= self.box_hi), axis=1)))

@@ -8,7 +8,14 @@
  * in float64 against its triangle's plane along the original ray (what
  * rls_addon/core/raycast.py:refine_hits does in numpy), and the triangle's unit normal
  * is written out, in the same worker thread while the triangle's data is warm.
- * rls_embree_start64 returns while the workers run; rls_embree_finish collects them.
+ * Rays may carry a scene time (for instances with motion time steps); then the
+ * instance each hit lies in is written out too. With an instance table, instance i's
+ * triangles have their own plane table (planes_of[i], or NULL: not refined) and a hit
+ * on an instance placed by time steps (info[2i+1] > 0 steps of 12 doubles, a 3x4
+ * row-major matrix each, from step info[2i]) is refined in that instance's own
+ * coordinates, with its matrix interpolated linearly at the ray's time exactly as
+ * Embree does (the normal goes back to world by the inverse transpose).
+ * rls_embree_launch returns while the workers run; rls_embree_finish collects them.
  *
  * No Embree header is needed: the caller passes the address of rtcIntersect16 from
  * the libembree4 already loaded by the embreex wheel, and the RTCRayHit16 layout
@@ -33,6 +40,7 @@
 #define FLAGS 176
 #define PRIM 272
 #define GEOM 288
+#define INST 304
 #define STRIDE 384
 #define INVALID 0xFFFFFFFFu
 /* Below this |cos| between ray and plane the float64 plane answer is ill-conditioned
@@ -49,12 +57,61 @@ typedef struct {
     const double *dir;    /* 3 doubles per ray */
     const int64_t *order; /* trace order (a permutation of the rays), or NULL */
     float tfar;
+    const float *time;    /* per ray, in [0, 1], or NULL (time 0) */
+    int32_t *inst;        /* per ray: instance of the hit (-1: miss, or no instance), or NULL */
+    const double *steps;  /* instance matrices, 12 doubles each, or NULL */
+    const int64_t *info;  /* per instance: first step, step count (0: identity) */
+    const double *const *planes_of;  /* per instance: its plane table, or NULL */
+    int n_inst;
     const double *plane;  /* per triangle: nx, ny, nz, n.v0; or NULL (no refinement) */
     double *dist;
     int64_t *tri;
     double *normal;       /* 3 per ray, or NULL */
     int64_t lo, hi;       /* ray range of this worker */
 } job_t;
+
+/* The instance's matrix at time tau (steps interpolated linearly, as Embree does),
+ * the ray carried into the instance's coordinates (ol, dl: dl not unit, so a ray
+ * parameter there is the world range), and the unit world normal of plane pl. */
+static void local_ray(const double *m, int64_t nsteps, double tau, const double *o,
+                      const double *d, const double *pl, double *ol, double *dl,
+                      double *nw) {
+    double a[12];
+    if (nsteps == 1) {
+        memcpy(a, m, sizeof(a));
+    } else {
+        double ft = (tau < 0 ? 0 : tau > 1 ? 1 : tau) * (double)(nsteps - 1);
+        int64_t i = (int64_t)floor(ft);
+        if (i > nsteps - 2) i = nsteps - 2;
+        double f = ft - (double)i;
+        const double *m0 = m + 12 * i, *m1 = m0 + 12;
+        for (int k = 0; k < 12; k++) a[k] = (1.0 - f) * m0[k] + f * m1[k];
+    }
+    /* inverse of the 3x3 part (rows a[0..2], a[4..6], a[8..10]) by cofactors */
+    double c00 = a[5] * a[10] - a[6] * a[9], c01 = a[6] * a[8] - a[4] * a[10],
+           c02 = a[4] * a[9] - a[5] * a[8];
+    double c10 = a[2] * a[9] - a[1] * a[10], c11 = a[0] * a[10] - a[2] * a[8],
+           c12 = a[1] * a[8] - a[0] * a[9];
+    double c20 = a[1] * a[6] - a[2] * a[5], c21 = a[2] * a[4] - a[0] * a[6],
+           c22 = a[0] * a[5] - a[1] * a[4];
+    double det = a[0] * c00 + a[1] * c01 + a[2] * c02;
+    double inv[9] = {c00 / det, c10 / det, c20 / det,
+                     c01 / det, c11 / det, c21 / det,
+                     c02 / det, c12 / det, c22 / det};
+    double q[3] = {o[0] - a[3], o[1] - a[7], o[2] - a[11]};
+    for (int k = 0; k < 3; k++) {
+        ol[k] = inv[3 * k] * q[0] + inv[3 * k + 1] * q[1] + inv[3 * k + 2] * q[2];
+        dl[k] = inv[3 * k] * d[0] + inv[3 * k + 1] * d[1] + inv[3 * k + 2] * d[2];
+    }
+    /* world normal: inverse transpose, inv^T n */
+    double len = 0;
+    for (int k = 0; k < 3; k++) {
+        nw[k] = inv[k] * pl[0] + inv[3 + k] * pl[1] + inv[6 + k] * pl[2];
+        len += nw[k] * nw[k];
+    }
+    len = sqrt(len);
+    if (len > 0) for (int k = 0; k < 3; k++) nw[k] /= len;
+}
 
 static void *work(void *arg) {
     job_t *j = (job_t *)arg;
@@ -78,9 +135,11 @@ static void *work(void *arg) {
             buf.f[DIR + K + l] = (float)d[1];
             buf.f[DIR + 2 * K + l] = (float)d[2];
             buf.f[TFAR + l] = j->tfar;
+            if (j->time) buf.f[TIME + l] = j->time[r];
             buf.u[MASK + l] = INVALID;
             buf.u[PRIM + l] = INVALID;
             buf.u[GEOM + l] = INVALID;
+            buf.u[INST + l] = INVALID;
         }
         j->fn(valid, j->scene, &buf, NULL);
         for (int l = 0; l < m; l++) {
@@ -89,19 +148,40 @@ static void *work(void *arg) {
             if (buf.u[GEOM + l] == INVALID) {
                 j->dist[r] = INFINITY;
                 j->tri[r] = -1;
+                if (j->inst) j->inst[r] = -1;
                 if (nrm) nrm[0] = nrm[1] = nrm[2] = 0.0;
                 continue;
             }
             uint32_t p = buf.u[PRIM + l];
             double t = buf.f[TFAR + l];
-            if (j->plane) {
-                const double *pl = j->plane + 4 * (int64_t)p;
+            int32_t in = buf.u[INST + l] == INVALID ? -1 : (int32_t)buf.u[INST + l];
+            if (j->inst) j->inst[r] = in;
+            const double *planes = j->plane;
+            int64_t nsteps = 0;
+            if (j->info) {
+                planes = in >= 0 && in < j->n_inst ? j->planes_of[in] : NULL;
+                nsteps = planes ? j->info[2 * in + 1] : 0;
+                if (!planes && nrm) nrm[0] = nrm[1] = nrm[2] = 0.0;
+            }
+            if (planes) {
+                const double *pl = planes + 4 * (int64_t)p;
                 const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
                 const double *d = j->dir + 3 * r;
-                double denom = pl[0] * d[0] + pl[1] * d[1] + pl[2] * d[2];
-                double exact = (pl[3] - (pl[0] * o[0] + pl[1] * o[1] + pl[2] * o[2])) / denom;
-                if (isfinite(exact) && fabs(denom) > GRAZING && exact > 0) t = exact;
-                if (nrm) { nrm[0] = pl[0]; nrm[1] = pl[1]; nrm[2] = pl[2]; }
+                if (nsteps > 0) {
+                    double ol[3], dl[3], nw[3];
+                    double tau = j->time ? j->time[r] : 0.0;
+                    local_ray(j->steps + 12 * j->info[2 * in], nsteps, tau, o, d, pl, ol, dl, nw);
+                    double denom = pl[0] * dl[0] + pl[1] * dl[1] + pl[2] * dl[2];
+                    double len = sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
+                    double exact = (pl[3] - (pl[0] * ol[0] + pl[1] * ol[1] + pl[2] * ol[2])) / denom;
+                    if (isfinite(exact) && fabs(denom) > GRAZING * len && exact > 0) t = exact;
+                    if (nrm) { nrm[0] = nw[0]; nrm[1] = nw[1]; nrm[2] = nw[2]; }
+                } else {
+                    double denom = pl[0] * d[0] + pl[1] * d[1] + pl[2] * d[2];
+                    double exact = (pl[3] - (pl[0] * o[0] + pl[1] * o[1] + pl[2] * o[2])) / denom;
+                    if (isfinite(exact) && fabs(denom) > GRAZING && exact > 0) t = exact;
+                    if (nrm) { nrm[0] = pl[0]; nrm[1] = pl[1]; nrm[2] = pl[2]; }
+                }
             }
             j->dist[r] = t;
             j->tri[r] = (int64_t)p;
@@ -123,10 +203,12 @@ typedef struct {
  * collects with rls_embree_finish, keeping every array alive until then). A worker
  * that cannot be started runs its share here before returning. NULL when out of
  * memory (nothing was cast). */
-void *rls_embree_start64(void *fn, void *scene, const double *org, int org_per_ray,
-                         const double *dir, const int64_t *order, int64_t n, float tfar,
-                         const double *plane, double *dist, int64_t *tri, double *normal,
-                         int threads) {
+void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ray,
+                        const double *dir, const int64_t *order, int64_t n, float tfar,
+                        const float *time, int32_t *inst, const double *steps,
+                        const int64_t *info, const double *const *planes_of, int n_inst,
+                        const double *plane,
+                        double *dist, int64_t *tri, double *normal, int threads) {
     batch_t *b = (batch_t *)calloc(1, sizeof(batch_t));
     if (!b) return NULL;
     if (threads < 1) threads = 1;
@@ -137,7 +219,9 @@ void *rls_embree_start64(void *fn, void *scene, const double *org, int org_per_r
         int64_t lo = t * per, hi = lo + per < n ? lo + per : n;
         if (lo >= n) break;
         b->jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar,
-                             plane, dist, tri, normal, lo, hi};
+                             time, inst, steps, info, planes_of, n_inst, plane, dist, tri,
+                             normal,
+                             lo, hi};
         b->running[t] = pthread_create(&b->ids[t], NULL, work, &b->jobs[t]) == 0;
         if (!b->running[t]) work(&b->jobs[t]);
         b->count = t + 1;
@@ -145,7 +229,7 @@ void *rls_embree_start64(void *fn, void *scene, const double *org, int org_per_r
     return b;
 }
 
-/* Waits for a batch from rls_embree_start64 and frees it. */
+/* Waits for a batch from rls_embree_launch and frees it. */
 void rls_embree_finish(void *batch) {
     batch_t *b = (batch_t *)batch;
     if (!b) return;
