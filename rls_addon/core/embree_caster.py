@@ -269,13 +269,37 @@ def _device(lib):
         return dev
 
 
-class _Scene:
-    """One committed Embree triangle scene on the shared device, released explicitly."""
+class _SceneBase:
+    """An Embree scene on the shared device, released explicitly."""
 
-    def __init__(self, lib, vertices32, triangles_u32, robust=True, quality=None):
+    def _open(self, lib):
         self.lib = lib
         self.device = _device(lib)
         self.handle = lib.rtcNewScene(self.device)
+
+    def _attach(self, geom):
+        self.lib.rtcCommitGeometry(geom)
+        self.lib.rtcAttachGeometry(self.handle, geom)
+        self.lib.rtcReleaseGeometry(geom)
+
+    def _commit(self, what):
+        self.lib.rtcCommitScene(self.handle)
+        err = self.lib.rtcGetDeviceError(self.device)
+        if err:
+            self.release()
+            raise OSError(f"Embree error {err} while building {what}")
+
+    def release(self):
+        lib, self.lib = self.lib, None
+        if lib is not None and self.handle:
+            lib.rtcReleaseScene(self.handle)
+
+
+class _Scene(_SceneBase):
+    """One committed Embree triangle scene."""
+
+    def __init__(self, lib, vertices32, triangles_u32, robust=True, quality=None):
+        self._open(lib)
         if robust:
             lib.rtcSetSceneFlags(self.handle, _SCENE_FLAG_ROBUST)
         if quality is not None:  # RTC_BUILD_QUALITY_LOW 0, MEDIUM 1 (default), HIGH 2
@@ -291,30 +315,17 @@ class _Scene:
             raise MemoryError("Embree could not allocate the geometry buffers")
         ctypes.memmove(vb, np.ascontiguousarray(vertices32).ctypes.data, vertices32.nbytes)
         ctypes.memmove(ib, np.ascontiguousarray(triangles_u32).ctypes.data, triangles_u32.nbytes)
-        lib.rtcCommitGeometry(geom)
-        lib.rtcAttachGeometry(self.handle, geom)
-        lib.rtcReleaseGeometry(geom)
-        lib.rtcCommitScene(self.handle)
-        err = lib.rtcGetDeviceError(self.device)
-        if err:
-            self.release()
-            raise OSError(f"Embree error {err} while building the scene")
-
-    def release(self):
-        lib, self.lib = self.lib, None
-        if lib is not None and self.handle:
-            lib.rtcReleaseScene(self.handle)
+        self._attach(geom)
+        self._commit("the scene")
 
 
-class _MotionScene:
+class _MotionScene(_SceneBase):
     """A top-level Embree scene of instances: each an Embree scene placed by one
     transform, or by transforms at evenly spaced time steps over ray times [0, 1]
     (Embree interpolates the matrices linearly between steps and bounds the motion)."""
 
     def __init__(self, lib, instances):
-        self.lib = lib
-        self.device = _device(lib)
-        self.handle = lib.rtcNewScene(self.device)
+        self._open(lib)
         for scene, matrices in instances:
             m = np.ascontiguousarray(np.asarray(matrices, np.float64).reshape(-1, 4, 4)[:, :3, :],
                                      dtype=np.float32)
@@ -326,19 +337,8 @@ class _MotionScene:
             lib.rtcSetGeometryTimeStepCount(geom, len(m))
             for k in range(len(m)):
                 lib.rtcSetGeometryTransform(geom, k, _FORMAT_FLOAT3X4_ROW_MAJOR, m[k].ctypes.data)
-            lib.rtcCommitGeometry(geom)
-            lib.rtcAttachGeometry(self.handle, geom)
-            lib.rtcReleaseGeometry(geom)
-        lib.rtcCommitScene(self.handle)
-        err = lib.rtcGetDeviceError(self.device)
-        if err:
-            self.release()
-            raise OSError(f"Embree error {err} while building the instance scene")
-
-    def release(self):
-        lib, self.lib = self.lib, None
-        if lib is not None and self.handle:
-            lib.rtcReleaseScene(self.handle)
+            self._attach(geom)
+        self._commit("the instance scene")
 
     def __del__(self):
         try:
