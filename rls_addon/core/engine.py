@@ -571,12 +571,18 @@ def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
     if len(obj) < min_hits or np.count_nonzero(back) < min_hits:
         return []
     objects = world.geometry.objects
-    total = np.bincount(obj, minlength=len(objects))
     behind = np.bincount(obj[back], minlength=len(objects))
-    suspects = np.nonzero((total >= min_hits) & (behind >= share * total))[0]
+    cand = np.nonzero(behind >= min_hits)[0]  # a suspect has that many back hits
+    if len(cand) == 0:
+        return []
+    # All hits of the candidates: for a few, one comparison each; else one count.
+    total = np.array([np.count_nonzero(obj == c) for c in cand]) if len(cand) <= 4 \
+        else np.bincount(obj, minlength=len(objects))[cand]
+    sel = behind[cand] >= share * total
     return [f"the sensor is inside '{objects[i].name if i < len(objects) else i}' "
-            f"({behind[i] / total[i]:.0%} of its {int(total[i])} hits are on the back of its "
-            "faces); fine for a room or tunnel, otherwise move the sensor" for i in suspects]
+            f"({behind[i] / t:.0%} of its {int(t)} hits are on the back of its "
+            "faces); fine for a room or tunnel, otherwise move the sensor"
+            for i, t in zip(cand[sel], total[sel])]
 
 
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
