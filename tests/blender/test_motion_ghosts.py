@@ -1,6 +1,8 @@
-"""Motion distortion and ghosting through the Blender layer (BVHTree, animation)."""
+"""Motion distortion and ghosting through the Blender layer (BVHTree unless a test names
+its backend; animation)."""
 
 import bpy
+import pytest
 import numpy as np
 
 from .conftest import add_lidar, mesh_object, scan
@@ -146,3 +148,31 @@ def test_glossy_principled_material_makes_ghosts(scene):
     image = points_xyz(g)
     image[:, 0] = 10.0 - image[:, 0]
     assert np.abs(box_sdf(image, np.array([-2.5, 0, 0]), np.array([0.5, 1, 1]))).max() <= 1e-4
+
+
+@pytest.mark.parametrize("backend", ["bvhtree", "embree"])
+def test_one_session_over_frames_keeps_every_point_on_the_moving_box(scene, backend):
+    """A session reuses the car's structure over frames with each sweep's own track
+    (with Embree: the car traced as an instance of one scene with the street): every
+    frame gives what a fresh session gives, and every car point lies on the car."""
+    from rls_addon.blender.scan import ScanSession, session_for
+
+    lidar, start = moving_box_setup(scene)
+    box("Ground", (-30, -30, -3), (30, 30, -2))
+    session, notice = session_for(backend)
+    assert notice is None
+    step = V / FPS
+    for frame in (1, 3, 6):
+        scene.frame_set(frame)
+        dg = bpy.context.evaluated_depsgraph_get()
+        result, info = session.scan(dg, lidar, frame)
+        fresh, _ = ScanSession(session.caster_factory).scan(dg, lidar, frame)
+        p = result.points
+        assert info["motion"]["rigid"] == ["Car"]
+        assert len(p) == len(fresh.points)
+        assert np.abs(p["range"] - fresh.points["range"]).max() <= 1e-9
+        car = p[p["z"] > -1.9]  # the ground's top is at z = -2
+        assert len(car) > 50
+        centre = start + [0, (frame - 1) * step, 0] + np.outer(car["time"], [0, V, 0])
+        err = np.abs(box_sdf(points_xyz(car), centre, np.array([1, 2, 1])))
+        assert err.max() <= 1e-3, (frame, err.max())
