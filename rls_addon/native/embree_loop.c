@@ -164,24 +164,25 @@ static void *work(void *arg) {
                 if (!planes && nrm) nrm[0] = nrm[1] = nrm[2] = 0.0;
             }
             if (planes) {
+                /* The ray in the triangle's own coordinates (the world's, unless the
+                 * instance moves) and the triangle's world normal. */
                 const double *pl = planes + 4 * (int64_t)p;
                 const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
                 const double *d = j->dir + 3 * r;
+                double ol[3], dl[3], nw[3], len = 1.0;
                 if (nsteps > 0) {
-                    double ol[3], dl[3], nw[3];
                     double tau = j->time ? j->time[r] : 0.0;
                     local_ray(j->steps + 12 * j->info[2 * in], nsteps, tau, o, d, pl, ol, dl, nw);
-                    double denom = pl[0] * dl[0] + pl[1] * dl[1] + pl[2] * dl[2];
-                    double len = sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
-                    double exact = (pl[3] - (pl[0] * ol[0] + pl[1] * ol[1] + pl[2] * ol[2])) / denom;
-                    if (isfinite(exact) && fabs(denom) > GRAZING * len && exact > 0) t = exact;
-                    if (nrm) { nrm[0] = nw[0]; nrm[1] = nw[1]; nrm[2] = nw[2]; }
+                    len = sqrt(dl[0] * dl[0] + dl[1] * dl[1] + dl[2] * dl[2]);
                 } else {
-                    double denom = pl[0] * d[0] + pl[1] * d[1] + pl[2] * d[2];
-                    double exact = (pl[3] - (pl[0] * o[0] + pl[1] * o[1] + pl[2] * o[2])) / denom;
-                    if (isfinite(exact) && fabs(denom) > GRAZING && exact > 0) t = exact;
-                    if (nrm) { nrm[0] = pl[0]; nrm[1] = pl[1]; nrm[2] = pl[2]; }
+                    memcpy(ol, o, sizeof(ol));
+                    memcpy(dl, d, sizeof(dl));
+                    memcpy(nw, pl, sizeof(nw));
                 }
+                double denom = pl[0] * dl[0] + pl[1] * dl[1] + pl[2] * dl[2];
+                double exact = (pl[3] - (pl[0] * ol[0] + pl[1] * ol[1] + pl[2] * ol[2])) / denom;
+                if (isfinite(exact) && fabs(denom) > GRAZING * len && exact > 0) t = exact;
+                if (nrm) memcpy(nrm, nw, sizeof(nw));
             }
             j->dist[r] = t;
             j->tri[r] = (int64_t)p;
@@ -220,8 +221,7 @@ void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ra
         if (lo >= n) break;
         b->jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar,
                              time, inst, steps, info, planes_of, n_inst, plane, dist, tri,
-                             normal,
-                             lo, hi};
+                             normal, lo, hi};
         b->running[t] = pthread_create(&b->ids[t], NULL, work, &b->jobs[t]) == 0;
         if (!b->running[t]) work(&b->jobs[t]);
         b->count = t + 1;
