@@ -352,9 +352,9 @@ def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=
     """Start a cast of ``scene`` (a ``_Scene`` or ``_MotionScene``) on the compiled
     loop's threads: a ``_Batch`` giving (dist, tri, normals[, instance]), or None
     when the loop is not available. ``planes`` (``triangle_count`` rows) refine hits
-    on the scene's own triangles; for a ``_MotionScene`` pass ``instances`` (its
-    ``refine_tables()``) instead. ``times`` are per-ray times in [0, 1] for instances
-    with motion time steps."""
+    on the scene's own triangles; for a ``_MotionScene`` pass ``instances`` instead
+    (``_instance_tables``). ``times`` are per-ray times in [0, 1] for instances with
+    motion time steps."""
     native = _native_loop()
     if native is None:
         return None
@@ -609,29 +609,11 @@ class EmbreeInstances:
     def __init__(self, placed):
         if not self.usable(*(c for c, _, _ in placed)):
             raise RuntimeError("Embree instancing needs the compiled loop and packet mode")
-        lib = _packet_library()
         self.casters = [c for c, _, _ in placed]
         self.threads = max((c.threads for c in self.casters), default=1)
-        mats = [np.asarray(m, np.float64).reshape(-1, 4, 4) for _, m, _ in placed]
-        self._scene = _MotionScene(lib, [(c._scene, m) for c, m in zip(self.casters, mats)])
-        # Refinement tables for the loop: matrices (3x4 rows) of every instance, and per
-        # instance its first step and step count (0: the identity, no transform).
-        identity = [len(m) == 1 and np.array_equal(m[0], np.eye(4)) for m in mats]
-        counts = np.array([0 if i else len(m) for i, m in zip(identity, mats)], np.int64)
-        first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
-        steps = [m[:, :3, :].reshape(-1, 12) for i, m in zip(identity, mats) if not i]
-        self._steps = np.ascontiguousarray(np.concatenate(steps) if steps
-                                           else np.zeros((1, 12)))
-        self._info = np.ascontiguousarray(np.stack([first, counts], 1))
-        self._planes = []
-        for c, (_, _, pl) in zip(self.casters, placed):
-            if pl is not None:
-                pl = np.ascontiguousarray(pl, dtype=np.float64)
-                if pl.shape != (c.triangle_count, 4):
-                    raise ValueError("planes must hold one row per triangle of the instance")
-            self._planes.append(pl)
-        self._planes_of = (ctypes.c_void_p * max(len(placed), 1))(
-            *[None if pl is None else pl.ctypes.data for pl in self._planes])
+        self._scene = _MotionScene(_packet_library(),
+                                   [(c._scene, m) for c, m, _ in placed])
+        self._tables = _instance_tables(placed)
 
     @staticmethod
     def usable(*casters):
@@ -647,8 +629,8 @@ class EmbreeInstances:
         (instance and tri -1, dist inf for a miss; normals zero where an instance has
         no planes). ``times``: per ray in [0, 1] (None: 0)."""
         got = _launch(self._scene, 0, origins, directions, max_dist, None, order,
-                      times=times, instances=(self._steps, self._info, self._planes_of),
-                      threads=self.threads, keep=self)
+                      times=times, instances=self._tables[:3], threads=self.threads,
+                      keep=self)
         if got is None:
             raise RuntimeError("the compiled Embree loop could not start")
         return got
@@ -662,9 +644,33 @@ class EmbreeInstances:
 EmbreeCaster.instances = EmbreeInstances  # what instancing.InstancedWorld looks for
 
 
+def _instance_tables(placed):
+    """What the compiled loop needs to refine hits on instances ``placed`` [(caster,
+    matrices, planes or None)]: (the matrices of every instance as 3x4 rows, per
+    instance its first step and step count (0: the identity, no transform), a C array
+    of per-instance plane tables, the plane arrays it points into)."""
+    mats = [np.asarray(m, np.float64).reshape(-1, 4, 4) for _, m, _ in placed]
+    identity = [len(m) == 1 and np.array_equal(m[0], np.eye(4)) for m in mats]
+    counts = np.array([0 if i else len(m) for i, m in zip(identity, mats)], np.int64)
+    first = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64)
+    steps = [m[:, :3, :].reshape(-1, 12) for i, m in zip(identity, mats) if not i]
+    steps = np.ascontiguousarray(np.concatenate(steps) if steps else np.zeros((1, 12)))
+    planes = []
+    for c, _, pl in placed:
+        if pl is not None:
+            pl = np.ascontiguousarray(pl, dtype=np.float64)
+            if pl.shape != (c.triangle_count, 4):
+                raise ValueError("planes must hold one row per triangle of the instance")
+        planes.append(pl)
+    planes_of = (ctypes.c_void_p * max(len(placed), 1))(
+        *[None if pl is None else pl.ctypes.data for pl in planes])
+    return steps, np.ascontiguousarray(np.stack([first, counts], 1)), planes_of, planes
+
+
 def _instancing_works():
-    """Cast at a probe: a unit triangle instanced twice, the second moving from x=+10
-    to x=+20 over ray times [0, 1]; checks instance ids, distances and time."""
+    """Cast at a probe: a unit triangle instanced twice, the second 0.5 m lower and
+    moving from x=+10 to x=+20 over ray times [0, 1]; checks instance ids, distances
+    (refined in the moving instance's frame) and time."""
     global _INSTANCING
     if _INSTANCING is None:
         ok = False
@@ -673,18 +679,15 @@ def _instancing_works():
                 tri = EmbreeCaster(np.array([[-1, -1, 0], [3, -1, 0], [-1, 3, 0]], float),
                                    np.array([[0, 1, 2]]))
                 move = np.repeat(np.eye(4)[None], 2, axis=0)
-                move[0, :3, 3], move[1, :3, 3] = (10, 0, 0), (20, 0, 0)
-                lib = _packet_library()
-                move[:, 2, 3] = -0.5
-                scene = _MotionScene(lib, [(tri._scene, np.eye(4)), (tri._scene, move)])
+                move[0, :3, 3], move[1, :3, 3] = (10, 0, -0.5), (20, 0, -0.5)
+                placed = [(tri, np.eye(4), None), (tri, move, None)]
+                scene = _MotionScene(_packet_library(), [(c._scene, m) for c, m, _ in placed])
                 o = np.array([[0.0, 0, 5], [12.0, 0, 5], [12.0, 0, 5], [50.0, 0, 5]])
                 d = np.tile([0.0, 0, -1], (4, 1))
-                tables = (move[:, :3, :].reshape(-1, 12).copy(),
-                          np.array([[0, 0], [0, 2]], np.int64),
-                          (ctypes.c_void_p * 2)(None, None))
                 dist, t, _, inst = _launch(scene, 0, o, d, 100.0, None,
                                            times=np.array([0.0, 0.25, 0.75, 0.0]),
-                                           instances=tables, keep=(tri, scene))()
+                                           instances=_instance_tables(placed)[:3],
+                                           keep=(tri, scene))()
                 ok = (list(inst) == [0, 1, -1, -1] and list(t) == [0, 0, -1, -1]
                       and abs(dist[0] - 5) < 1e-5 and abs(dist[1] - 5.5) < 1e-5)
                 scene.release()
