@@ -176,7 +176,7 @@ class RigidBodies:
         self._box_hi = np.array([b[1] for b in self.boxes]).reshape(-1, 3)
         self.tri_slot = np.concatenate(slot_of) if slot_of else np.zeros(0, np.int64)
         self._span = offset
-        self._scene = None
+        self._scene = self._local_casters = None
 
     @property
     def tracks(self):
@@ -189,6 +189,16 @@ class RigidBodies:
         self._tracks = list(tracks)
         self._swept_boxes = {}
         self.derived = {}  # other users' values derived from the tracks
+
+    def local_casters(self):
+        """Per object: (caster on its own centred triangles, their planes), or None
+        for an object with no triangles; built on first use (for Embree instancing,
+        see ``instancing.InstancedWorld``)."""
+        if self._local_casters is None:
+            self._local_casters = [
+                (self.factory(v, tri), triangle_planes(v, tri)) if len(tri) else None
+                for v, tri in self.local]
+        return self._local_casters
 
     @property
     def scene(self):
@@ -238,7 +248,6 @@ class RigidBodies:
         map) for every ray that passes an object's swept bounding sphere and then its
         swept box. (Vectorising this over all objects at once measured slower: the
         (rays x objects) masks cost more than the loop.)"""
-        o = np.broadcast_to(o1, directions.shape)
         parts = []
         for k, track in enumerate(self.tracks):
             centre, radius = self._swept_sphere(k)
@@ -251,16 +260,11 @@ class RigidBodies:
             idx = idx[(t_in <= t_out) & (t_out >= 0) & (t_in <= max_range)]
             if len(idx) == 0:
                 continue
-            a_inv, b_inv = track.inverse_at(times[idx])
-            if a_inv.ndim == 2:  # one linear map for every ray: no per-ray matrices
-                o_l = b_inv + (o1[0] @ a_inv.T if o1.shape[0] == 1
-                               else o.take(idx, axis=0) @ a_inv.T)
-                d_l = directions.take(idx, axis=0) @ a_inv.T
-                a_inv = np.broadcast_to(a_inv, (len(idx), 3, 3))
-            else:
-                o_l = np.einsum("nij,nj->ni", a_inv, o.take(idx, axis=0)) + b_inv
-                d_l = np.einsum("nij,nj->ni", a_inv, directions.take(idx, axis=0))
-            parts.append((idx, np.full(len(idx), k), o_l, d_l, a_inv))
+            o_l, d_l, a_inv = track.rays_to_local(
+                times[idx], o1 if o1.shape[0] == 1 else o1.take(idx, axis=0),
+                directions.take(idx, axis=0))
+            parts.append((idx, np.full(len(idx), k), o_l, d_l,
+                          np.broadcast_to(a_inv, (len(idx), 3, 3))))
         if not parts:
             z = np.zeros(0, np.int64)
             return z, z, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3))
@@ -415,7 +419,7 @@ class World:
         rest = list(enumerate(self.moving, start=1))
         if inst is not None:
             pending = inst.start(origins, directions, times, max_range, order, watertight)
-            rest = [(k, b) for k, b in rest if not hasattr(b, "tracks")]
+            rest = [(k, b) for k, b in rest if k not in inst.traced]
         elif not rest and not watertight:
             started = self.static.start_cast(origins, directions, max_range)
 
@@ -453,14 +457,11 @@ class World:
         """(N, 2) int32 (object index, material index) of the surface each ray hit, into
         the shared tables (see ``SceneGeometry.surface_ids``); rows with no hit (body
         -1) hold arbitrary valid indices."""
-        if not self.moving:
-            t = self.static.geometry.surface_ids()
-            # take(axis=0): numpy's fancy indexing copies rows one by one, ~8x slower
-            return t.take(tri, axis=0) if len(t) else np.zeros((len(tri), 2), np.int32)
         # Most rows are static: one gather for all, then the few others redone.
+        # take(axis=0): numpy's fancy indexing copies rows one by one, ~8x slower.
         t = self.static.geometry.surface_ids()
-        out = t.take(np.where(body == 0, tri, 0), axis=0) if len(t) \
-            else np.zeros((len(tri), 2), np.int32)
+        rows = np.where(body == 0, tri, 0) if self.moving else tri
+        out = t.take(rows, axis=0) if len(t) else np.zeros((len(tri), 2), np.int32)
         for k, b in enumerate(self.moving, start=1):
             sel = np.nonzero(body == k)[0]
             if len(sel):

@@ -20,7 +20,7 @@ hundredth of a millimetre.
 
 import numpy as np
 
-from .raycast import triangle_planes
+from .raycast import GRAZING
 
 STEP_TOLERANCE_M = 1e-5  # steps: linear interpolation within 10 um of the track
 MAX_STEPS = 129          # Embree's limit (RTC_MAX_TIME_STEP_COUNT)
@@ -45,7 +45,7 @@ class InstancedWorld:
         self.t1 = max((float(tr.times[-1]) for tr in moving), default=0.0)
         self.moving = self.t1 > self.t0
         for body, rb in rigid:
-            casters = _part_casters(rb)
+            casters = rb.local_casters()
             for k, track in enumerate(rb.tracks):
                 if casters[k] is None:
                     continue
@@ -62,6 +62,7 @@ class InstancedWorld:
                 if not close:
                     self.coarse.append((len(self.parts) - 1, rb, k, planes))
         self.instances = instances_cls(placed)
+        self.traced = {body for body, _ in rigid}  # world body indices traced here
         self._part_body = np.array([b for b, _, _ in self.parts], np.int64)
         self._part_tri_start = np.array([rb.tri_start[k] for _, rb, k in self.parts], np.int64)
 
@@ -93,7 +94,7 @@ class InstancedWorld:
         if primary is not None and not instances_cls.usable(primary):
             return None
         for _, b in rigid:
-            if not all(c is None or instances_cls.usable(c[0]) for c in _part_casters(b)):
+            if not all(c is None or instances_cls.usable(c[0]) for c in b.local_casters()):
                 return None
         return cls(static, rigid, instances_cls)
 
@@ -177,34 +178,19 @@ def _same(a, b):
         for (ka, ba, ta), (kb, bb, tb) in zip(a, b))
 
 
-def _part_casters(rb):
-    """Per object of ``rb``: (robust caster on its centred triangles, their planes),
-    or None for an object with no triangles; built once per ``RigidBodies``."""
-    cached = rb.__dict__.get("_instance_casters")
-    if cached is None:
-        cached = [(rb.factory(v, tri), triangle_planes(v, tri)) if len(tri) else None
-                  for v, tri in rb.local]
-        rb._instance_casters = cached
-    return cached
-
-
 def _refine_on_track(track, centre, planes, tri, o, d, t, dist):
     """Exact world range and unit world normal of rays ``o + s d`` (world) on the
     planes of triangles ``tri`` of an object centred on ``centre``, with the object at
     its exact pose at each ray's time ``t``; Embree's ``dist`` is kept where the ray
     grazes the plane (as ``raycast.refine_hits`` does)."""
-    a, b = track.inverse_at(t)
-    if a.ndim == 2:
-        o_l, d_l = o @ a.T + b, d @ a.T
-    else:
-        o_l = np.einsum("nij,nj->ni", a, np.broadcast_to(o, d.shape)) + b
-        d_l = np.einsum("nij,nj->ni", a, d)
+    o_l, d_l, a = track.rays_to_local(t, o, d)
     pl = planes.take(tri, axis=0)
     nrm = pl[:, :3]
     denom = np.einsum("ij,ij->i", nrm, d_l)
     with np.errstate(divide="ignore", invalid="ignore"):
         exact = (pl[:, 3] - np.einsum("ij,ij->i", nrm, o_l - centre)) / denom
-    use = np.isfinite(exact) & (np.abs(denom) > 1e-6 * np.linalg.norm(d_l, axis=1)) & (exact > 0)
+    use = np.isfinite(exact) & (np.abs(denom) > GRAZING * np.linalg.norm(d_l, axis=1)) \
+        & (exact > 0)
     # Normals go back with the inverse transpose of the object's matrix: A^T n.
     nw = nrm @ a if a.ndim == 2 else np.einsum("nji,nj->ni", a, nrm)
     nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-300)

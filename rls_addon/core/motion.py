@@ -173,6 +173,18 @@ class Track:
             a_inv = np.linalg.inv(scale) @ rt
         return a_inv, -np.einsum("nij,nj->ni", a_inv, trans)
 
+    def rays_to_local(self, t, origins, directions):
+        """Rays o + s d (world; ``origins`` one (1, 3) or one per ray) carried into the
+        object's frame at times ``t``: (local origins, local directions, the linear map
+        A of ``inverse_at``, shared (3, 3) or per ray). The ray parameter s is kept,
+        so a hit at s in the object's frame lies s along the world ray."""
+        a, b = self.inverse_at(t)
+        d = np.asarray(directions, np.float64)
+        if a.ndim == 2:  # one linear map for every ray: no per-ray matrices
+            return origins @ a.T + b, d @ a.T, a
+        o = np.broadcast_to(origins, d.shape)
+        return np.einsum("nij,nj->ni", a, o) + b, np.einsum("nij,nj->ni", a, d), a
+
     @property
     def velocities(self):
         """(K, 3) finite-difference velocities at the samples (second order), cached."""

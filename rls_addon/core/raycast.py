@@ -78,6 +78,11 @@ def triangle_planes(vertices, triangles):
     return out
 
 
+# Below this |cos| between ray and plane the float64 plane answer is ill-conditioned
+# (grazing): the backend's own distance is kept (as the compiled Embree loop does).
+GRAZING = 1e-6
+
+
 def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None):
     """Recompute hit distances exactly in float64 against each hit triangle's plane.
 
@@ -103,7 +108,7 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None
         exact = (off - no) / denom
     # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
     # where the float64 answer is ill-conditioned anyway.
-    use = np.isfinite(exact) & (np.abs(denom) > 1e-6) & (exact > 0)
+    use = np.isfinite(exact) & (np.abs(denom) > GRAZING) & (exact > 0)
     dist[hit[use]] = exact[use]
     normals[hit] = n
     return dist, normals
