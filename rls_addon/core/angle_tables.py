@@ -6,12 +6,12 @@ per channel in the vendor's order. Offsets are stored exactly as the vendor give
 ``AZIMUTH_CONVENTIONS`` converts them to our frame (azimuth counter-clockwise from +X).
 """
 
-import math
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
 
 import numpy as np
 
+from .csv_cells import finite_number
 from .errors import PresetError
 
 MAX_TABLE_BYTES = 1_000_000
@@ -62,14 +62,7 @@ def resolve_table_path(rel, base_dir, where):
 
 
 def _fnum(text, where, line, col):
-    try:
-        v = float(text)
-    except ValueError:
-        raise PresetError(f"{where} line {line}: column '{col}' must be a number, "
-                          f"got '{text.strip()}'") from None
-    if not math.isfinite(v):
-        raise PresetError(f"{where} line {line}: column '{col}' must be finite, got {v}")
-    return v
+    return finite_number(text, where, line, col, PresetError)
 
 
 def read_angle_table(path, where=None):

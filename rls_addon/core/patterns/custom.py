@@ -6,11 +6,11 @@ the same as ``rls pattern`` writes), elevation up from the XY plane, time in sec
 since the frame start, non-decreasing. Errors name the file and line.
 """
 
-import math
 from pathlib import Path
 
 import numpy as np
 
+from ..csv_cells import finite_number
 from ..errors import PatternError
 from .base import ScanPattern, directions_from_angles
 
@@ -22,14 +22,7 @@ COLUMNS = ("time_s", "azimuth_deg", "elevation_deg", "channel")
 def _row(cells, where, lineno):
     vals = []
     for name, text in zip(COLUMNS, cells):
-        try:
-            v = float(text)
-        except ValueError:
-            raise PatternError(f"{where} line {lineno}: column '{name}' must be a number, "
-                               f"got '{text.strip()}'") from None
-        if not math.isfinite(v):
-            raise PatternError(f"{where} line {lineno}: column '{name}' must be finite, got {v}")
-        vals.append(v)
+        vals.append(finite_number(text, where, lineno, name, PatternError))
     t, az, el = vals[:3]
     if t < 0:
         raise PatternError(f"{where} line {lineno}: 'time_s' must be >= 0, got {t}")
