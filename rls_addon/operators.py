@@ -137,9 +137,10 @@ def _report_job(op, job):
     return {"FINISHED"}
 
 
-def _run_job(op, context, sensors, frames, **kw):
+def _run_job(op, make_job):
+    """Make a scan job (``make_job()``) and run it to the end, reporting to ``op``."""
     try:
-        job = batch.ScanJob(context, sensors, frames, **kw)
+        job = make_job()
         job.run()
     except RLSError as exc:
         op.report({"ERROR"}, str(exc))
@@ -162,8 +163,9 @@ class RLS_OT_scan_frame(bpy.types.Operator):
     poll = classmethod(_poll_active_lidar)
 
     def execute(self, context):
-        return _run_job(self, context, [_active_lidar(context)], [context.scene.frame_current],
-                        write=self.write, preview=self.preview)
+        return _run_job(self, lambda: batch.ScanJob(
+            context, [_active_lidar(context)], [context.scene.frame_current],
+            write=self.write, preview=self.preview))
 
 
 class RLS_OT_scan_all(bpy.types.Operator):
@@ -184,8 +186,9 @@ class RLS_OT_scan_all(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        return _run_job(self, context, lidar_objects(context.scene), [context.scene.frame_current],
-                        write=self.write, preview=self.preview)
+        return _run_job(self, lambda: batch.ScanJob(
+            context, lidar_objects(context.scene), [context.scene.frame_current],
+            write=self.write, preview=self.preview))
 
 
 class RLS_OT_scan_range(bpy.types.Operator):
@@ -239,13 +242,7 @@ class RLS_OT_scan_range(bpy.types.Operator):
                              preview=self.preview)
 
     def execute(self, context):
-        try:
-            job = self._make_job(context)
-            job.run()
-        except RLSError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        return _report_job(self, job)
+        return _run_job(self, lambda: self._make_job(context))
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
