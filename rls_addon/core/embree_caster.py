@@ -396,7 +396,7 @@ def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=
                   ptr(info), None if planes_of is None else ctypes.addressof(planes_of),
                   0 if info is None else len(info), ptr(pl),
                   dist.ctypes.data, tri.ctypes.data, ptr(normals),
-                  1 if n < _SERIAL_BELOW else threads)
+                  threads)
     if not batch:
         return None
     return _Batch(finish, batch, (keep, scene, o, d, pl, order, tm, instances), outputs)

@@ -1,5 +1,6 @@
 /* The Embree packet loop of RLS, in C: casts N rays through rtcIntersect16 on worker
- * threads of its own, which need no Python lock.
+ * threads of its own and the caller's (see rls_embree_launch), which need no Python
+ * lock.
  *
  * Rays come in float64 (origins centre-relative, unit directions) and are rounded to
  * float32 only for Embree's traversal, 16 at a time in the given trace order (rays
@@ -15,7 +16,8 @@
  * row-major matrix each, from step info[2i]) is refined in that instance's own
  * coordinates, with its matrix interpolated linearly at the ray's time exactly as
  * Embree does (the normal goes back to world by the inverse transpose).
- * rls_embree_launch returns while the workers run; rls_embree_finish collects them.
+ * rls_embree_launch returns while the workers run; rls_embree_finish joins in and
+ * collects them.
  *
  * No Embree header is needed: the caller passes the address of rtcIntersect16 from
  * the libembree4 already loaded by the embreex wheel, and the RTCRayHit16 layout
@@ -67,8 +69,14 @@ typedef struct {
     double *dist;
     int64_t *tri;
     double *normal;       /* 3 per ray, or NULL */
-    int64_t lo, hi;       /* ray range of this worker */
+    int64_t n;            /* rays */
+    int64_t *next;        /* shared: the first ray no worker has taken yet */
 } job_t;
+
+/* Workers take rays in blocks of this many from a shared counter (not in fixed
+ * shares), so a worker that the system preempts, or that meets costlier rays, does
+ * not hold up the others. */
+#define BLOCK (32 * K)
 
 /* The instance's matrix at time tau (steps interpolated linearly, as Embree does),
  * the ray carried into the instance's coordinates (ol, dl: dl not unit, so a ray
@@ -113,13 +121,12 @@ static void local_ray(const double *m, int64_t nsteps, double tau, const double 
     if (len > 0) for (int k = 0; k < 3; k++) nw[k] /= len;
 }
 
-static void *work(void *arg) {
-    job_t *j = (job_t *)arg;
+/* Casts rays [lo, hi) packet by packet. */
+static void cast_range(job_t *j, int64_t lo, int64_t hi) {
     union { float f[STRIDE]; uint32_t u[STRIDE]; } buf __attribute__((aligned(64)));
     int valid[K] __attribute__((aligned(64)));
-    for (int64_t s = j->lo; s < j->hi; s += K) {
-        int m = (int)((j->hi - s) < K ? (j->hi - s) : K);
-        memset(&buf, 0, sizeof(buf));
+    for (int64_t s = lo; s < hi; s += K) {
+        int m = (int)((hi - s) < K ? (hi - s) : K);
         int64_t ray[K];
         for (int l = 0; l < K; l++) {
             int64_t at = s + (l < m ? l : 0);
@@ -134,14 +141,21 @@ static void *work(void *arg) {
             buf.f[DIR + l] = (float)d[0];
             buf.f[DIR + K + l] = (float)d[1];
             buf.f[DIR + 2 * K + l] = (float)d[2];
+            buf.f[TNEAR + l] = 0.0f;
+            buf.f[TIME + l] = j->time ? j->time[r] : 0.0f;
             buf.f[TFAR + l] = j->tfar;
-            if (j->time) buf.f[TIME + l] = j->time[r];
             buf.u[MASK + l] = INVALID;
+            buf.u[ID + l] = 0;
+            buf.u[FLAGS + l] = 0;
             buf.u[PRIM + l] = INVALID;
             buf.u[GEOM + l] = INVALID;
             buf.u[INST + l] = INVALID;
         }
         j->fn(valid, j->scene, &buf, NULL);
+        if (j->plane && !j->info)  /* fetch the hit triangles' planes together */
+            for (int l = 0; l < m; l++)
+                if (buf.u[GEOM + l] != INVALID)
+                    __builtin_prefetch(j->plane + 4 * (int64_t)buf.u[PRIM + l]);
         for (int l = 0; l < m; l++) {
             int64_t r = ray[l];
             double *nrm = j->normal ? j->normal + 3 * r : NULL;
@@ -188,22 +202,33 @@ static void *work(void *arg) {
             j->tri[r] = (int64_t)p;
         }
     }
+}
+
+static void *work(void *arg) {
+    job_t *j = (job_t *)arg;
+    for (;;) {
+        int64_t lo = __atomic_fetch_add(j->next, BLOCK, __ATOMIC_RELAXED);
+        if (lo >= j->n) break;
+        cast_range(j, lo, lo + BLOCK < j->n ? lo + BLOCK : j->n);
+    }
     return NULL;
 }
 
 #define MAX_THREADS 64
 
 typedef struct {
-    int count;
-    int running[MAX_THREADS];
+    job_t job;     /* one job: the threads share its ray counter (see BLOCK) */
+    int64_t next;
+    int workers;
     pthread_t ids[MAX_THREADS];
-    job_t jobs[MAX_THREADS];
 } batch_t;
 
-/* Starts casting N rays on `threads` worker threads and returns at once (the caller
- * collects with rls_embree_finish, keeping every array alive until then). A worker
- * that cannot be started runs its share here before returning. NULL when out of
- * memory (nothing was cast). */
+/* Starts casting N rays with `threads` threads, counting the caller's: threads - 1
+ * workers start now, and the caller joins in when it collects the batch with
+ * rls_embree_finish (keeping every array alive until then). So the caller's own work
+ * between the two calls overlaps the cast without taking a core from it, and
+ * threads = 1 casts in the caller alone, at rls_embree_finish. A worker that cannot be
+ * started leaves its share to the others. NULL when out of memory (nothing was cast). */
 void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ray,
                         const double *dir, const int64_t *order, int64_t n, float tfar,
                         const float *time, int32_t *inst, const double *steps,
@@ -212,28 +237,22 @@ void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ra
                         double *dist, int64_t *tri, double *normal, int threads) {
     batch_t *b = (batch_t *)calloc(1, sizeof(batch_t));
     if (!b) return NULL;
-    if (threads < 1) threads = 1;
-    if (threads > MAX_THREADS) threads = MAX_THREADS;
-    int64_t per = (n + threads - 1) / threads;
-    per = (per + K - 1) / K * K;  /* whole packets per worker */
-    for (int t = 0; t < threads; t++) {
-        int64_t lo = t * per, hi = lo + per < n ? lo + per : n;
-        if (lo >= n) break;
-        b->jobs[t] = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar,
-                             time, inst, steps, info, planes_of, n_inst, plane, dist, tri,
-                             normal, lo, hi};
-        b->running[t] = pthread_create(&b->ids[t], NULL, work, &b->jobs[t]) == 0;
-        if (!b->running[t]) work(&b->jobs[t]);
-        b->count = t + 1;
-    }
+    b->job = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar, time, inst,
+                     steps, info, planes_of, n_inst, plane, dist, tri, normal, n, &b->next};
+    int64_t blocks = (n + BLOCK - 1) / BLOCK;
+    int want = threads - 1;
+    if (want > MAX_THREADS) want = MAX_THREADS;
+    if (want > blocks - 1) want = (int)(blocks - 1);  /* the caller takes one block */
+    for (int t = 0; t < want; t++)
+        if (pthread_create(&b->ids[b->workers], NULL, work, &b->job) == 0) b->workers++;
     return b;
 }
 
-/* Waits for a batch from rls_embree_launch and frees it. */
+/* Casts what the workers have not taken yet, waits for them, and frees the batch. */
 void rls_embree_finish(void *batch) {
     batch_t *b = (batch_t *)batch;
     if (!b) return;
-    for (int t = 0; t < b->count; t++)
-        if (b->running[t]) pthread_join(b->ids[t], NULL);
+    work(&b->job);
+    for (int t = 0; t < b->workers; t++) pthread_join(b->ids[t], NULL);
     free(b);
 }

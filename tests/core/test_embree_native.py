@@ -39,6 +39,31 @@ def test_native_equals_python_packets(n_rays, per_ray_origins):
         assert (tn >= 0).any() and (tn < 0).any()
 
 
+@pytest.mark.parametrize("n_rays", [0, 1, 511, 512, 513, 40000])
+def test_any_thread_count_casts_every_ray_once(n_rays):
+    """Workers and the collecting caller take blocks of rays from one counter: any
+    count of them (1: the caller alone) casts every ray exactly once."""
+    from rls_addon.core.raycast import triangle_planes
+
+    v, t = scene(7)
+    planes = triangle_planes(v, t)
+    rng = np.random.default_rng(n_rays)
+    d = rng.normal(size=(n_rays, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    want = None
+    for threads in (1, 2, 3, 8):
+        c = embree_caster.EmbreeCaster(v, t, threads=threads)
+        got = c.cast_refined(np.zeros((1, 3)), d, 30.0, planes)
+        assert all(len(x) == n_rays for x in got)
+        if want is None:
+            want = got
+            python = embree_caster.EmbreeCaster(v, t, threads=1, native=False).cast(
+                np.zeros((1, 3)), d, 30.0)
+            assert np.array_equal(got[1], python[1])
+        for x, y in zip(got, want):
+            assert np.array_equal(x, y)
+
+
 @pytest.mark.parametrize("per_ray_origins", [False, True])
 def test_fused_refinement_equals_numpy_refinement(per_ray_origins):
     """The compiled loop refines each hit against its plane in float64 exactly as
