@@ -1,6 +1,6 @@
 """Procedural street scenes for benchmarks, built with numpy as ``SceneGeometry``.
 
-A straight 240 m street (road, sidewalks), rows of buildings with recessed windows,
+A straight 240 m street (road, sidewalks), rows of buildings with glazed windows,
 parked cars (squashed ellipsoids), trees (cylinder trunk + sphere crown) and poles.
 The layout is fixed by the seed; ``target_triangles`` only changes how finely every
 surface is tessellated, so the series 10k .. 4M triangles shows the same street to
@@ -104,8 +104,9 @@ def _join(parts):
 
 
 def _facade(x0, x1, y, h, detail, rng, facing):
-    """A building front wall at y with recessed windows: a tessellated grid wall plus a
-    box per window (the window panes set 0.15 m back)."""
+    """A building front wall at y with windows: a tessellated grid wall plus a pane per
+    window, 0.15 m in front of the wall. ``facing`` (+1 or -1): the street lies towards
+    -facing * y, and the faces' normals point there, as a modeller's would."""
     width = x1 - x0
     n_cols = max(1, int(width / 3.2))
     n_rows = max(1, int(h / 3.0))
@@ -121,7 +122,11 @@ def _facade(x0, x1, y, h, detail, rng, facing):
             wz = (r + 0.3) * h / n_rows
             ww, wh = 0.5 * width / n_cols, 0.45 * h / n_rows
             glass.append(grid((wx, y - depth, wz), (ww, 0, 0), (0, 0, wh), cuts, cuts))
-    return _join(parts), (_join(glass) if glass else None)
+    wall, panes = _join(parts), (_join(glass) if glass else None)
+    if facing < 0:  # a grid spanned by +x then +z faces -y: turn these to face +y
+        wall = (wall[0], wall[1][:, ::-1])
+        panes = panes if panes is None else (panes[0], panes[1][:, ::-1])
+    return wall, panes
 
 
 def street_geometry(target_triangles=1_000_000, seed=7):
