@@ -73,6 +73,8 @@ class PreparedScene:
     ``centre`` culled, and the caster built once (wrapped so that rays through shared
     edges and vertices never slip through, see ``WatertightCaster``)."""
 
+    reuse_casts = True  # see cast(reuse=True); set False to time cold frames
+
     def __init__(self, geometry, centre, reach, caster_factory, watertight=True, hull_cell=None):
         self.geometry = geometry
         self.centre = np.asarray(centre, dtype=np.float64).copy()
@@ -85,6 +87,7 @@ class PreparedScene:
         self.planes = triangle_planes(self.vertices, self.triangles)
         # Caster triangle -> geometry triangle, with a trailing -1 that misses (-1) pick.
         self._to_geometry = np.append(self.kept, -1).astype(np.int64)
+        self._kept_cast = None
 
     def covers(self, origin, max_range):
         """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
@@ -93,10 +96,39 @@ class PreparedScene:
         gap = np.linalg.norm(o - self.centre, axis=1).max()
         return gap + max_range <= self.reach * (1 + 1e-12)
 
-    def cast(self, origins, directions, max_range, watertight=True, order=None):
+    def reusable(self, origins, directions):
+        """True when ``cast(..., reuse=True)`` may keep or reuse a cast of these rays:
+        one origin, and directions in a read-only array that owns its data (what
+        ``ScanPattern.rotated`` gives: the same array for every frame of a sensor that
+        does not move, whose contents cannot change)."""
+        return (self.reuse_casts and np.size(origins) == 3
+                and isinstance(directions, np.ndarray) and directions.base is None
+                and not directions.flags.writeable)
+
+    def cast(self, origins, directions, max_range, watertight=True, order=None, reuse=False):
         """Per ray: (dist, index into ``geometry``'s triangles or -1, unit normals).
         ``watertight=False`` skips the re-check of misses (for secondary rays);
-        ``order`` is a trace order (see ``raycast.cast_exact``)."""
+        ``order`` is a trace order (see ``raycast.cast_exact``).
+
+        ``reuse=True`` (for ``reusable`` rays): the result is kept, and when the very
+        same rays (same origin, same direction array, range, order) are cast again the
+        kept result is given back (as copies, so the caller may change them) instead
+        of casting: a static sensor's frames see the same static scene every time."""
+        key = None
+        if reuse and watertight and self.reusable(origins, directions):
+            key = (np.asarray(origins, np.float64).tobytes(), directions,
+                   float(max_range), order)
+            kept = self._kept_cast
+            if kept is not None and kept[0][0] == key[0] and kept[0][1] is directions \
+                    and kept[0][2] == key[2] and kept[0][3] is order:
+                return tuple(a.copy() for a in kept[1])
+        got = self._cast(origins, directions, max_range, watertight, order)
+        if key is not None:
+            self._kept_cast = (key, got)
+            return tuple(a.copy() for a in got)
+        return got
+
+    def _cast(self, origins, directions, max_range, watertight, order):
         n = directions.shape[0]
         if self.caster is None or n == 0:
             return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
@@ -403,10 +435,13 @@ class World:
                 if self.moving else None
         return self._instanced
 
-    def cast(self, origins, directions, times, max_range, watertight=True, order=None):
+    def cast(self, origins, directions, times, max_range, watertight=True, order=None,
+             reuse=False):
         """Nearest hit over all bodies: (dist, body index, triangle index, normals);
-        ``order``: a trace order for the static scene (see ``raycast.cast_exact``)."""
-        return self._start(origins, directions, times, max_range, watertight, order)()
+        ``order``: a trace order for the static scene (see ``raycast.cast_exact``).
+        ``reuse``: the static scene's part may come from its previous cast of the same
+        rays (see ``PreparedScene.cast``); only the moving bodies are cast then."""
+        return self._start(origins, directions, times, max_range, watertight, order, reuse)()
 
     def start_cast(self, origins, directions, times, max_range):
         """Start ``cast(..., watertight=False)``; returns a function giving its result.
@@ -414,10 +449,24 @@ class World:
         ``PreparedScene.start_cast``); bodies cast on their own are cast right here."""
         return self._start(origins, directions, times, max_range, False, None)
 
-    def _start(self, origins, directions, times, max_range, watertight, order):
-        inst = self.instanced
+    def _start(self, origins, directions, times, max_range, watertight, order, reuse=False):
         rest = list(enumerate(self.moving, start=1))
-        if inst is not None:
+        if reuse and watertight and self.static.reusable(origins, directions):
+            # The static scene cast on its own, through its store of the last cast; the
+            # moving bodies traced without it (as instances, or each on its own) and
+            # merged in below: the nearer hit wins, as in one traversal.
+            dist, tri, normals = self.static.cast(origins, directions, max_range, True, order,
+                                                  reuse=True)
+            got = (dist, np.where(tri >= 0, 0, -1), tri, normals)
+            pending = lambda: got  # noqa: E731
+            inst = InstancedWorld.build(self.static, self.moving, with_static=False) \
+                if self.moving else None
+            if inst is not None:
+                rest = [(k, b) for k, b in rest if k not in inst.traced]
+                movers = inst.start(origins, directions, times, max_range, order, True)
+                pending = lambda: _nearer(got, movers())  # noqa: E731
+        elif self.instanced is not None:
+            inst = self.instanced
             pending = inst.start(origins, directions, times, max_range, order, watertight)
             rest = [(k, b) for k, b in rest if k not in inst.traced]
         elif not rest and not watertight:
@@ -438,12 +487,10 @@ class World:
         more = [(k, b.cast(origins, directions, times, max_range, watertight)) for k, b in rest]
 
         def merged():
-            dist, body, tri, normals = pending()
+            got = pending()
             for k, (d2, t2, n2) in more:
-                closer = (t2 >= 0) & (d2 < dist)
-                dist[closer], tri[closer], normals[closer], body[closer] = \
-                    d2[closer], t2[closer], n2[closer], k
-            return dist, body, tri, normals
+                got = _nearer(got, (d2, np.where(t2 >= 0, k, -1), t2, n2))
+            return got
 
         return merged
 
@@ -469,6 +516,17 @@ class World:
                 if self._offsets is not None:
                     out[sel] += self._offsets[k]
         return out
+
+
+def _nearer(got, other):
+    """Merge two (dist, body, tri, normals) casts of the same rays into ``got``: per
+    ray, the nearer hit (``other``'s where it hit something closer)."""
+    dist, body, tri, normals = got
+    d2, b2, t2, n2 = other
+    closer = (b2 >= 0) & (d2 < dist)
+    dist[closer], body[closer], tri[closer], normals[closer] = \
+        d2[closer], b2[closer], t2[closer], n2[closer]
+    return dist, body, tri, normals
 
 
 def sensor_axes(sensor_to_world):
@@ -636,8 +694,10 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     elif len(scene.triangles) == 0 and not moving:
         warnings.append(f"no geometry within {rmax:g} m of the sensor")
 
+    # A sensor that does not move casts the same rays into the same static scene every
+    # frame: the static part is cast once and reused (see PreparedScene.cast).
     dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax,
-                                         order=pattern.trace_order)
+                                         order=pattern.trace_order, reuse=True)
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
     bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \

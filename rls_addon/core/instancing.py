@@ -30,13 +30,13 @@ class InstancedWorld:
     """The static ``PreparedScene`` and ``RigidBodies`` of one sweep as one Embree
     scene (see the module docstring); build with ``InstancedWorld.build``."""
 
-    def __init__(self, static, rigid, instances_cls):
+    def __init__(self, static, rigid, instances_cls, with_static=True):
         self.static = static
         self.centre = static.centre
         primary = getattr(static.caster, "primary", static.caster)
         placed, self.parts, self.coarse = [], [], []
         self.first = 0
-        if primary is not None:
+        if primary is not None and with_static:
             placed.append((primary, np.eye(4), static.planes))
             self.first = 1
         tracks = [tr for _, rb in rigid for tr in rb.tracks]
@@ -67,25 +67,28 @@ class InstancedWorld:
         self._part_tri_start = np.array([rb.tri_start[k] for _, rb, k in self.parts], np.int64)
 
     @classmethod
-    def build(cls, static, moving):
+    def build(cls, static, moving, with_static=True):
         """An ``InstancedWorld`` for ``static`` and the ``RigidBodies`` among
         ``moving`` (world body index = position in ``moving`` + 1), or None when the
-        backend cannot instance (then each body casts on its own). The last one built
-        for ``static`` is kept and reused while the bodies and their tracks are the
-        same objects (frames of a sweep scanned again, several sensors)."""
+        backend cannot instance (then each body casts on its own). ``with_static=False``
+        leaves the static scene out (its cast is reused from an earlier frame, see
+        ``PreparedScene.cast``): only the moving objects are traced. The last one built
+        each way for ``static`` is kept and reused while the bodies and their tracks are
+        the same objects (frames of a sweep scanned again, several sensors)."""
         rigid = [(k, b) for k, b in enumerate(moving, start=1) if hasattr(b, "tracks")]
         if not rigid:
             return None
         key = [(k, b, tuple(b.tracks)) for k, b in rigid]
-        last = getattr(static, "_instanced", None)
+        built_for = static.__dict__.setdefault("_instanced", {})
+        last = built_for.get(with_static)
         if last is not None and _same(last[0], key):
             return last[1]
-        built = cls._build(static, rigid)
-        static._instanced = (key, built)
+        built = cls._build(static, rigid, with_static)
+        built_for[with_static] = (key, built)
         return built
 
     @classmethod
-    def _build(cls, static, rigid):
+    def _build(cls, static, rigid, with_static=True):
         factory = rigid[0][1].factory
         instances_cls = getattr(factory, "instances", None)
         if instances_cls is None or any(b.factory is not factory for _, b in rigid):
@@ -96,7 +99,7 @@ class InstancedWorld:
         for _, b in rigid:
             if not all(c is None or instances_cls.usable(c[0]) for c in b.local_casters()):
                 return None
-        return cls(static, rigid, instances_cls)
+        return cls(static, rigid, instances_cls, with_static)
 
     def _steps(self, track, centre, local_vertices):
         """((S, 4, 4) matrices from the object's centred coordinates to the static

@@ -20,6 +20,15 @@ if not embree_caster.available():
     pytest.skip(f"embreex missing: {embree_caster.unavailable_reason()}", allow_module_level=True)
 Embree = embree_caster.EmbreeCaster
 
+
+@pytest.fixture(autouse=True, params=["one traversal", "static cast kept"])
+def static_cast(request, monkeypatch):
+    """Every test both ways: the static scene and the cars in one traversal (a frame
+    whose static cast cannot be reused), and the static cast kept by the scene with
+    only the cars traced (a sensor that does not move, see PreparedScene.cast)."""
+    monkeypatch.setattr(PreparedScene, "reuse_casts", request.param == "static cast kept")
+    return request.param
+
 PRESET = DevicePreset(id="t", name="t", family="spinning", source="test", frequency_hz=10.0,
                       range=RangeModel(0.1, 100.0, 0.0))
 EXACT = ScanSettings(noise=False, dropout=False, frame_space="world", ghosting=False)
@@ -80,7 +89,7 @@ def scan(factory, portable=False, monkeypatch=None, **settings):
     static = PreparedScene(g, np.zeros(3), 100.0, factory)
     if portable:
         monkeypatch.setattr(instancing.InstancedWorld, "build",
-                            classmethod(lambda cls, s, m: None))
+                            classmethod(lambda cls, s, m, with_static=True: None))
     s = ScanSettings(**{**EXACT.__dict__, **settings})
     return scan_frame(static, pattern(), pose(0, 0, 0), PRESET, s, moving=[rb]), rb
 
@@ -98,6 +107,11 @@ def test_embree_worlds_with_rigid_bodies_are_instanced():
     # other backends cast each body on its own
     g, rb = bodies(street(), NumpyCaster)
     assert World(PreparedScene(g, np.zeros(3), 100.0, NumpyCaster), [rb]).instanced is None
+    # without the static scene: one instance per car
+    g, rb = bodies(street(), Embree)
+    alone = instancing.InstancedWorld.build(PreparedScene(g, np.zeros(3), 100.0, Embree), [rb],
+                                            with_static=False)
+    assert len(alone.parts) == 3 and alone.first == 0
 
 
 def test_instanced_scan_equals_the_portable_path(monkeypatch):
@@ -175,7 +189,7 @@ def test_realistic_turn_refined_in_the_loop_matches_the_portable_path(monkeypatc
     world = World(static, [rb])
     assert world.instanced.coarse == []
     a = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
-    monkeypatch.setattr(instancing.InstancedWorld, "build", classmethod(lambda cls, s, m: None))
+    monkeypatch.setattr(instancing.InstancedWorld, "build", classmethod(lambda cls, s, m, with_static=True: None))
     b = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
     ka, kb = keyed(a), keyed(b)
     assert len(set(ka) ^ set(kb)) <= 2
@@ -207,7 +221,7 @@ def test_only_moving_objects_no_static_triangles(monkeypatch):
     world = World(static, [rb])
     assert world.instanced is not None and world.instanced.first == 0
     a = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
-    monkeypatch.setattr(instancing.InstancedWorld, "build", classmethod(lambda cls, s, m: None))
+    monkeypatch.setattr(instancing.InstancedWorld, "build", classmethod(lambda cls, s, m, with_static=True: None))
     b = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
     assert len(a) > 100 and abs(len(a) - len(b)) <= 2
     assert set(np.unique(a["instance"])) == set(np.unique(b["instance"]))
