@@ -153,26 +153,49 @@ def test_glossy_principled_material_makes_ghosts(scene):
 @pytest.mark.parametrize("backend", ["bvhtree", "embree"])
 def test_one_session_over_frames_keeps_every_point_on_the_moving_box(scene, backend):
     """A session reuses the car's structure over frames with each sweep's own track
-    (with Embree: the car traced as an instance of one scene with the street): every
-    frame gives what a fresh session gives, and every car point lies on the car."""
+    (with Embree: the car traced as an instance), and the street's cast of the still
+    lidar: every frame gives what a fresh session gives, and every car point lies on
+    the car."""
     from rls_addon.blender.scan import ScanSession, session_for
+    from rls_addon.core.engine import PreparedScene
 
     lidar, start = moving_box_setup(scene)
     box("Ground", (-30, -30, -3), (30, 30, -2))
     session, notice = session_for(backend)
     assert notice is None
+    static_casts = []
+    cast = PreparedScene._cast
+
+    def counting(self, origins, directions, max_range, watertight, order):
+        static_casts.append(self)
+        return cast(self, origins, directions, max_range, watertight, order)
+
+    PreparedScene._cast = counting
     step = V / FPS
-    for frame in (1, 3, 6):
-        scene.frame_set(frame)
-        dg = bpy.context.evaluated_depsgraph_get()
-        result, info = session.scan(dg, lidar, frame)
-        fresh, _ = ScanSession(session.caster_factory).scan(dg, lidar, frame)
-        p = result.points
-        assert info["motion"]["rigid"] == ["Car"]
-        assert len(p) == len(fresh.points)
-        assert np.abs(p["range"] - fresh.points["range"]).max() <= 1e-9
-        car = p[p["z"] > -1.9]  # the ground's top is at z = -2
-        assert len(car) > 50
-        centre = start + [0, (frame - 1) * step, 0] + np.outer(car["time"], [0, V, 0])
-        err = np.abs(box_sdf(points_xyz(car), centre, np.array([1, 2, 1])))
-        assert err.max() <= 1e-3, (frame, err.max())
+    try:
+        for frame in (1, 3, 6):
+            scene.frame_set(frame)
+            dg = bpy.context.evaluated_depsgraph_get()
+            result, info = session.scan(dg, lidar, frame)
+            fresh, _ = ScanSession(session.caster_factory).scan(dg, lidar, frame)
+            p = result.points
+            assert info["motion"]["rigid"] == ["Car"]
+            assert len(p) == len(fresh.points)
+            assert np.abs(p["range"] - fresh.points["range"]).max() <= 1e-9
+            check_car(p, start, frame, step)
+    finally:
+        PreparedScene._cast = cast
+    # The lidar stands still: the session cast its street once, in the first frame, and
+    # reused that cast in the others (see PreparedScene.cast)
+    street = list(session._prepared.values())
+    assert len(street) == 1
+    assert sum(1 for s in static_casts if s is street[0]) == 1
+
+
+def check_car(p, start, frame, step):
+    """Every car point lies on the box where it was at the point's own time."""
+    car = p[p["z"] > -1.9]  # the ground's top is at z = -2
+    assert len(car) > 50
+    centre = start + [0, (frame - 1) * step, 0] + np.outer(car["time"], [0, V, 0])
+    err = np.abs(box_sdf(points_xyz(car), centre, np.array([1, 2, 1])))
+    assert err.max() <= 1e-3, (frame, err.max())
