@@ -113,7 +113,8 @@ class PreparedScene:
         ``reuse=True`` (for ``reusable`` rays): the result is kept, and when the very
         same rays (same origin, same direction array, range, order) are cast again the
         kept result is given back (as copies, so the caller may change them) instead
-        of casting: a static sensor's frames see the same static scene every time."""
+        of casting: a static sensor's frames see the same static scene every time. One
+        cast is kept, about 40 bytes per ray (4.6 MB for a Pandar64 frame)."""
         key = None
         if reuse and watertight and self.reusable(origins, directions):
             key = (np.asarray(origins, np.float64).tobytes(), directions,
