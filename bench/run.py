@@ -754,8 +754,7 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
                  "gives back its kept static cast (`PreparedScene.cast`, byte-identical to "
                  "casting again: `tests/core/test_static_reuse.py`); ghost rays, noise, "
                  "dropout and points are still made anew for every frame. Default settings, "
-                 "ms per frame:
-")
+                 "ms per frame:\n")
         L.append("| device | Embree: cold frame | still sensor, later frames | x real time "
                  "| BVHTree: cold frame | still sensor, later frames | x real time |")
         L.append("|---|---|---|---|---|---|---|")

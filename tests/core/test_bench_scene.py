@@ -17,3 +17,11 @@ def test_facades_and_windows_face_the_street():
         y = tv[sel, :, 1].mean(axis=1)  # north row at y > 0, south row at y < 0
         assert sel.sum() > 100
         assert np.all(np.sign(n[sel, 1]) == -np.sign(y)), kind
+
+
+def test_benchmark_modules_import():
+    """make bench is not run by the tests: at least its modules must load."""
+    import importlib
+
+    for name in ("bench.run", "bench.engine_costs"):
+        importlib.import_module(name)
