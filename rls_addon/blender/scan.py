@@ -91,6 +91,7 @@ class ScanSession:
             "objects_read": stats["objects"],
             "objects_culled_by_range": stats["culled_by_range"],
             "ghosts": result.stats.get("ghosts", 0),
+            "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }
         return result, info

@@ -88,6 +88,7 @@ class PreparedScene:
         # Caster triangle -> geometry triangle, with a trailing -1 that misses (-1) pick.
         self._to_geometry = np.append(self.kept, -1).astype(np.int64)
         self._kept_cast = None
+        self.reused = 0  # casts answered from the kept one
 
     def covers(self, origin, max_range):
         """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
@@ -122,6 +123,7 @@ class PreparedScene:
             kept = self._kept_cast
             if kept is not None and kept[0][0] == key[0] and kept[0][1] is directions \
                     and kept[0][2] == key[2] and kept[0][3] is order:
+                self.reused += 1
                 return tuple(a.copy() for a in kept[1])
         got = self._cast(origins, directions, max_range, watertight, order)
         if key is not None:
@@ -697,8 +699,10 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
 
     # A sensor that does not move casts the same rays into the same static scene every
     # frame: the static part is cast once and reused (see PreparedScene.cast).
+    reused = scene.reused
     dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax,
                                          order=pattern.trace_order, reuse=True)
+    reused = scene.reused > reused
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
     bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
@@ -754,4 +758,5 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     pts["instance"] = instance
     pts["ghost"] = 0 if ret.ghost is None else ret.ghost.take(idx)
     stats["moving_bodies"] = len(moving)
+    stats["static_cast_reused"] = reused
     return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats)

@@ -79,10 +79,12 @@ def test_frames_of_a_still_sensor_cast_the_static_scene_once(factory, counted):
     pat = spinning_pattern(np.linspace(-15, 5, 16), 10.0, 16 * 900 * 10)
     frames = [scan_frame(scene, pat, pose(), PRESET, ScanSettings(), frame=f) for f in range(4)]
     assert counted(scene) == 1  # the first frame cast; the others reused it
+    assert [f.stats["static_cast_reused"] for f in frames] == [False, True, True, True]
     for f, got in enumerate(frames):
         want = cold(scene, pat, pose(), PRESET, ScanSettings(), frame=f)
         assert got.points.tobytes() == want.points.tobytes()  # noise, ghosts and all
-        assert got.stats == want.stats and got.warnings == want.warnings
+        assert dict(got.stats, static_cast_reused=False) == want.stats
+        assert got.warnings == want.warnings
     assert frames[0].stats["ghosts"] > 50  # ghosting changed the frame's own arrays
     assert not np.array_equal(frames[0].points["range"], frames[1].points["range"])  # noise
 
