@@ -8,7 +8,8 @@ import numpy as np
 from ..core.engine import PreparedScene, RigidBodies, TimedScene, resolve_range, scan_frame
 from ..core.motion import Track
 from .bvh_caster import BVHCaster
-from .extract import object_table, read_instances, read_mesh, world_geometry, instance_key
+from .extract import (MeshReader, instance_key, object_table, read_instances, read_mesh,
+                      world_geometry)
 from .motion import SweepClock, deformation, may_move, sample_sweep, substep_count
 from .sensor import scan_inputs, sensor_pose
 
@@ -16,16 +17,18 @@ MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start ma
 
 
 class ScanSession:
-    """Scans several frames and sensors. Static geometry is built into a ray-casting
-    structure once and reused while its digest is unchanged; each rigidly moving
-    object's own structure is reused likewise; deforming objects are rebuilt per
-    sub-step."""
+    """Scans several frames and sensors. Meshes are read once while unchanged
+    (``extract.MeshReader``); static geometry is built into a ray-casting structure
+    once and reused while it is unchanged (the same meshes, matrices, materials and
+    labels; else its digest decides); each rigidly moving object's own structure is
+    reused likewise; deforming objects are rebuilt per sub-step."""
 
     def __init__(self, caster_factory=BVHCaster):
         self.caster_factory = caster_factory
         self._prepared = {}
         self._bodies = {}
         self.builds = 0
+        self.meshes = MeshReader()
 
     def _cached(self, store, key, make):
         item = store.get(key)
@@ -36,10 +39,29 @@ class ScanSession:
             self.builds += 1
         return item
 
-    def prepared(self, geometry, centre, reach):
-        key = (geometry.fingerprint(), tuple(np.round(centre, 9)), reach)
-        return self._cached(self._prepared, key,
-                            lambda: PreparedScene(geometry, centre, reach, self.caster_factory))
+    def prepared(self, geometry, centre, reach, key=None):
+        """The ``PreparedScene`` of ``geometry`` (or of ``geometry()``, a function that
+        builds it, when ``key`` identifies it without its digest)."""
+        if key is None:
+            geometry = geometry() if callable(geometry) else geometry
+            key = geometry.fingerprint()
+        key = (key, tuple(np.round(centre, 9)), reach)
+        return self._cached(self._prepared, key, lambda: PreparedScene(
+            geometry() if callable(geometry) else geometry, centre, reach, self.caster_factory))
+
+    @staticmethod
+    def _static_key(instances, objects, materials, select):
+        """A key equal for equal static geometry, from what was read (no digest of the
+        triangles): each selected instance's mesh id, matrix, materials and label, and
+        the object and material tables. None when a mesh has no id."""
+        parts = []
+        for k in sorted(select):
+            inst = instances[k]
+            if not inst.mesh_id:
+                return None
+            parts.append((inst.key, inst.label, inst.mesh_id, inst.matrix.tobytes(),
+                          inst.slot_map.tobytes()))
+        return ("instances", tuple(parts), repr((objects, materials)))
 
     def scan(self, depsgraph, obj, frame, settings=None, context=None):
         """Scan one frame of LiDAR ``obj`` in ``depsgraph`` (already at ``frame``).
@@ -54,7 +76,8 @@ class ScanSession:
         rmin, rmax = resolve_range(preset, settings)
         centre = pose[:3, 3]
         instances, materials, stats = read_instances(
-            depsgraph, centre=centre, max_range=rmax + MOVER_MARGIN_M, exclude={obj.name})
+            depsgraph, centre=centre, max_range=rmax + MOVER_MARGIN_M, exclude={obj.name},
+            reader=self.meshes)
         objects = object_table(instances)
         motion = {"rigid": [], "deforming": [], "samples": 1, "substeps": {}}
         moving, track = [], None
@@ -62,11 +85,13 @@ class ScanSession:
         if settings.motion != "snapshot":
             moving, track, static_sel, motion = self._motion(
                 context, frame, preset, settings, obj, instances, objects, materials, rmax)
-        geometry = world_geometry(instances, objects, materials, select=static_sel)
         reach = rmax
         if track is not None:
             reach += float(np.linalg.norm(track.matrices[:, :3, 3] - centre, axis=1).max())
-        scene = self.prepared(geometry, centre, reach)
+        # Joined (and digested) only when the session has not built it before.
+        scene = self.prepared(
+            lambda: world_geometry(instances, objects, materials, select=static_sel), centre,
+            reach, self._static_key(instances, objects, materials, static_sel))
         result = scan_frame(scene, preset.pattern(frame), pose, preset, settings, frame=frame,
                             sensor=obj.name, sensor_track=track, moving=moving)
         labels = {str(o.instance): {"object": o.name, "label": o.label} for o in objects}

@@ -1,0 +1,186 @@
+"""Reading meshes in bulk: the attribute-array reads give exactly what Blender's own
+per-triangle accessors give, and a scan session reads an unchanged mesh once."""
+
+import bpy
+import numpy as np
+import pytest
+
+from .conftest import add_lidar, mesh_object
+
+
+def reference(obj):
+    """What Blender's per-item accessors give (the slow, plain way)."""
+    dg = bpy.context.evaluated_depsgraph_get()
+    ev = obj.evaluated_get(dg)
+    mesh = ev.to_mesh()
+    try:
+        mesh.calc_loop_triangles()
+        co = np.array([tuple(v.co) for v in mesh.vertices], np.float64).reshape(-1, 3)
+        tri = np.array([tuple(t.vertices) for t in mesh.loop_triangles], np.int64).reshape(-1, 3)
+        mat = np.array([t.material_index for t in mesh.loop_triangles], np.int32)
+        return co, tri, mat
+    finally:
+        ev.to_mesh_clear()
+
+
+def read(obj):
+    from rls_addon.blender.extract import read_mesh
+
+    return read_mesh(obj.evaluated_get(bpy.context.evaluated_depsgraph_get()))
+
+
+def materials(obj, n):
+    for k in range(n):
+        obj.data.materials.append(bpy.data.materials.new(f"{obj.name} m{k}"))
+
+
+def test_triangles_quads_ngons_and_materials_read_as_blender_gives_them(scene):
+    tris = mesh_object("Tris", [(0, 0, 0), (1, 0, 0), (0, 1, 0), (1, 1, 0.5)],
+                       [(0, 1, 2), (1, 3, 2)])
+    quads = mesh_object("Quads", [(x, y, 0.1 * x * y) for y in range(4) for x in range(4)],
+                        [(y * 4 + x, y * 4 + x + 1, y * 4 + x + 5, y * 4 + x + 4)
+                         for y in range(3) for x in range(3)])
+    ring = [(np.cos(a), np.sin(a), 0.2 * np.sin(3 * a)) for a in np.linspace(0, 6, 7)]
+    mixed = mesh_object("Mixed", ring + [(0, 0, 2)],
+                        [tuple(range(7)), (0, 1, 7), (1, 2, 7, ), (3, 4, 7)])
+    materials(quads, 3)
+    for k, p in enumerate(quads.data.polygons):
+        p.material_index = k % 3
+    materials(mixed, 2)
+    mixed.data.polygons[0].material_index = 1
+    bpy.ops.object.text_add()
+    text = bpy.context.object
+    text.data.body = "RLS"
+    for obj in (tris, quads, mixed, text):
+        got, want = read(obj), reference(obj)
+        assert np.array_equal(got[0], want[0]), obj.name
+        assert np.array_equal(got[1], want[1]), obj.name
+        assert np.array_equal(got[2], want[2]), obj.name
+        assert len(got[1]) > 1
+    assert set(read(quads)[2]) == {0, 1, 2}
+
+
+def test_a_session_reads_an_unchanged_mesh_once(scene):
+    from rls_addon.blender.extract import MeshReader, read_instances
+
+    quads = mesh_object("Quads", [(x, y, 0) for y in range(3) for x in range(3)],
+                        [(y * 3 + x, y * 3 + x + 1, y * 3 + x + 4, y * 3 + x + 3)
+                         for y in range(2) for x in range(2)])
+    tris = mesh_object("Tris", [(0, 0, 1), (1, 0, 1), (0, 1, 1)], [(0, 1, 2)])
+    reader = MeshReader()
+
+    def ids():
+        dg = bpy.context.evaluated_depsgraph_get()
+        return {i.key: i.mesh_id for i in read_instances(dg, reader=reader)[0]}
+
+    first = ids()
+    assert reader.reads == 2 and ids() == first and reader.reads == 2  # nothing changed
+    quads.data.vertices[4].co.z = 0.5  # an edit: read again, with a new id
+    quads.data.update()
+    second = ids()
+    assert reader.reads == 3 and second["Quads"] != first["Quads"]
+    assert second["Tris"] == first["Tris"]
+    materials(tris, 2)
+    tris.data.polygons[0].material_index = 1  # a material change is a change too
+    tris.data.update()
+    assert ids()["Tris"] != first["Tris"] and reader.reads == 4
+    # the same positions and corner sequence grouped into other faces: (3, 4) corners
+    # against (4, 3) corners are other triangles, so the mesh is read again
+    pts = [(np.cos(a), np.sin(a), 0.1 * a) for a in np.linspace(0, 5, 7)]
+    a = mesh_object("Groups", pts, [(0, 1, 2), (3, 4, 5, 6)])
+    other = mesh_object("Other", pts, [(0, 1, 2, 3), (4, 5, 6)])
+    before = ids()["Groups"]
+    a.data = other.data
+    bpy.data.objects.remove(other)
+    after = ids()["Groups"]
+    assert after != before
+    dg = bpy.context.evaluated_depsgraph_get()
+    inst = [i for i in read_instances(dg, reader=reader)[0] if i.key == "Groups"][0]
+    assert np.array_equal(inst.triangles, reference(a)[1])
+
+
+def test_an_animated_modifier_is_read_every_frame(scene):
+    from rls_addon.blender.extract import MeshReader, read_instances
+
+    grid = mesh_object("Grid", [(x, y, 0) for y in range(5) for x in range(5)],
+                       [(y * 5 + x, y * 5 + x + 1, y * 5 + x + 6, y * 5 + x + 5)
+                        for y in range(4) for x in range(4)])
+    wave = grid.modifiers.new("Wave", "WAVE")
+    wave.height = 0.5
+    reader = MeshReader()
+    seen = []
+    for frame in (1, 2, 3):
+        scene.frame_set(frame)
+        dg = bpy.context.evaluated_depsgraph_get()
+        inst = read_instances(dg, reader=reader)[0][0]
+        seen.append(inst.vertices[:, 2].copy())
+        assert np.array_equal(inst.vertices, reference(grid)[0])
+    assert reader.reads == 3
+    assert not np.array_equal(seen[0], seen[2])
+
+
+@pytest.mark.parametrize("backend", ["bvhtree", "embree"])
+def test_a_still_lidar_builds_its_static_scene_once(scene, backend):
+    """Over frames of a static scene, the session neither reads the meshes again nor
+    joins and digests the static geometry again; an edit is seen in the next frame."""
+    from rls_addon.blender import scan as scan_module
+    from rls_addon.blender.scan import session_for
+
+    wall = mesh_object("Wall", [(5, -5, -3), (5, 5, -3), (5, 5, 5), (5, -5, 5)],
+                       [(0, 1, 2, 3)])
+    mesh_object("Ground", [(-9, -9, -2), (9, -9, -2), (9, 9, -2), (-9, 9, -2)], [(0, 1, 2, 3)])
+    lidar = add_lidar()
+    lidar.rls_lidar.frame_space = "WORLD"
+    session, _ = session_for(backend)
+    joins = []
+    join = scan_module.world_geometry
+
+    def counting(*a, **k):
+        joins.append(1)
+        return join(*a, **k)
+
+    scan_module.world_geometry = counting
+    try:
+        xs = []
+        for frame in (1, 2, 3):
+            scene.frame_set(frame)
+            res, info = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, frame)
+            xs.append(wall_x(res.points))
+        assert session.builds == 1 and len(joins) == 1 and session.meshes.reads == 2
+        assert info["static_cast_reused"]
+        for v in wall.data.vertices:
+            v.co.x = 6.0
+        wall.data.update()
+        scene.frame_set(4)
+        res, info = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, 4)
+    finally:
+        scan_module.world_geometry = join
+    assert session.builds == 2 and len(joins) == 2 and session.meshes.reads == 3
+    assert not info["static_cast_reused"]
+    assert xs[0] == pytest.approx(5.0, abs=1e-6) and xs[0] == xs[1] == xs[2]
+    assert wall_x(res.points) == pytest.approx(6.0, abs=1e-6)
+
+
+def wall_x(points):
+    """The wall's points (above the ground at z = -2): their largest x."""
+    return points["x"][points["z"] > -1.9].max()
+
+
+def test_without_attribute_arrays_every_item_is_read(scene, monkeypatch):
+    """A Blender without the attribute arrays (positions, corners) is read item by
+    item, to the same result, and never taken for unchanged."""
+    from rls_addon.blender import extract
+
+    quads = mesh_object("Quads", [(x, y, 0.2 * x) for y in range(3) for x in range(3)],
+                        [(y * 3 + x, y * 3 + x + 1, y * 3 + x + 4, y * 3 + x + 3)
+                         for y in range(2) for x in range(2)])
+    fast = read(quads)
+    monkeypatch.setattr(extract, "_attribute_arrays", lambda mesh: None)
+    slow = read(quads)
+    for a, b, c in zip(fast, slow, reference(quads)):
+        assert np.array_equal(a, b) and np.array_equal(b, c)
+    reader = extract.MeshReader()
+    dg = bpy.context.evaluated_depsgraph_get()
+    extract.read_instances(dg, reader=reader)
+    extract.read_instances(dg, reader=reader)
+    assert reader.reads == 2
