@@ -902,7 +902,8 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
     if b:
         L.append("## In Blender\n")
         L.append(f"The same street as {b['objects']} Blender mesh objects (`bench/scene.py:"
-                 "add_to_blender`) and a Pandar64 lidar standing still at the same pose, "
+                 "add_to_blender`; labelled, without materials, so nothing is glossy and "
+                 "no ghost rays are cast) and a Pandar64 lidar standing still at the same pose, "
                  "scanned frame after frame through the add-on's scan session (Embree, "
                  "default settings, scene extraction included). Extraction copies "
                  "positions, corners and face materials out of Blender's attribute arrays "
