@@ -14,6 +14,10 @@ from .motion import SweepClock, deformation, may_move, sample_sweep, substep_cou
 from .sensor import scan_inputs, sensor_pose
 
 MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
+# Once a lidar moves between frames, its static scene is prepared this share of its range
+# farther out and kept while the lidar stays inside: a driving lidar's frames share one
+# built structure instead of one per frame.
+DRIVING_SLACK = 0.25
 
 
 class ScanSession:
@@ -29,6 +33,7 @@ class ScanSession:
         self._bodies = {}
         self.builds = 0
         self.meshes = MeshReader()
+        self._anchors = {}  # lidar name -> (centre, reach, range) its scene is prepared for
 
     def _cached(self, store, key, make):
         item = store.get(key)
@@ -63,6 +68,23 @@ class ScanSession:
                           inst.slot_map.tobytes()))
         return ("instances", tuple(parts), repr((objects, materials)))
 
+    def _anchor(self, name, centre, rmax):
+        """(centre, reach) to prepare a lidar's static scene for: where it stands, with
+        its range, until it moves; then around where it moved to, reaching
+        ``DRIVING_SLACK`` of its range farther, kept while it stays inside (with room
+        for ``MOVER_MARGIN_M`` of travel within a sweep)."""
+        got = self._anchors.get(name)
+        moved = False
+        if got is not None and got[2] == rmax:
+            anchor, reach, _ = got
+            gap = float(np.linalg.norm(centre - anchor))
+            if gap == 0.0 or gap + rmax + MOVER_MARGIN_M <= reach:
+                return anchor, reach
+            moved = True
+        reach = rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M if moved else rmax
+        self._anchors[name] = (centre.copy(), reach, rmax)
+        return centre, reach
+
     def scan(self, depsgraph, obj, frame, settings=None, context=None):
         """Scan one frame of LiDAR ``obj`` in ``depsgraph`` (already at ``frame``).
 
@@ -75,8 +97,9 @@ class ScanSession:
         pose = sensor_pose(obj.evaluated_get(depsgraph))
         rmin, rmax = resolve_range(preset, settings)
         centre = pose[:3, 3]
+        anchor, reach = self._anchor(obj.name, centre, rmax)
         instances, materials, stats = read_instances(
-            depsgraph, centre=centre, max_range=rmax + MOVER_MARGIN_M, exclude={obj.name},
+            depsgraph, centre=anchor, max_range=reach + MOVER_MARGIN_M, exclude={obj.name},
             reader=self.meshes)
         objects = object_table(instances)
         motion = {"rigid": [], "deforming": [], "samples": 1, "substeps": {}}
@@ -85,12 +108,15 @@ class ScanSession:
         if settings.motion != "snapshot":
             moving, track, static_sel, motion = self._motion(
                 context, frame, preset, settings, obj, instances, objects, materials, rmax)
-        reach = rmax
         if track is not None:
-            reach += float(np.linalg.norm(track.matrices[:, :3, 3] - centre, axis=1).max())
+            sweep = track.matrices[:, :3, 3]
+            if np.linalg.norm(sweep - anchor, axis=1).max() + rmax > reach:
+                # The sweep leaves the anchored scene: one around this sweep alone.
+                anchor = centre
+                reach = rmax + float(np.linalg.norm(sweep - centre, axis=1).max())
         # Joined (and digested) only when the session has not built it before.
         scene = self.prepared(
-            lambda: world_geometry(instances, objects, materials, select=static_sel), centre,
+            lambda: world_geometry(instances, objects, materials, select=static_sel), anchor,
             reach, self._static_key(instances, objects, materials, static_sel))
         result = scan_frame(scene, preset.pattern(frame), pose, preset, settings, frame=frame,
                             sensor=obj.name, sensor_track=track, moving=moving)

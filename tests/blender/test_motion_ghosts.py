@@ -200,3 +200,37 @@ def check_car(p, start, frame, step):
     centre = start + [0, (frame - 1) * step, 0] + np.outer(car["time"], [0, V, 0])
     err = np.abs(box_sdf(points_xyz(car), centre, np.array([1, 2, 1])))
     assert err.max() <= 1e-3, (frame, err.max())
+
+
+@pytest.mark.parametrize("backend", ["bvhtree", "embree"])
+def test_a_driving_lidar_shares_one_built_scene_over_frames(scene, backend):
+    """Once the lidar has moved, its static scene is prepared wider and kept while the
+    lidar stays inside it: frames share one structure, and give what a fresh session
+    gives; far enough on, the scene is prepared anew."""
+    from rls_addon.blender import scan as scan_module
+    from rls_addon.blender.scan import ScanSession, session_for
+
+    scene.render.fps, scene.render.fps_base = FPS, 1.0
+    box("Street", (-60, -8, -1), (60, 8, 6))
+    box("Kiosk", (3, 2, -1), (5, 4, 1))
+    lidar = add_lidar(location=(-2, 0.5, 1.5))
+    lidar.rls_lidar.frame_space = "WORLD"
+    lidar.rls_lidar.use_max_range, lidar.rls_lidar.max_range = True, 20.0
+    # 10 m/s along +X: 0.4 m per frame
+    linear_keys(lidar, "location", [(1, (-2.0, 0.5, 1.5)), (101, (38.0, 0.5, 1.5))])
+    session, _ = session_for(backend)
+    for frame in (1, 2, 3, 4, 5, 6):
+        scene.frame_set(frame)
+        dg = bpy.context.evaluated_depsgraph_get()
+        result, info = session.scan(dg, lidar, frame)
+        fresh, _ = ScanSession(session.caster_factory).scan(dg, lidar, frame)
+        assert info["motion"]["sensor_moves"]
+        assert len(result.points) == len(fresh.points) > 1000
+        assert np.abs(result.points["range"] - fresh.points["range"]).max() <= 1e-6
+        assert np.abs(points_xyz(result.points) - points_xyz(fresh.points)).max() <= 1e-6
+    # frame 1 where it stood, frame 2 on the wider scene, kept since
+    assert session.builds == 2
+    far = 1 + int((20.0 * scan_module.DRIVING_SLACK) / 0.4) + 2  # past the slack
+    scene.frame_set(far)
+    session.scan(bpy.context.evaluated_depsgraph_get(), lidar, far)
+    assert session.builds == 3
