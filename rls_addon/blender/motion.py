@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .extract import instance_key, read_positions
+from .extract import GEOMETRY_TYPES, instance_key, read_positions
 
 INTERP_TOLERANCE_M = 1e-4  # max error of pose interpolation between samples
 MAX_SAMPLES = 65
@@ -78,8 +78,7 @@ def _read_state(depsgraph, keys, deform_keys, sensor_name):
         key = instance_key(inst)
         if key in keys:
             mats[key] = np.array(inst.matrix_world, dtype=np.float64)
-            if key in deform_keys and inst.object.type in {"MESH", "CURVE", "SURFACE", "FONT",
-                                                           "META"}:
+            if key in deform_keys and inst.object.type in GEOMETRY_TYPES:
                 verts[key] = read_positions(inst.object)
     return mats, verts, sensor
 

@@ -454,35 +454,29 @@ class World:
 
     def _start(self, origins, directions, times, max_range, watertight, order, reuse=False):
         rest = list(enumerate(self.moving, start=1))
-        if reuse and watertight and self.static.reusable(origins, directions):
+        reuse = reuse and watertight and self.static.reusable(origins, directions)
+        if reuse:
             # The static scene cast on its own, through its store of the last cast; the
             # moving bodies traced without it (as instances, or each on its own) and
             # merged in below: the nearer hit wins, as in one traversal.
-            dist, tri, normals = self.static.cast(origins, directions, max_range, True, order,
-                                                  reuse=True)
-            got = (dist, np.where(tri >= 0, 0, -1), tri, normals)
-            pending = lambda: got  # noqa: E731
             inst = InstancedWorld.build(self.static, self.moving, with_static=False) \
                 if self.moving else None
-            if inst is not None:
-                rest = [(k, b) for k, b in rest if k not in inst.traced]
+        else:
+            inst = self.instanced
+        if inst is not None:
+            rest = [(k, b) for k, b in rest if k not in inst.traced]
+        if inst is not None and not reuse:  # the static scene among the instances
+            pending = inst.start(origins, directions, times, max_range, order, watertight)
+        elif not rest and not watertight:  # (reuse is watertight)
+            started = self.static.start_cast(origins, directions, max_range)
+            pending = lambda: _static_hits(*started())  # noqa: E731
+        else:
+            got = _static_hits(*self.static.cast(origins, directions, max_range, watertight,
+                                                 order, reuse))
+            pending = lambda: got  # noqa: E731
+            if inst is not None:  # the moving bodies, as instances without the static scene
                 movers = inst.start(origins, directions, times, max_range, order, True)
                 pending = lambda: _nearer(got, movers())  # noqa: E731
-        elif self.instanced is not None:
-            inst = self.instanced
-            pending = inst.start(origins, directions, times, max_range, order, watertight)
-            rest = [(k, b) for k, b in rest if k not in inst.traced]
-        elif not rest and not watertight:
-            started = self.static.start_cast(origins, directions, max_range)
-
-            def pending():
-                dist, tri, normals = started()
-                return dist, np.where(tri >= 0, 0, -1), tri, normals
-        else:
-            dist, tri, normals = self.static.cast(origins, directions, max_range, watertight,
-                                                  order)
-            got = (dist, np.where(tri >= 0, 0, -1), tri, normals)
-            pending = lambda: got  # noqa: E731
         if not rest:
             return pending
         # Bodies cast on their own (deforming sub-steps; every body on backends that
@@ -519,6 +513,12 @@ class World:
                 if self._offsets is not None:
                     out[sel] += self._offsets[k]
         return out
+
+
+def _static_hits(dist, tri, normals):
+    """A static scene's cast as a world's: (dist, body 0 where it hit else -1, tri,
+    normals)."""
+    return dist, np.where(tri >= 0, 0, -1), tri, normals
 
 
 def _nearer(got, other):
