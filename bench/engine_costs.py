@@ -7,7 +7,9 @@ import time
 
 import numpy as np
 
-from rls_addon.core.engine import PreparedScene, RigidBodies, ScanSettings, TimedScene, scan_frame
+from rls_addon.core.bodies import PreparedScene, RigidBodies, TimedScene
+from rls_addon.core.frame import scan_frame
+from rls_addon.core.settings import ScanSettings
 from rls_addon.core.geometry import SceneGeometry
 from rls_addon.core.motion import Track
 

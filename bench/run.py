@@ -110,9 +110,9 @@ class Backends:
                  prepared=True):
         import bpy  # noqa: F401  (mathutils)
 
-        from rls_addon.blender.bvh_caster import BVHCaster
-        from rls_addon.core.embree_caster import EmbreeCaster
-        from rls_addon.core.engine import PreparedScene
+        from rls_addon.core.casting import BVHCaster
+        from rls_addon.core.casting.embree import EmbreeCaster
+        from rls_addon.core.bodies import PreparedScene
         from rls_addon.core.geometry import clean_for_casting
 
         self.origin = np.asarray(origin, float)
@@ -208,32 +208,30 @@ def bare_loop(tree, dirs, max_range):
     return loop
 
 
-class CountingFactory:
-    """Wraps a caster factory; counts the rays every caster it built was asked to cast
-    (primary rays, the watertight re-check of misses, nudged re-casts, ghost rays)."""
+def CountingFactory(factory):
+    """A backend wrapping ``factory`` that counts the rays every caster it built was
+    asked to cast (primary rays, the watertight re-check of misses, nudged re-casts,
+    ghost rays) in its class attribute ``rays``."""
+    from rls_addon.core.casting import CasterBase
 
-    def __init__(self, factory):
-        self.factory = factory
-        self.rays = 0
+    class Counted(CasterBase):
+        rays = 0
 
-    def __call__(self, vertices, triangles):
-        inner = self.factory(vertices, triangles)
-        counter = self
+        def __init__(self, vertices, triangles):
+            self.inner = factory(vertices, triangles)
+            self.name = self.inner.name
 
-        class Counted:
-            name = getattr(inner, "name", "caster")
-
-            def cast(self, origins, directions, max_dist):
-                counter.rays += len(directions)
-                return inner.cast(origins, directions, max_dist)
-        return Counted()
+        def cast(self, origins, directions, max_dist):
+            Counted.rays += len(directions)
+            return self.inner.cast(origins, directions, max_dist)
+    return Counted
 
 
 def still_sensor_frame(scene, pattern, pose, preset, settings, repeat):
     """Best time of a frame after the first of a sensor that does not move: the static
     cast kept by ``scene`` is reused (``PreparedScene.cast``); ghosts, noise, dropout
     and points are made anew for every frame (the frame number changes their draws)."""
-    from rls_addon.core.engine import scan_frame
+    from rls_addon.core.frame import scan_frame
 
     scene.reuse_casts = True
     try:
@@ -248,7 +246,9 @@ def still_sensor_frame(scene, pattern, pose, preset, settings, repeat):
 
 def rays_cast_per_frame(geometry, pose, preset, factory):
     """Rays actually cast by one default ``scan_frame`` (and by ``PreparedScene.cast``)."""
-    from rls_addon.core.engine import PreparedScene, ScanSettings, scan_frame
+    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.settings import ScanSettings
 
     cf = CountingFactory(factory)
     scene = PreparedScene(geometry, pose[:3, 3], preset.range.max_m, cf)
@@ -263,7 +263,8 @@ def rays_cast_per_frame(geometry, pose, preset, factory):
 # ---- sections --------------------------------------------------------------------------
 
 def devices_section(geometry, pose, quick):
-    from rls_addon.core.engine import ScanSettings, scan_frame
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.settings import ScanSettings
 
     origin = pose[:3, 3]
     presets = []
@@ -303,7 +304,7 @@ def devices_section(geometry, pose, quick):
     profile = {name: frame_profile(be.prepared[name], p64.pattern(), pose, p64,
                                    frames=5 if name == "embree" else 2)
                for name in ("embree", "bvhtree")}
-    from rls_addon.core.embree_caster import EmbreeCaster
+    from rls_addon.core.casting.embree import EmbreeCaster
 
     counts = {label: rays_cast_per_frame(geometry, pose, p, EmbreeCaster) for label, p in presets}
     for row in rows:
@@ -382,9 +383,9 @@ if backend == 'open3d':
     sc.cast_rays(o3d.core.Tensor(rays))
 else:
     if backend == 'embree':
-        from rls_addon.core.embree_caster import EmbreeCaster as F
+        from rls_addon.core.casting.embree import EmbreeCaster as F
     else:
-        from rls_addon.blender.bvh_caster import BVHCaster as F
+        from rls_addon.core.casting import BVHCaster as F
     c = F(v, t)
     c.cast(np.zeros((1, 3)), dirs, p.range.max_m)
 after = rss()
@@ -423,9 +424,9 @@ def engine_costs_section(g, pose, preset, quick):
     motion with ten moving cars against snapshot (both backends) and the paper's N
     sub-steps; the InfraNUC estimator's spread against disk count."""
     from bench import engine_costs as ec
-    from rls_addon.blender.bvh_caster import BVHCaster
-    from rls_addon.core.embree_caster import EmbreeCaster
-    from rls_addon.core.engine import PreparedScene
+    from rls_addon.core.casting import BVHCaster
+    from rls_addon.core.casting.embree import EmbreeCaster
+    from rls_addon.core.bodies import PreparedScene
 
     log("bench: BVHTree frame against the bare loop over the same rays")
     scene = PreparedScene(g, pose[:3, 3], preset.range.max_m, BVHCaster)
@@ -452,8 +453,11 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
     import rls_addon
     from bench.scene import add_to_blender
     from rls_addon.blender.extract import read_instances
-    from rls_addon.blender.scan import MOVER_MARGIN_M, session_for
-    from rls_addon.core.engine import PreparedScene
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.casting import EmbreeCaster
+    from rls_addon.core.session import MOVER_MARGIN_M, ScanSession
 
     rls_addon.register()
     try:
@@ -463,17 +467,17 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
         lidar.matrix_world = [list(r) for r in pose]
         scene.collection.objects.link(lidar)
         lidar.rls_lidar.is_lidar, lidar.rls_lidar.preset = True, device
-        session, _ = session_for("embree")
+        session, source = ScanSession(EmbreeCaster), BlenderScene(scene)
         scene.frame_set(1)
         t = time.perf_counter()
-        session.scan(bpy.context.evaluated_depsgraph_get(), lidar, 1)
+        scan_lidar(lidar, 1, session=session, source=source)
         first = time.perf_counter() - t
         PreparedScene.reuse_casts = True  # what a still lidar's later frames do
         later = []
         for f in range(2, frames + 1):
             scene.frame_set(f)
             t = time.perf_counter()
-            _, info = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, f)
+            _, info = scan_lidar(lidar, f, session=session, source=source)
             later.append(time.perf_counter() - t)
         PreparedScene.reuse_casts = False
         dg = bpy.context.evaluated_depsgraph_get()
@@ -481,7 +485,7 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
         from rls_addon.blender import extract as ex
 
         extract = {}
-        for name, reader in (("every mesh read", None), ("session reader", session.meshes)):
+        for name, reader in (("every mesh read", None), ("session reader", source.meshes)):
             extract[name], _ = best(lambda: read_instances(dg, pose[:3, 3], rmax, {"LiDAR"},
                                                            reader=reader), 3)
         arrays, ex._attribute_arrays = ex._attribute_arrays, lambda mesh: None
@@ -503,7 +507,7 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
         for f in range(1, frames + 1):
             scene.frame_set(f)
             t = time.perf_counter()
-            _, dinfo = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, f)
+            _, dinfo = scan_lidar(lidar, f, session=session, source=source)
             drive.append(time.perf_counter() - t)
         return {"first_s": first, "later_s": min(later), "reused": info["static_cast_reused"],
                 "extract_s": extract, "objects": info["objects_read"],
@@ -535,7 +539,8 @@ def frame_profile(scene, pattern, pose, preset, frames=5, top=10):
     import io
     import pstats
 
-    from rls_addon.core.engine import ScanSettings, scan_frame
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.settings import ScanSettings
 
     prof = cProfile.Profile()
     prof.enable()
@@ -559,7 +564,8 @@ def ghosting_cost(scene, pattern, pose, preset, repeat=3):
     (ghost counts, glossy fraction of the scene)."""
     import dataclasses
 
-    from rls_addon.core.engine import ScanSettings, scan_frame
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.settings import ScanSettings
 
     if "ghosting" not in {f.name for f in dataclasses.fields(ScanSettings)}:
         return None
@@ -603,9 +609,9 @@ def tessellation_study(preset, levels):
     import bpy  # noqa: F401
 
     from bench.scene import cylinder, uv_sphere
-    from rls_addon.blender.bvh_caster import BVHCaster
-    from rls_addon.core.embree_caster import EmbreeCaster
-    from rls_addon.core.engine import PreparedScene
+    from rls_addon.core.casting import BVHCaster
+    from rls_addon.core.casting.embree import EmbreeCaster
+    from rls_addon.core.bodies import PreparedScene
     from rls_addon.core.geometry import SceneGeometry
 
     dirs = np.ascontiguousarray(preset.pattern().directions)
@@ -1061,7 +1067,7 @@ def main():
 
 
 def measure(quick):
-    from rls_addon.core import embree_caster
+    from rls_addon.core.casting import embree as embree_caster
 
     if not embree_caster.available():
         sys.exit("bench: embreex is missing (" + embree_caster.unavailable_reason() + ")")
@@ -1069,7 +1075,7 @@ def measure(quick):
 
     from bench.scene import SENSOR_POSE, street_geometry
 
-    from rls_addon.core.engine import PreparedScene
+    from rls_addon.core.bodies import PreparedScene
 
     # Every frame timed here is cold: repeats of a frame would otherwise reuse the static
     # cast of the one before (a still sensor's frames do, see PreparedScene.cast), and a

@@ -13,12 +13,12 @@ from .blender import batch, preset_catalog
 from .blender.images import image_from_png
 from .blender.preview import COLOR_ATTRIBUTES, color_preview, preview_object, preview_world_points
 from .blender.region import LOB_PROPERTY, is_lob, lob_polygon_world
-from .blender.sensor import DEFAULT_PRESET, is_lidar, lidar_objects, lidar_settings
+from .blender.sensor import DEFAULT_PRESET, is_lidar, lidar_objects, lidar_props
 from .core.errors import PresetError, RLSError
 from .core.metrics import infra_lob_metrics
 from .core.points import empty_points
 from .core.preset_schema import ID_RE
-from .core.presets import RangeModel, load_preset
+from .core.presets import RangeModel
 from .core.user_presets import delete_user_preset, export_preset, import_preset, save_user_preset
 from .properties import COLOR_ITEMS, preset_items
 
@@ -54,8 +54,10 @@ class OBJECT_OT_rls_add_lidar(bpy.types.Operator):
     bl_label = "LiDAR"
     bl_options = {"REGISTER", "UNDO"}
 
-    preset: EnumProperty(name="Device", items=preset_items)
-    show_fov: BoolProperty(name="Show Field of View", default=True)
+    preset: EnumProperty(name="Device", items=preset_items,
+                         description="Device preset of the new LiDAR")
+    show_fov: BoolProperty(name="Show Field of View", default=True,
+                           description="Outline the device's field of view in the viewport")
 
     @classmethod
     def poll(cls, context):
@@ -70,7 +72,7 @@ class OBJECT_OT_rls_add_lidar(bpy.types.Operator):
         obj.empty_display_size = 0.5
         obj.location = context.scene.cursor.location
         (context.collection or context.scene.collection).objects.link(obj)
-        s = lidar_settings(obj)
+        s = lidar_props(obj)
         s.is_lidar = True
         s.preset_id = self.preset or DEFAULT_PRESET
         s.show_fov = self.show_fov
@@ -86,8 +88,10 @@ class OBJECT_OT_rls_add_infralob(bpy.types.Operator):
     bl_label = "InfraLOB Region"
     bl_options = {"REGISTER", "UNDO"}
 
-    size_x: FloatProperty(name="Size X", default=20.0, min=0.1, unit="LENGTH")
-    size_y: FloatProperty(name="Size Y", default=30.0, min=0.1, unit="LENGTH")
+    size_x: FloatProperty(name="Size X", default=20.0, min=0.1, unit="LENGTH",
+                          description="Length of the region along its X axis")
+    size_y: FloatProperty(name="Size Y", default=30.0, min=0.1, unit="LENGTH",
+                          description="Length of the region along its Y axis")
 
     @classmethod
     def poll(cls, context):
@@ -115,68 +119,149 @@ class OBJECT_OT_rls_add_infralob(bpy.types.Operator):
 
 # ---- scanning -------------------------------------------------------------------------------
 
-def _report_job(op, job):
-    for w in job.warnings[:5]:
+def _report_run(op, run):
+    for w in run.warnings[:5]:
         op.report({"WARNING"}, w)
-    if len(job.warnings) > 5:
-        op.report({"WARNING"}, f"... and {len(job.warnings) - 5} more warnings")
+    if len(run.warnings) > 5:
+        op.report({"WARNING"}, f"... and {len(run.warnings) - 5} more warnings")
     LAST_RUN.clear()
-    LAST_RUN.update(cancelled=job.cancelled, frames_done=list(job.frames_done),
-                    frames=list(job.frames), steps_done=job.index, steps=job.total,
-                    paths=[str(p) for p in job.paths], points=job.points,
-                    warnings=list(job.warnings))
-    where = f", {len(job.paths)} files written" if job.write else ""
-    if job.cancelled:
-        op.report({"WARNING"}, f"Scan cancelled: {len(job.frames_done)} of {len(job.frames)} "
+    LAST_RUN.update(cancelled=run.cancelled, frames_done=list(run.frames_done),
+                    frames=list(run.frames), steps_done=run.index, steps=run.total,
+                    paths=[str(p) for p in run.paths], points=run.points,
+                    warnings=list(run.warnings))
+    where = f", {len(run.paths)} files written" if run.writer is not None else ""
+    if run.cancelled:
+        op.report({"WARNING"}, f"Scan cancelled: {len(run.frames_done)} of {len(run.frames)} "
                                f"frames completed{where}")
         return {"CANCELLED"}
-    if job.total == 1 and job.paths:
-        where = f" to {job.paths[0]}"
-    op.report({"INFO"}, f"{job.points} points from {len(job.names)} LiDAR(s) over "
-                        f"{len(job.frames)} frame(s){where}")
+    if run.total == 1 and run.paths:
+        where = f" to {run.paths[0]}"
+    op.report({"INFO"}, f"{run.points} points from {len(run.sensors)} LiDAR(s) over "
+                        f"{len(run.frames)} frame(s){where}")
     return {"FINISHED"}
 
 
-def _run_job(op, make_job):
-    """Make a scan job (``make_job()``) and run it to the end, reporting to ``op``."""
-    try:
-        job = make_job()
-        job.run()
-    except RLSError as exc:
-        op.report({"ERROR"}, str(exc))
-        return {"CANCELLED"}
-    return _report_job(op, job)
+class _ScanOperator:
+    """What the scan operators share: they make one core scan run (``batch.make_run``)
+    of ``_sensors()`` x ``_frames()``. From the UI it runs modal, a step per timer
+    event, with Blender's progress bar and status text; Esc cancels after the step in
+    progress (files already written stay complete; nothing half-written is left).
+    Without a window (``blender -b``, scripts) it runs straight through in
+    ``execute()``."""
+
+    bl_options = {"REGISTER", "UNDO"}  # they create or replace preview objects
+
+    write: BoolProperty(name="Write Files", default=True,
+                        description="Write the point clouds and their sidecars to each "
+                                    "LiDAR's output folder")
+    preview: BoolProperty(name="Preview", default=True,
+                          description="Show the points as an object in the scene after "
+                                      "every scan")
+
+    _timer = None
+    _job = None
+
+    def _make_run(self, context):
+        return batch.make_run(context, self._sensors(context), self._frames(context),
+                              write=self.write, preview=self.preview)
+
+    def execute(self, context):
+        try:
+            run = self._make_run(context)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        try:
+            run.run(interrupt_cancels=True)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        finally:
+            batch.end_run(run)
+        return _report_run(self, run)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        try:
+            self._job = self._make_run(context)
+        except RLSError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        wm.progress_begin(0, self._job.total)
+        self._status(context, self._job.status())
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, text):
+        ws = getattr(context, "workspace", None)
+        if ws is not None:
+            try:
+                ws.status_text_set(text)
+            except (RuntimeError, AttributeError):
+                pass
+
+    def _end(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        self._status(context, None)
+        batch.end_run(self._job)
+
+    def modal(self, context, event):
+        job = self._job
+        if event.type == "ESC":
+            batch.request_cancel()
+            job.cancelled = True
+        if event.type == "TIMER" or job.cancelled:
+            try:
+                if not job.finished:
+                    job.step()
+            except RLSError as exc:
+                self._end(context)
+                self.report({"ERROR"}, str(exc))
+                return {"CANCELLED"}
+            except Exception:
+                self._end(context)
+                raise
+            if job.finished:
+                self._end(context)
+                return _report_run(self, job)
+            context.window_manager.progress_update(job.index)
+            self._status(context, job.status())
+            return {"RUNNING_MODAL"}
+        return {"PASS_THROUGH"}
+
+    def cancel(self, context):  # Blender quits or the window closes
+        if self._job is not None:
+            self._job.cancelled = True
+            self._end(context)
 
 
-class RLS_OT_scan_frame(bpy.types.Operator):
+class RLS_OT_scan_frame(_ScanOperator, bpy.types.Operator):
     """Scan the current frame with the active LiDAR, write the cloud and show the points"""
 
     bl_idname = "rls.scan_frame"
     bl_label = "Scan Frame"
-    bl_options = {"REGISTER"}
-
-    write: BoolProperty(name="Write File", default=True,
-                        description="Write the point cloud and its sidecar to the output folder")
-    preview: BoolProperty(name="Preview", default=True,
-                          description="Show the points as an object in the scene")
 
     poll = classmethod(_poll_active_lidar)
 
-    def execute(self, context):
-        return _run_job(self, lambda: batch.ScanJob(
-            context, [_active_lidar(context)], [context.scene.frame_current],
-            write=self.write, preview=self.preview))
+    def _sensors(self, context):
+        return [_active_lidar(context)]
+
+    def _frames(self, context):
+        return [context.scene.frame_current]
 
 
-class RLS_OT_scan_all(bpy.types.Operator):
+class RLS_OT_scan_all(_ScanOperator, bpy.types.Operator):
     """Scan the current frame with every LiDAR in the scene"""
 
     bl_idname = "rls.scan_all"
     bl_label = "Scan All LiDARs"
-    bl_options = {"REGISTER"}
-
-    write: BoolProperty(name="Write Files", default=True)
-    preview: BoolProperty(name="Preview", default=True)
 
     @classmethod
     def poll(cls, context):
@@ -185,32 +270,28 @@ class RLS_OT_scan_all(bpy.types.Operator):
             return False
         return True
 
-    def execute(self, context):
-        return _run_job(self, lambda: batch.ScanJob(
-            context, lidar_objects(context.scene), [context.scene.frame_current],
-            write=self.write, preview=self.preview))
+    def _sensors(self, context):
+        return lidar_objects(context.scene)
+
+    def _frames(self, context):
+        return [context.scene.frame_current]
 
 
-class RLS_OT_scan_range(bpy.types.Operator):
+class RLS_OT_scan_range(_ScanOperator, bpy.types.Operator):
     """Scan a range of frames and write a cloud per frame and LiDAR. Runs in the
     background of the UI with a progress bar; Esc cancels after the frame in progress
     (files already written stay complete; nothing half-written is left)"""
 
     bl_idname = "rls.scan_range"
     bl_label = "Scan Frame Range"
-    bl_options = {"REGISTER"}
 
     all_lidars: BoolProperty(name="All LiDARs", default=False,
                              description="Scan with every LiDAR in the scene, not only the active one")
-    use_scene_range: BoolProperty(name="Scene Frame Range", default=True)
-    frame_start: IntProperty(name="Start", default=1)
-    frame_end: IntProperty(name="End", default=1)
-    frame_step: IntProperty(name="Step", default=1, min=1)
-    preview: BoolProperty(name="Preview", default=True,
-                          description="Update the preview points after every frame")
-
-    _timer = None
-    _job = None
+    use_scene_range: BoolProperty(name="Scene Frame Range", default=True,
+                                  description="Scan the scene's frame range (else Start to End)")
+    frame_start: IntProperty(name="Start", default=1, description="First frame to scan")
+    frame_end: IntProperty(name="End", default=1, description="Last frame to scan")
+    frame_step: IntProperty(name="Step", default=1, min=1, description="Scan every Nth frame")
 
     @classmethod
     def poll(cls, context):
@@ -237,74 +318,6 @@ class RLS_OT_scan_range(bpy.types.Operator):
             raise RLSError(f"empty frame range {a}-{b}")
         return list(range(a, b + 1, max(1, step)))
 
-    def _make_job(self, context):
-        return batch.ScanJob(context, self._sensors(context), self._frames(context),
-                             preview=self.preview)
-
-    def execute(self, context):
-        return _run_job(self, lambda: self._make_job(context))
-
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        try:
-            self._job = self._make_job(context)
-        except RLSError as exc:
-            self.report({"ERROR"}, str(exc))
-            return {"CANCELLED"}
-        wm = context.window_manager
-        wm.progress_begin(0, self._job.total)
-        self._status(context, self._job.status())
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def _status(self, context, text):
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            try:
-                ws.status_text_set(text)
-            except (RuntimeError, AttributeError):
-                pass
-
-    def _end(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        self._status(context, None)
-        self._job.finish()
-
-    def modal(self, context, event):
-        job = self._job
-        if event.type == "ESC":
-            batch.request_cancel()
-            job.cancelled = True
-        if event.type == "TIMER" or job.cancelled:
-            try:
-                if not job.finished:
-                    job.step()
-            except RLSError as exc:
-                self._end(context)
-                self.report({"ERROR"}, str(exc))
-                return {"CANCELLED"}
-            except Exception:
-                self._end(context)
-                raise
-            if job.finished:
-                self._end(context)
-                return _report_job(self, job)
-            context.window_manager.progress_update(job.index)
-            self._status(context, job.status())
-            return {"RUNNING_MODAL"}
-        return {"PASS_THROUGH"}
-
-    def cancel(self, context):  # Blender quits or the window closes
-        if self._job is not None:
-            self._job.cancelled = True
-            self._end(context)
-
 
 # ---- previews and metrics ---------------------------------------------------------------------
 
@@ -329,7 +342,8 @@ class RLS_OT_preview_color(bpy.types.Operator):
     bl_label = "Color Preview Points"
     bl_options = {"REGISTER", "UNDO"}
 
-    attribute: EnumProperty(name="Color By", items=COLOR_ITEMS, default="intensity")
+    attribute: EnumProperty(name="Color By", items=COLOR_ITEMS, default="intensity",
+                            description="Point attribute the preview is coloured by")
     all_previews: BoolProperty(name="All LiDARs", default=False,
                                description="Colour the previews of every LiDAR in the scene")
 
@@ -350,7 +364,7 @@ class RLS_OT_preview_color(bpy.types.Operator):
             color_preview(obj, self.attribute)
         obj = context.active_object
         if obj is not None and is_lidar(obj):
-            lidar_settings(obj).preview_color = self.attribute
+            lidar_props(obj).preview_color = self.attribute
         self.report({"INFO"}, f"Preview points coloured by {self.attribute} "
                               f"({len(targets)} object(s))")
         return {"FINISHED"}
@@ -373,7 +387,7 @@ class RLS_OT_compute_metrics(bpy.types.Operator):
 
     bl_idname = "rls.compute_metrics"
     bl_label = "Compute Metrics"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}  # makes the density map image
 
     @classmethod
     def poll(cls, context):
@@ -428,7 +442,7 @@ def _preset_arg(op, context):
     pid = op.preset
     if not pid:
         obj = _active_lidar(context)
-        pid = lidar_settings(obj).preset_id if obj is not None else ""
+        pid = lidar_props(obj).preset_id if obj is not None else ""
     return pid
 
 
@@ -449,7 +463,7 @@ class RLS_OT_preset_apply(bpy.types.Operator):
         except PresetError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
-        s = lidar_settings(_active_lidar(context))
+        s = lidar_props(_active_lidar(context))
         if p.id not in [it[0] for it in preset_items(None, None) if it]:
             properties.refresh_preset_items()  # found on disk since the list was built
         s.preset_id = p.id
@@ -479,13 +493,13 @@ class RLS_OT_preset_save(bpy.types.Operator):
 
     def invoke(self, context, event):
         if not self.name:
-            base = preset_catalog.entry(lidar_settings(_active_lidar(context)).preset_id)
+            base = preset_catalog.entry(lidar_props(_active_lidar(context)).preset_id)
             self.name = f"{base.name} (custom)" if base else "My LiDAR"
         return context.window_manager.invoke_props_dialog(self)
 
     def execute(self, context):
         obj = _active_lidar(context)
-        s = lidar_settings(obj)
+        s = lidar_props(obj)
         name = self.name.strip()
         if not name:
             self.report({"ERROR"}, "Give the preset a name")
@@ -494,10 +508,6 @@ class RLS_OT_preset_save(bpy.types.Operator):
         if not ID_RE.match(pid):
             self.report({"ERROR"}, f"'{pid}' is not a usable preset id: lower-case letters, digits, "
                                    f"'_', '-' or '.', starting with a letter or digit")
-            return {"CANCELLED"}
-        e = preset_catalog.entry(pid)
-        if e is not None and e.builtin:
-            self.report({"ERROR"}, f"'{pid}' is a built-in preset id; choose another name")
             return {"CANCELLED"}
         try:
             base = preset_catalog.resolve(s.preset_id)
@@ -527,8 +537,9 @@ class RLS_OT_preset_import(bpy.types.Operator):
     bl_label = "Import Preset"
     bl_options = {"REGISTER"}
 
-    filepath: StringProperty(subtype="FILE_PATH")
-    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
+    filepath: StringProperty(subtype="FILE_PATH", description="The preset file to import")
+    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"},
+                                description="Preset files only")
     overwrite: BoolProperty(name="Overwrite", default=False,
                             description="Replace a user preset with the same id")
 
@@ -541,11 +552,6 @@ class RLS_OT_preset_import(bpy.types.Operator):
             self.report({"ERROR"}, "Choose a preset file to import")
             return {"CANCELLED"}
         try:
-            p = load_preset(self.filepath)
-            e = preset_catalog.entry(p.id)
-            if e is not None and e.builtin:
-                raise PresetError(f"{self.filepath}: key 'id': '{p.id}' is a built-in preset; "
-                                  f"give the imported preset another id")
             p = import_preset(self.filepath, preset_catalog.user_dir(), overwrite=self.overwrite)
         except RLSError as exc:
             self.report({"ERROR"}, str(exc))
@@ -553,7 +559,7 @@ class RLS_OT_preset_import(bpy.types.Operator):
         properties.refresh_preset_items()
         obj = _active_lidar(context)
         if obj is not None:
-            lidar_settings(obj).preset_id = p.id
+            lidar_props(obj).preset_id = p.id
         self.report({"INFO"}, f"Imported preset '{p.id}' ({p.name})")
         return {"FINISHED"}
 
@@ -565,11 +571,14 @@ class RLS_OT_preset_export(bpy.types.Operator):
     bl_label = "Export Preset"
     bl_options = {"REGISTER"}
 
-    filepath: StringProperty(subtype="FILE_PATH")
-    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"})
-    check_existing: BoolProperty(default=True, options={"HIDDEN"})
+    filepath: StringProperty(subtype="FILE_PATH", description="Where to write the preset file")
+    filter_glob: StringProperty(default="*.toml", options={"HIDDEN"},
+                                description="Preset files only")
+    check_existing: BoolProperty(default=True, options={"HIDDEN"},
+                                 description="Warn before replacing a file")
     preset: StringProperty(name="Preset", description="Preset id (default: the active LiDAR's)")
-    overwrite: BoolProperty(name="Overwrite", default=True)
+    overwrite: BoolProperty(name="Overwrite", default=True,
+                            description="Replace an existing file")
 
     def invoke(self, context, event):
         pid = _preset_arg(self, context) or "preset"
@@ -608,11 +617,6 @@ class RLS_OT_preset_delete(bpy.types.Operator):
 
     def execute(self, context):
         pid = _preset_arg(self, context)
-        e = preset_catalog.entry(pid)
-        if e is not None and e.builtin:
-            self.report({"ERROR"}, f"'{pid}' is a built-in preset and read-only; only user "
-                                   f"presets can be deleted")
-            return {"CANCELLED"}
         try:
             delete_user_preset(pid, preset_catalog.user_dir())
         except RLSError as exc:

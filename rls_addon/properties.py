@@ -1,8 +1,9 @@
 """Blender properties: one ``PropertyGroup`` per LiDAR object (``Object.rls_lidar``) and
 one per scene (``Scene.rls``: InfraLOB metric settings and the last results).
 
-Only plain values live here; ``blender.sensor.scan_inputs`` maps them into the core's
-``ScanSettings`` in one place.
+Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
+``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
+the core validates with and the command line offers.
 """
 
 import bpy
@@ -13,34 +14,10 @@ from .blender import preset_catalog
 from .blender.preview import COLOR_ATTRIBUTES
 from .blender.region import is_lob
 from .blender.sensor import DEFAULT_PRESET
-from .core.io import DEFAULT_FIELDS
+from .core.choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from .core.errors import RLSError
+from .core.io import DEFAULT_FIELDS
 from .core.labels import DEFAULT_LABELS, label_id
-
-FORMAT_ITEMS = [
-    ("pcd_binary", "PCD binary", "PCD v0.7, binary"),
-    ("pcd_binary_compressed", "PCD binary compressed", "PCD v0.7, LZF-compressed binary"),
-    ("pcd_ascii", "PCD ASCII", "PCD v0.7, text"),
-    ("ply_binary", "PLY binary", "PLY, binary little endian"),
-    ("ply_ascii", "PLY ASCII", "PLY, text"),
-]
-
-FIELD_ITEMS = [
-    ("intensity", "Intensity", "Return strength, 0..1 (float32)"),
-    ("ring", "Ring", "Vendor channel index (uint16)"),
-    ("time", "Time", "Seconds since the start of the sweep (float64)"),
-    ("label", "Label", "Semantic class id (uint32)"),
-    ("instance", "Instance", "Per-object id (uint32)"),
-    ("ghost", "Ghost", "1 for ghost points from glossy surfaces (uint8)"),
-    ("range", "Range", "Distance along the ray in metres (float32)"),
-]
-
-MOTION_ITEMS = [
-    ("exact", "Exact", "Every ray sees the scene at its own firing time (moving objects and "
-                       "a moving sensor distort the cloud as on a real device)"),
-    ("substeps", "Sub-steps", "The sweep is split into N partial sweeps, each with one scene state"),
-    ("snapshot", "Snapshot", "One scene state per frame: no motion distortion"),
-]
 
 COLOR_ITEMS = [(a, a.title(), f"Colour preview points by {a}") for a in COLOR_ATTRIBUTES]
 
@@ -159,32 +136,33 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
                                precision=4, description="Standard deviation of the range noise")
     dropout: BoolProperty(name="Dropout", default=True,
                           description="Drop returns as the device's dropout model says")
-    use_min_range: BoolProperty(name="Override Min Range", default=False)
+    use_min_range: BoolProperty(name="Override Min Range", default=False,
+                                description="Use your own blind zone instead of the preset's")
     min_range: FloatProperty(name="Min Range", default=0.5, min=0.0, soft_max=10.0, unit="LENGTH",
                              description="Blind zone: no returns closer than this")
-    use_max_range: BoolProperty(name="Override Range", default=False)
+    use_max_range: BoolProperty(name="Override Range", default=False,
+                                description="Use your own maximum range instead of the preset's")
     max_range: FloatProperty(name="Max Range", default=100.0, min=0.1, soft_max=500.0,
                              unit="LENGTH", description="No returns beyond this")
-    motion: EnumProperty(name="Motion", items=MOTION_ITEMS, default="exact",
+    motion: EnumProperty(name="Motion", items=MOTION.items(), default="exact",
                          description="How moving objects and a moving sensor are scanned")
     substeps: IntProperty(name="Sub-steps", default=0, min=0, soft_max=64,
-                          description="Partial sweeps per frame for deforming objects "
-                                      "(0: chosen from how far they move)")
+                          description="Partial sweeps per frame in Sub-steps motion and for "
+                                      "deforming objects (0: chosen from how far things "
+                                      "move, so that nothing moves more than the range "
+                                      "noise within one)")
     ghosting: BoolProperty(name="Ghost Points", default=True,
                            description="Ghost points from glossy surfaces (mirror-like bounces)")
-    backend: EnumProperty(name="Ray Casting", default="auto", items=[
-        ("auto", "Automatic", "Embree (bundled, all cores) when available, else Blender's BVHTree"),
-        ("bvhtree", "BVHTree", "Blender's BVHTree: always available, one core"),
-        ("embree", "Embree", "Intel Embree from the bundled embreex wheel (falls back to "
-                             "BVHTree with a warning where it is missing)")])
-    frame_space: EnumProperty(name="Frame", default="SENSOR", items=[
-        ("SENSOR", "Sensor", "Point coordinates in the sensor frame"),
-        ("WORLD", "World", "Point coordinates in world space")])
+    backend: EnumProperty(name="Ray Casting", default="auto", items=BACKENDS.items(),
+                          description="The ray-casting backend: same points, different speed")
+    frame_space: EnumProperty(name="Frame", default="sensor", items=FRAME_SPACES.items(),
+                              description="Coordinate frame of the written points")
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//lidar/",
                                description="Folder the clouds and sidecars are written to "
                                            "('//' is the folder of the .blend file)")
-    file_format: EnumProperty(name="Format", items=FORMAT_ITEMS, default="pcd_binary")
-    fields: EnumProperty(name="Fields", items=FIELD_ITEMS, options={"ENUM_FLAG"},
+    file_format: EnumProperty(name="Format", items=FORMATS.items(), default="pcd_binary",
+                              description="Point cloud file format")
+    fields: EnumProperty(name="Fields", items=FIELDS.items(), options={"ENUM_FLAG"},
                          default={f for f in DEFAULT_FIELDS if f not in ("x", "y", "z")},
                          description="Point fields to write (x, y, z are always written)")
     name_template: StringProperty(name="Names", default="{scene}_{sensor}_{frame:06d}",
@@ -203,7 +181,7 @@ def _lob_poll(self, obj):
 class RLS_SceneSettings(bpy.types.PropertyGroup):
     frame_start: IntProperty(name="Start", default=1, description="First frame to scan")
     frame_end: IntProperty(name="End", default=10, description="Last frame to scan")
-    frame_step: IntProperty(name="Step", default=1, min=1)
+    frame_step: IntProperty(name="Step", default=1, min=1, description="Scan every Nth frame")
     use_scene_range: BoolProperty(name="Scene Frame Range", default=True,
                                   description="Scan the scene's frame range")
     range_all_lidars: BoolProperty(name="All LiDARs", default=False,
@@ -214,21 +192,29 @@ class RLS_SceneSettings(bpy.types.PropertyGroup):
                                   description="Labels of the points counted (names or ids, comma separated)")
     metric_disks: IntProperty(name="Disks", default=6000, min=1, soft_max=50000,
                               description="Random disks for InfraNUC")
-    metric_radius: FloatProperty(name="Disk Radius", default=0.7, min=0.01, unit="LENGTH")
+    metric_radius: FloatProperty(name="Disk Radius", default=0.7, min=0.01, unit="LENGTH",
+                                 description="Radius of the InfraNUC disks")
     metric_cell: FloatProperty(name="Map Cell", default=1.0, min=0.05, unit="LENGTH",
                                description="Cell size of the density map")
-    metric_seed: IntProperty(name="Seed", default=0, min=0)
+    metric_seed: IntProperty(name="Seed", default=0, min=0,
+                             description="Seed of the random disk placement")
     # results of the last rls.compute_metrics (draw() only shows them)
-    has_metrics: BoolProperty(default=False, options={"HIDDEN"})
+    has_metrics: BoolProperty(default=False, options={"HIDDEN"},
+                              description="Metrics have been computed (results below)")
     infra_d: FloatProperty(name="InfraD", default=0.0, precision=3,
                            description="Points per square metre in the InfraLOB")
     infra_nuc: FloatProperty(name="InfraNUC", default=0.0, precision=4,
                              description="Non-uniformity: standard deviation of normalised disk counts")
-    metric_points: IntProperty(name="Points", default=0)
-    metric_area: FloatProperty(name="Area", default=0.0, unit="AREA")
-    metric_lob_name: StringProperty(name="Region", default="")
-    metric_sensors: StringProperty(name="Sensors", default="")
-    metric_image: PointerProperty(name="Density Map", type=bpy.types.Image)
+    metric_points: IntProperty(name="Points", default=0,
+                               description="Points counted in the InfraLOB")
+    metric_area: FloatProperty(name="Area", default=0.0, unit="AREA",
+                               description="Area of the InfraLOB")
+    metric_lob_name: StringProperty(name="Region", default="",
+                                    description="The InfraLOB the metrics were computed over")
+    metric_sensors: StringProperty(name="Sensors", default="",
+                                   description="The LiDARs whose points were counted")
+    metric_image: PointerProperty(name="Density Map", type=bpy.types.Image,
+                                  description="Image of points per square metre in the InfraLOB")
 
 
 CLASSES = (RLS_LidarSettings, RLS_SceneSettings)

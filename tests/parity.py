@@ -3,7 +3,7 @@ comparison rule (exact-range agreement everywhere, identical hit/miss away from 
 
 import numpy as np
 
-from rls_addon.core.engine import PreparedScene
+from rls_addon.core.bodies import PreparedScene
 from rls_addon.core.geometry import SceneGeometry
 
 

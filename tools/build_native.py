@@ -12,8 +12,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-SRC = ROOT / "rls_addon" / "native" / "embree_loop.c"
-OUT = ROOT / "rls_addon" / "native" / "_rls_embree_loop.so"
+SRC = ROOT / "rls_addon" / "core" / "casting" / "native" / "embree_loop.c"
+OUT = ROOT / "rls_addon" / "core" / "casting" / "native" / "_rls_embree_loop.so"
 
 
 def main():

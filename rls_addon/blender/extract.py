@@ -14,11 +14,11 @@ one shared object table and material table.
 """
 
 import itertools
-from dataclasses import dataclass
 
 import numpy as np
 
-from ..core.geometry import MaterialInfo, ObjectInfo, concatenate
+from ..core.geometry import MaterialInfo
+from ..core.instances import Instance, object_table, world_geometry
 from .labels import object_label
 from .materials import material_info
 from .sensor import is_lidar
@@ -152,26 +152,6 @@ def _same(a, b):
         np.array_equal(x, y) for x, y in zip(a, b))
 
 
-@dataclass
-class Instance:
-    """One evaluated object instance: its triangles in its own frame, and its matrix."""
-
-    key: str              # unique name ('Object', or 'Instancer/Object#id' for instances)
-    source: str           # name of the original object
-    parent: str           # name of the instancing object ('' when not instanced)
-    label: int
-    vertices: np.ndarray  # local, float64
-    triangles: np.ndarray
-    materials: np.ndarray  # per triangle, index into the shared material table
-    matrix: np.ndarray    # 4x4 world matrix
-    slot_map: np.ndarray = None  # material slot -> index into the shared material table
-    mesh_id: int = 0  # a MeshReader's id of the mesh read (0: not from a reader)
-
-    def material_indices(self, slot_indices):
-        """Shared-table material index of per-triangle material slot indices."""
-        return self.slot_map[np.clip(slot_indices, 0, len(self.slot_map) - 1)]
-
-
 def _realizes_itself(inst):
     """Curves, text and surfaces evaluate to a mesh that the depsgraph lists as an
     instance of the object itself: that instance *is* the object."""
@@ -238,30 +218,6 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     if reader is not None:
         reader.scan_done()
     return out, materials, stats
-
-
-def object_table(instances):
-    """ObjectInfo per instance, with stable instance ids 1..K in key order."""
-    order = {k: i + 1 for i, k in enumerate(sorted(i.key for i in instances))}
-    return [ObjectInfo(i.key, i.label, order[i.key]) for i in instances]
-
-
-def world_geometry(instances, objects, materials, select=None, matrices=None, local=False):
-    """Join instances (all, or those whose index is in ``select``) into one geometry.
-
-    matrices  optional {instance index: 4x4} replacing the stored matrices
-    local     keep each instance's own coordinates (for a single moving object)
-    Triangle object indices refer to ``objects`` (one entry per instance)."""
-    parts = []
-    for k, inst in enumerate(instances):
-        if select is not None and k not in select:
-            continue
-        v = inst.vertices
-        if not local:
-            m = inst.matrix if matrices is None or k not in matrices else matrices[k]
-            v = v @ m[:3, :3].T + m[:3, 3]
-        parts.append((v, inst.triangles, np.full(len(inst.triangles), k, np.int32), inst.materials))
-    return concatenate(parts, objects, materials)
 
 
 def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):

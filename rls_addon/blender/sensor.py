@@ -1,20 +1,23 @@
-"""LiDAR objects: recognising them and turning their settings into core inputs."""
+"""LiDAR objects: recognising them and reading their settings, in one place."""
+
+import os
 
 import numpy as np
 
-from ..core.engine import ScanSettings
-from ..core.errors import SceneError
+from ..core.errors import OutputError, SceneError
+from ..core.run import SensorJob
+from ..core.settings import LidarSettings, OutputSettings, ScanSettings
 
 DEFAULT_PRESET = "generic_uniform32"
 
 
-def lidar_settings(obj):
+def lidar_props(obj):
     """The ``rls_lidar`` property group of an object, or None."""
     return getattr(obj, "rls_lidar", None)
 
 
 def is_lidar(obj):
-    s = lidar_settings(obj)
+    s = lidar_props(obj)
     return bool(s is not None and s.is_lidar)
 
 
@@ -35,18 +38,13 @@ def find_lidar(scene, name):
     return obj
 
 
-def scan_inputs(obj):
-    """(DevicePreset, ScanSettings) from a LiDAR object's properties.
-
-    The one place where the panel's properties become the core's settings: overrides
-    left off take the preset's values (None)."""
-    from .preset_catalog import resolve
-
-    s = lidar_settings(obj)
-    preset = resolve(s.preset_id or DEFAULT_PRESET)
-    settings = ScanSettings(
+def read_settings(obj):
+    """The core's ``LidarSettings`` of a LiDAR object: the one place where the panel's
+    properties become settings. Overrides left off take the preset's values (None)."""
+    s = lidar_props(obj)
+    scan = ScanSettings(
         seed=int(s.seed),
-        frame_space=s.frame_space.lower(),
+        frame_space=s.frame_space,
         noise=bool(s.noise),
         dropout=bool(s.dropout),
         min_range_m=float(s.min_range) if s.use_min_range else None,
@@ -56,7 +54,34 @@ def scan_inputs(obj):
         substeps=int(s.substeps),
         ghosting=bool(s.ghosting),
     )
-    return preset, settings
+    output = OutputSettings(directory=s.output_dir, format=s.file_format,
+                            fields=("x", "y", "z") + tuple(sorted(s.fields)),
+                            template=s.name_template)
+    return LidarSettings(preset=s.preset_id or DEFAULT_PRESET, scan=scan, output=output,
+                         backend=s.backend)
+
+
+def sensor_job(obj, settings=None):
+    """A run's ``SensorJob`` for LiDAR ``obj``: its settings (``read_settings``, or
+    ``settings`` already read and overridden) with the device preset resolved."""
+    from .preset_catalog import resolve
+
+    settings = settings or read_settings(obj)
+    return SensorJob(obj.name, settings, resolve(settings.preset))
+
+
+def absolute_output(settings):
+    """``settings`` with its output folder made absolute (a ``//`` folder is relative
+    to the .blend file, which must be saved then)."""
+    import bpy
+
+    path = settings.output.directory
+    if not path or not path.strip():
+        raise OutputError("no output folder set")
+    if path.startswith("//") and not bpy.data.filepath:
+        raise OutputError(f"output folder '{path}' is relative to the .blend file, which is not "
+                          f"saved yet: save the file or choose an absolute folder")
+    return settings.override(directory=os.path.normpath(bpy.path.abspath(path)))
 
 
 def sensor_pose(obj):

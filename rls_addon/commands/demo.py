@@ -24,8 +24,11 @@ def run(args):
 
     from ..blender.quiet import blender_output_silenced
     from ..blender.sample_scene import build_street
-    from ..blender.scan import save_scan, scan_lidar
+    from ..blender.sensor import read_settings, sensor_job
+    from ..blender.source import BlenderScene
+    from ..core.io.writer import CloudWriter
     from ..core.presets import get_preset
+    from ..core.run import ScanRun
 
     preset = get_preset(args.device)
     check_output_dir(args.out)
@@ -47,9 +50,12 @@ def run(args):
     blend = os.path.abspath(os.path.join(args.out, "street.blend"))
     scene.frame_set(1)
     t0 = time.perf_counter()
-    result, info = scan_lidar(bpy.context.evaluated_depsgraph_get(), lidar, 1)
-    path = save_scan(result, info, args.out, "{scene}_{sensor}_{frame:06d}", "pcd_binary",
-                     scene.name, overwrite=True)
+    # The same run as 'rls scan' and the UI's operators, into --out.
+    job = sensor_job(lidar, read_settings(lidar).override(directory=os.path.abspath(args.out)))
+    run = ScanRun(BlenderScene(scene), [job], [1],
+                  writer=CloudWriter(scene.name, overwrite=True)).run()
+    result, _ = run.last
+    path = run.paths[0]
     seconds = time.perf_counter() - t0
     with blender_output_silenced():
         bpy.ops.wm.save_as_mainfile(filepath=blend)
@@ -81,7 +87,8 @@ def run_demo_study(out_dir, device):
 
     from ..blender.quiet import blender_output_silenced
     from ..blender.scenes import build_scene
-    from ..blender.study import StudyConfig, run_study
+    from ..blender.study import run_study
+    from ..core.study import StudyConfig
     from .study import write_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -24,9 +24,11 @@ import math
 import os
 import sys
 
+from ..core.choices import BACKENDS
 from ..core.errors import SceneError
 from ..core.metrics import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
-from ..core.study import DEFAULT_EXHAUSTIVE_LIMIT, parse_values
+from ..core.placement import DEFAULT_EXHAUSTIVE_LIMIT
+from ..core.study import parse_values
 from .scan import check_output_dir, open_scene
 
 
@@ -66,13 +68,14 @@ def add_parser(sub):
                    help="let a set use several orientations on the same mount")
     p.add_argument("--exhaustive-limit", type=int, default=DEFAULT_EXHAUSTIVE_LIMIT,
                    help="evaluate every k-set up to this many, else greedy+swap")
-    p.add_argument("--backend", default="auto", help="auto, bvhtree or embree")
+    p.add_argument("--backend", choices=BACKENDS.ids, default="auto",
+                   help="ray casting: Embree when available (auto), or Blender's BVHTree")
     p.add_argument("--overwrite", action="store_true", help="replace an existing report")
     p.set_defaults(func=run)
 
 
 def config_from_args(args):
-    from ..blender.study import StudyConfig
+    from ..core.study import StudyConfig
 
     ks = sorted({int(v) for v in parse_values(args.k, "--k")})
     if any(k < 1 or k != float(k) for k in ks):

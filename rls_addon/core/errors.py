@@ -25,8 +25,12 @@ class RegionError(RLSError):
     """A region of interest (InfraLOB) is invalid or holds no points."""
 
 
-class CancelledError(RLSError):
-    """The user cancelled a running scan."""
+class SettingsError(RLSError, ValueError):
+    """A setting has a value that is not one of its choices or out of its range."""
+
+
+class CastingError(RLSError):
+    """A ray-casting backend cannot be built or used here."""
 
 
 class InputError(RLSError):

@@ -10,7 +10,7 @@ matrix linearly between steps, bounds its motion and finds the nearest hit over
 everything at once.
 
 Embree only decides *what* a ray hits. The compiled loop then refines every hit in
-float64: static hits against their plane as always (``raycast.cast_exact``), hits on
+float64: static hits against their plane as always (``casting.cast_exact``), hits on
 a moving object against its triangle's plane in the object's own coordinates, with
 the object's matrix interpolated at the ray's own time. The steps are dense enough
 that this interpolated pose stays within ``STEP_TOLERANCE_M`` of the track (two
@@ -20,7 +20,7 @@ hundredth of a millimetre.
 
 import numpy as np
 
-from .raycast import GRAZING
+from .casting import GRAZING
 
 STEP_TOLERANCE_M = 1e-5  # steps: linear interpolation within 10 um of the track
 MAX_STEPS = 129          # Embree's limit (RTC_MAX_TIME_STEP_COUNT)
@@ -33,7 +33,7 @@ class InstancedWorld:
     def __init__(self, static, rigid, instances_cls, with_static=True):
         self.static = static
         self.centre = static.centre
-        primary = getattr(static.caster, "primary", static.caster)
+        primary = static.primary
         placed, self.parts, self.coarse = [], [], []
         self.first = 0
         if primary is not None and with_static:
@@ -75,11 +75,13 @@ class InstancedWorld:
         ``PreparedScene.cast``): only the moving objects are traced. The last one built
         each way for ``static`` is kept and reused while the bodies and their tracks are
         the same objects (frames of a sweep scanned again, several sensors)."""
-        rigid = [(k, b) for k, b in enumerate(moving, start=1) if hasattr(b, "tracks")]
+        from .bodies import RigidBodies
+
+        rigid = [(k, b) for k, b in enumerate(moving, start=1) if isinstance(b, RigidBodies)]
         if not rigid:
             return None
         key = [(k, b, tuple(b.tracks)) for k, b in rigid]
-        built_for = static.__dict__.setdefault("_instanced", {})
+        built_for = static.instanced_cache
         last = built_for.get(with_static)
         if last is not None and _same(last[0], key):
             return last[1]
@@ -90,10 +92,10 @@ class InstancedWorld:
     @classmethod
     def _build(cls, static, rigid, with_static=True):
         factory = rigid[0][1].factory
-        instances_cls = getattr(factory, "instances", None)
+        instances_cls = factory.instances
         if instances_cls is None or any(b.factory is not factory for _, b in rigid):
             return None
-        primary = getattr(static.caster, "primary", static.caster)
+        primary = static.primary
         if primary is not None and not instances_cls.usable(primary):
             return None
         for _, b in rigid:
@@ -152,7 +154,7 @@ class InstancedWorld:
         far = np.nonzero((inst >= first) & ~(dist <= max_range))[0]
         inst[far], dist[far], normals[far] = -1, np.inf, 0.0
         st = np.where(inst == 0, tri, -1) if first else np.full(len(dist), -1, np.int64)
-        if first and watertight and hasattr(self.static.caster, "win_back"):
+        if first and watertight and self.static.watertight:
             # Misses, and hits on moving objects that a crack in the static scene
             # might hide, are re-checked against the static scene alone.
             sd, sn = dist.copy(), normals.copy()
@@ -185,7 +187,7 @@ def _refine_on_track(track, centre, planes, tri, o, d, t, dist):
     """Exact world range and unit world normal of rays ``o + s d`` (world) on the
     planes of triangles ``tri`` of an object centred on ``centre``, with the object at
     its exact pose at each ray's time ``t``; Embree's ``dist`` is kept where the ray
-    grazes the plane (as ``raycast.refine_hits`` does)."""
+    grazes the plane (as ``casting.refine_hits`` does)."""
     o_l, d_l, a = track.rays_to_local(t, o, d)
     pl = planes.take(tri, axis=0)
     nrm = pl[:, :3]

@@ -12,6 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .choices import MOTION
+from .errors import SettingsError
+
 
 def quat_from_matrix(r):
     """Unit quaternions (w, x, y, z) of rotation matrices (..., 3, 3), by Shepperd's
@@ -222,12 +225,17 @@ def effective_times(times, period, mode, substeps):
     substeps  the middle of its sub-sweep of period/N (the paper's N partial sweeps,
               error at most v*T/(2N))
     snapshot  the start of the sweep (one scene state per frame, as CARLA)
-    """
+
+    ``substeps`` is N >= 1 (the scan chooses N first when the user asked for 0:
+    ``sweep.substep_count``)."""
     t = np.asarray(times, dtype=np.float64)
+    MOTION.check(mode)
     if mode == "exact":
         return t
     if mode == "snapshot":
         return np.zeros_like(t)
-    n = max(int(substeps), 1)
+    n = int(substeps)
+    if n < 1:
+        raise SettingsError(f"sub-steps must be at least 1 here, got {substeps}")
     step = period / n
     return (np.minimum(np.floor(t / step), n - 1) + 0.5) * step

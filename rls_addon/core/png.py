@@ -5,6 +5,8 @@ import zlib
 
 import numpy as np
 
+from .errors import InputError
+
 # Viridis sampled at 9 evenly spaced points (matplotlib's published values).
 _VIRIDIS = np.array(
     [
@@ -58,7 +60,7 @@ def encode_png(rgba):
 def decode_png_rgba(data):
     """Decode a PNG written by ``encode_png`` (for tests): (H, W, 4) uint8."""
     if data[:8] != b"\x89PNG\r\n\x1a\n":
-        raise ValueError("not a PNG file")
+        raise InputError("not a PNG file")
     return _decode(data)
 
 
@@ -69,7 +71,7 @@ def _decode(data):
         tag = data[pos + 4:pos + 8]
         body = data[pos + 8:pos + 8 + n]
         if zlib.crc32(tag + body) & 0xFFFFFFFF != struct.unpack(">I", data[pos + 8 + n:pos + 12 + n])[0]:
-            raise ValueError(f"bad CRC in PNG chunk {tag!r}")
+            raise InputError(f"bad CRC in PNG chunk {tag!r}")
         if tag == b"IHDR":
             w, h = struct.unpack(">II", body[:8])
         elif tag == b"IDAT":
@@ -77,5 +79,5 @@ def _decode(data):
         pos += 12 + n
     raw = np.frombuffer(zlib.decompress(idat), dtype=np.uint8).reshape(h, 1 + 4 * w)
     if raw[:, 0].any():
-        raise ValueError("only filter type 0 is supported")
+        raise InputError("only filter type 0 is supported")
     return raw[:, 1:].reshape(h, w, 4)

@@ -14,8 +14,6 @@ ghost       uint8    1 for a ghost point from a specular bounce
 
 import numpy as np
 
-POINT_FIELDS = ("x", "y", "z", "range", "intensity", "ring", "time", "label", "instance", "ghost")
-
 POINT_DTYPE = np.dtype(
     [
         ("x", np.float64),

@@ -1,281 +1,242 @@
-"""Placement study: combine per-candidate InfraLOB counts and search sensor sets.
+"""Placement study: scan every candidate placement of one device over the static scene
+once, measure InfraD / InfraNUC in the InfraLOB, and search sets of k sensors
+(``placement``).
 
-Pure numpy. The Blender side scans each candidate placement once and hands over,
-per candidate, the number of kept points in the InfraLOB and the point count of
-each of the same seeded disks (``DiskLayout``). Counts are additive over merged
-clouds, so the metrics of any set of candidates follow from sums of these vectors
-without touching the points again:
+As in the paper, traffic is removed before the metrics are taken: the study scene
+leaves objects labelled vehicle or pedestrian out of the geometry (the scene itself is
+not changed). The static geometry is read once and one ray-casting structure, built
+around the region's centre with a reach that covers every candidate, serves all
+candidates.
 
-    N(S) = sum_c n_c,  counts(S) = sum_c counts_c,
-    InfraD(S) = N(S) / area,  InfraNUC(S) = std(counts(S) / (N(S) p)).
-
-The search looks for sets of k candidates with high InfraD and low InfraNUC. The
-two goals conflict, so the answer is a Pareto front (no member is beaten on both).
-When the number of k-sets is small (``exhaustive_limit``) every set is evaluated
-and the front is exact; otherwise greedy construction followed by a best-swap
-refinement is run for a range of weights between the two goals
-(``score = w D/D_ref - (1 - w) NUC/NUC_ref``) and the sets found are filtered to
-their front. ``best`` is the front member with the highest balanced score (w = 0.5).
+The scene comes in through a small interface (``StudyScene``): the Blender layer's
+(``blender.study.BlenderStudyScene``) reads a .blend; tests hand in fakes.
 """
 
 import dataclasses
-import itertools
 import math
+import time
+from typing import Protocol
 
 import numpy as np
 
-from .errors import RegionError
-from .metrics import (DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, count_in_disks,
-                      select_xy)
-from .polygon import as_polygon, sample_in_polygon, shoelace_area
+from .casting import caster_factory
+from .errors import RegionError, SceneError, SettingsError
+from .frame import scan_frame
+from .metrics import (DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED,
+                      density_map, resolve_labels)
+from .placement import DEFAULT_EXHAUSTIVE_LIMIT, CandidateCounts, DiskLayout
+from .polygon import as_polygon
+from .presets import get_preset
+from .session import ScanSession
+from .settings import ScanSettings, resolve_range
 
-DEFAULT_WEIGHTS = tuple(np.round(np.linspace(0.0, 1.0, 11), 2))
-DEFAULT_EXHAUSTIVE_LIMIT = 20000
+TRAFFIC_LABELS = ("vehicle", "pedestrian")
+
+
+class StudyScene(Protocol):
+    """What a study asks of a scene."""
+
+    name: str
+
+    def current_frame(self) -> int: ...
+
+    def set_frame(self, frame: int) -> None: ...
+
+    def region(self, name: str | None) -> np.ndarray:
+        """(N, 2) world xy outline of the InfraLOB ``name`` (None: the one marked)."""
+
+    def mounts(self, names: tuple) -> list:
+        """[(name, (x, y, z))] of the mounts ``names`` (empty: every marked mount)."""
+
+    def static_geometry(self, hidden_labels: set) -> tuple:
+        """(SceneGeometry of everything rendered but objects with these label ids,
+        sorted names of the objects left out)."""
 
 
 @dataclasses.dataclass
-class DiskLayout:
-    """The seeded disks of an InfraLOB, placed exactly as ``infra_lob_metrics`` places
-    them (same seed, radius, placement), so single-candidate values match it."""
-
-    polygon: np.ndarray
-    area_m2: float
-    centres: np.ndarray
-    radius_m: float
-    seed: int
+class StudyConfig:
+    device: str = "generic_uniform32"
+    k: tuple = (1,)
+    lob: str = None                 # region object name (default: the one marked object)
+    mounts: tuple = ()              # mount object names (default: every marked mount)
+    grid_step: float = None         # grid of positions instead of (or besides) mounts
+    grid_heights: tuple = (6.0,)
+    grid_margin: float = 0.0
+    pitches: tuple = (0.0,)         # degrees, positive tilts the sensor's +X down
+    yaws: tuple = (0.0,)            # degrees
+    yaw_mode: str = "face"          # "face": yaw relative to facing the region centre
+    roll: float = 0.0
+    labels: str = "road,sidewalk"
+    disks: int = DEFAULT_DISKS
+    radius: float = DEFAULT_RADIUS_M
+    disk_seed: int = DEFAULT_SEED
     disk_placement: str = "inside"
-
-    @classmethod
-    def make(cls, polygon, disks=DEFAULT_DISKS, radius=DEFAULT_RADIUS_M, seed=DEFAULT_SEED,
-             disk_placement="inside"):
-        poly = as_polygon(polygon)
-        if int(disks) < 1:
-            raise RegionError(f"need at least one disk, got {disks}")
-        if not (radius > 0 and math.isfinite(radius)):
-            raise RegionError(f"disk radius must be a positive number of metres, got {radius}")
-        rng = np.random.default_rng(seed)
-        margin = radius if disk_placement == "inside" else 0.0
-        centres = sample_in_polygon(poly, int(disks), rng, margin=margin)
-        return cls(poly, abs(shoelace_area(poly)), centres, float(radius), int(seed), disk_placement)
-
-    @property
-    def p(self):
-        """Disk area over region area."""
-        return math.pi * self.radius_m ** 2 / self.area_m2
-
-    def select(self, clouds, label_ids):
-        """(N, 2) xy of the kept points (inside the outline, wanted labels)."""
-        return select_xy(clouds, self.polygon, label_ids)[0]
-
-    def counts(self, xy):
-        return count_in_disks(xy, self.centres, self.radius_m)
-
-
-def set_metrics(n_points, disk_counts, area_m2, p):
-    """InfraD and InfraNUC of sets given their summed counts.
-
-    n_points     (S,) kept points per set
-    disk_counts  (S, D) summed disk counts per set
-    Returns (infra_d (S,), infra_nuc (S,)); InfraNUC is NaN for a set with no points or
-    with no point in any disk (no estimate, not 'perfectly uniform').
-    """
-    n = np.asarray(n_points, dtype=np.float64)
-    c = np.asarray(disk_counts, dtype=np.float64)
-    d = n / area_m2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x = c / (n[:, None] * p)
-        nuc = np.sqrt(np.mean((x - x.mean(axis=1, keepdims=True)) ** 2, axis=1))
-    nuc[(n == 0) | (c.sum(axis=1) == 0)] = np.nan
-    return d, nuc
-
-
-def pareto_front(infra_d, infra_nuc):
-    """Indices of the non-dominated points (InfraD high, InfraNUC low), sorted by
-    InfraD descending. A point dominates another when it is at least as good on
-    both and better on one; exact duplicates are all kept. NaN InfraNUC counts as
-    the worst uniformity."""
-    d = np.asarray(infra_d, dtype=np.float64)
-    u = np.asarray(infra_nuc, dtype=np.float64)
-    u = np.where(np.isnan(u), np.inf, u)
-    order = np.lexsort((u, -d))  # by D desc, then NUC asc
-    front, best_u, last = [], None, None
-    for i in order:
-        if best_u is None or u[i] < best_u:
-            front.append(i)
-            best_u = u[i]
-            last = (d[i], u[i])
-        elif last is not None and (d[i], u[i]) == last:
-            front.append(i)  # an exact tie with the last front point
-    return np.array(front, dtype=np.int64)
+    cell: float = DEFAULT_CELL_M
+    scan_seed: int = 0
+    noise: bool = True
+    dropout: bool = True
+    ghosting: bool = True
+    keep_traffic: bool = False
+    backend: str = "auto"
+    frame: int = None
+    one_per_mount: bool = True
+    exhaustive_limit: int = DEFAULT_EXHAUSTIVE_LIMIT
 
 
 @dataclasses.dataclass
-class Placement:
-    members: tuple  # candidate indices, sorted
-    infra_d: float
-    infra_nuc: float
-    n_points: int
+class Candidate:
+    index: int
+    name: str
+    mount: str
+    position: tuple
+    yaw_deg: float
+    pitch_deg: float
+    roll_deg: float
+    pose: np.ndarray = None
+    # filled by the scan
+    n_points: int = 0
+    infra_d: float = 0.0
+    infra_nuc: float = float("nan")
+    scan_points: int = 0
+    rays: int = 0
+    seconds: float = 0.0
 
-    def to_dict(self, names=None):
-        out = {"members": list(self.members), "infra_d": self.infra_d,
-               "infra_nuc": None if not math.isfinite(self.infra_nuc) else self.infra_nuc,
-               "n_points": self.n_points}
-        if names is not None:
-            out["sensors"] = [names[i] for i in self.members]
-        return out
+    def row(self):
+        return {"index": self.index, "name": self.name, "mount": self.mount,
+                "x": round(self.position[0], 4), "y": round(self.position[1], 4),
+                "z": round(self.position[2], 4), "yaw_deg": round(self.yaw_deg, 4),
+                "pitch_deg": self.pitch_deg, "roll_deg": self.roll_deg,
+                "points_in_lob": self.n_points, "infra_d": self.infra_d,
+                "infra_nuc": self.infra_nuc if math.isfinite(self.infra_nuc) else None,
+                "scan_points": self.scan_points, "rays": self.rays,
+                "scan_seconds": round(self.seconds, 4)}
 
 
 @dataclasses.dataclass
-class SearchResult:
-    k: int
-    method: str            # "exhaustive" or "greedy+swap"
-    evaluated: list        # Placement, every distinct set looked at (bounded)
-    front: list            # Placement on the Pareto front, InfraD descending
-    best: Placement        # front member with the best balanced score
-    sets_total: int        # number of valid k-sets
+class StudyResult:
+    config: StudyConfig
+    scene: str
+    frame: int
+    device: dict
+    polygon: np.ndarray
+    layout: DiskLayout
+    candidates: list
+    counts: CandidateCounts
+    searches: dict                  # k -> placement.SearchResult
+    xy: list                        # per candidate (N, 2) kept points
+    timing: dict
+    hidden_traffic: list
+    backend: str
+    structure_builds: int
+    notices: list
+
+    def density(self, members):
+        xy = np.concatenate([self.xy[i] for i in members]) if members else np.empty((0, 2))
+        return density_map(xy, self.polygon, self.config.cell)
 
 
-class CandidateCounts:
-    """Per-candidate kept-point totals and disk counts, for fast set evaluation.
+def make_candidates(spots, cfg, polygon):
+    """Candidate placements: spots [(name, (x, y, z))] x pitches x yaws."""
+    centre = polygon.mean(axis=0)
+    out = []
+    for mount, pos in spots:
+        base = facing_yaw_deg(pos, centre) if cfg.yaw_mode == "face" else 0.0
+        for pitch in cfg.pitches:
+            for yaw in cfg.yaws:
+                y = base + yaw
+                y = (y + 180.0) % 360.0 - 180.0
+                name = f"{mount} pitch {pitch:g} yaw {yaw:+g}" if (
+                    len(cfg.pitches) > 1 or len(cfg.yaws) > 1) else mount
+                out.append(Candidate(len(out), name, mount, tuple(float(v) for v in pos), y,
+                                     float(pitch), float(cfg.roll),
+                                     pose_matrix(pos, y, pitch, cfg.roll)))
+    return out
 
-    n       (C,) kept points in the InfraLOB per candidate
-    counts  (C, D) points per disk per candidate
-    groups  (C,) optional group id per candidate (its mount): a set uses each
-            group at most once (one LiDAR per mount position)
-    """
 
-    def __init__(self, n, counts, area_m2, p, groups=None):
-        self.n = np.asarray(n, dtype=np.int64)
-        self.counts = np.asarray(counts, dtype=np.int64)
-        if self.counts.ndim != 2 or len(self.counts) != len(self.n):
-            raise ValueError("counts must be (candidates, disks) matching n")
-        self.area_m2 = float(area_m2)
-        self.p = float(p)
-        self.groups = (np.arange(len(self.n)) if groups is None
-                       else np.unique(np.asarray(groups), return_inverse=True)[1])
+def candidate_spots(scene, cfg, polygon):
+    """[(name, (x, y, z))]: grid points (``cfg.grid_step``) and/or the scene's mounts."""
+    spots = []
+    if cfg.grid_step:
+        for j, pos in enumerate(grid_positions(polygon, cfg.grid_step, cfg.grid_heights,
+                                               cfg.grid_margin)):
+            spots.append((f"grid{j:03d}@({pos[0]:g},{pos[1]:g},{pos[2]:g})", pos))
+    if cfg.mounts or not cfg.grid_step:
+        spots += scene.mounts(tuple(cfg.mounts))
+    if not spots:
+        raise SceneError(f"scene {scene.name!r} has no LiDAR mounts: mark pole objects with the "
+                         "custom property rls_mount = True, name them with --mount, or use --grid")
+    return spots
 
-    def __len__(self):
-        return len(self.n)
 
-    def evaluate(self, sets):
-        """Placements for an iterable of member tuples."""
-        sets = [tuple(sorted(int(i) for i in s)) for s in sets]
-        if not sets:
-            return []
-        idx = np.array(sets, dtype=np.int64)
-        n = self.n[idx].sum(axis=1)
-        c = self.counts[idx].sum(axis=1)
-        d, u = set_metrics(n, c, self.area_m2, self.p)
-        return [Placement(s, float(a), float(b), int(m)) for s, a, b, m in zip(sets, d, u, n)]
+def run_study(scene, cfg, progress=None, factory=caster_factory):
+    """Scan every candidate of ``scene`` (a ``StudyScene``) and search placements;
+    returns a ``StudyResult``.
 
-    def valid(self, members):
-        g = self.groups[list(members)]
-        return len(np.unique(g)) == len(g)
-
-    def count_sets(self, k):
-        """Number of k-sets that use each group at most once."""
-        sizes = np.bincount(self.groups)
-        # elementary symmetric polynomial e_k of the group sizes
-        e = np.zeros(k + 1)
-        e[0] = 1.0
-        for s in sizes:
-            e[1:] = e[1:] + s * e[:-1]
-        return int(round(e[k]))
-
-    def all_sets(self, k):
-        for combo in itertools.combinations(range(len(self)), k):
-            if self.valid(combo):
-                yield combo
-
-    # -- scalarised search -------------------------------------------------------
-    def _refs(self, k):
-        d1, u1 = set_metrics(self.n, self.counts, self.area_m2, self.p)
-        d_ref = max(float(np.max(d1)) * k, 1e-12)
-        finite = u1[np.isfinite(u1)]
-        u_ref = max(float(finite.max()) if len(finite) else 1.0, 1e-12)
-        return d_ref, u_ref
-
-    def _scores(self, n, c, w, d_ref, u_ref):
-        d, u = set_metrics(n, c, self.area_m2, self.p)
-        u = np.where(np.isfinite(u), u, 10.0 * u_ref)
-        return w * d / d_ref - (1.0 - w) * u / u_ref
-
-    def greedy_swap(self, k, weight, max_rounds=100):
-        """One local optimum of ``weight * D/D_ref - (1 - weight) * NUC/NUC_ref`` over
-        k-sets: greedy additions, then best-improvement single swaps until none helps."""
-        if k > len(np.unique(self.groups)):
-            raise ValueError(f"k = {k} exceeds the number of distinct mounts")
-        d_ref, u_ref = self._refs(k)
-        members = []
-        n_tot, c_tot = 0, np.zeros(self.counts.shape[1], dtype=np.int64)
-        for _ in range(k):
-            free = np.array([i for i in range(len(self)) if self._may_add(members, i)])
-            s = self._scores(n_tot + self.n[free], c_tot + self.counts[free], weight, d_ref, u_ref)
-            j = int(free[np.argmax(s)])
-            members.append(j)
-            n_tot += self.n[j]
-            c_tot = c_tot + self.counts[j]
-        current = float(self._scores(np.array([n_tot]), c_tot[None], weight, d_ref, u_ref)[0])
-        for _ in range(max_rounds):
-            best = (current + 1e-12, None, None)
-            for pos, out in enumerate(members):
-                rest = members[:pos] + members[pos + 1:]
-                free = np.array([i for i in range(len(self))
-                                 if i not in members and self._may_add(rest, i)], dtype=np.int64)
-                if len(free) == 0:
-                    continue
-                n_b = n_tot - self.n[out]
-                c_b = c_tot - self.counts[out]
-                s = self._scores(n_b + self.n[free], c_b + self.counts[free], weight, d_ref, u_ref)
-                j = int(np.argmax(s))
-                if s[j] > best[0]:
-                    best = (float(s[j]), pos, int(free[j]))
-            if best[1] is None:
-                break
-            current, pos, new = best
-            out = members[pos]
-            members[pos] = new
-            n_tot += self.n[new] - self.n[out]
-            c_tot = c_tot + self.counts[new] - self.counts[out]
-        return tuple(sorted(members))
-
-    def _may_add(self, members, i):
-        return i not in members and self.groups[i] not in set(self.groups[members].tolist())
-
-    def search(self, k, weights=DEFAULT_WEIGHTS, exhaustive_limit=DEFAULT_EXHAUSTIVE_LIMIT):
-        """Pareto front of k-sets (see the module doc). Raises ValueError when there
-        are not k distinct mounts."""
-        k = int(k)
+    ``progress(done, total, candidate, eta_seconds)`` is called after each scan."""
+    t0 = time.perf_counter()
+    preset = get_preset(cfg.device)
+    polygon = scene.region(cfg.lob)
+    layout = DiskLayout.make(polygon, cfg.disks, cfg.radius, cfg.disk_seed, cfg.disk_placement)
+    label_ids = resolve_labels(cfg.labels)
+    cands = make_candidates(candidate_spots(scene, cfg, polygon), cfg, polygon)
+    spots = len({c.mount for c in cands}) if cfg.one_per_mount else len(cands)
+    for k in cfg.k:
         if k < 1:
-            raise ValueError("k must be at least 1")
-        total = self.count_sets(k)
-        if total == 0:
-            raise ValueError(f"k = {k} needs {k} distinct mounts; the candidates have "
-                             f"{len(np.unique(self.groups))}")
-        if total <= exhaustive_limit:
-            method = "exhaustive"
-            evaluated = []
-            batch = []
-            for combo in self.all_sets(k):
-                batch.append(combo)
-                if len(batch) >= 4096:
-                    evaluated += self.evaluate(batch)
-                    batch = []
-            evaluated += self.evaluate(batch)
-        else:
-            method = "greedy+swap"
-            found = {self.greedy_swap(k, w) for w in weights}
-            evaluated = self.evaluate(sorted(found))
-        d = np.array([p.infra_d for p in evaluated])
-        u = np.array([p.infra_nuc for p in evaluated])
-        front = [evaluated[i] for i in pareto_front(d, u)]
-        best = max(front, key=lambda p: self.balanced(p, k))
-        return SearchResult(k, method, evaluated, front, best, total)
+            raise SceneError(f"k must be at least 1, got {k}")
+        if k > spots:
+            raise SceneError(f"k = {k} needs {k} distinct mounts; the candidates have {spots}"
+                             + (" (--allow-shared-mounts lets a mount hold several)"
+                                if cfg.one_per_mount and k <= len(cands) else ""))
+    frame = scene.current_frame() if cfg.frame is None else int(cfg.frame)
+    scene.set_frame(frame)
+    from .labels import label_id
 
-    def balanced(self, placement, k):
-        d_ref, u_ref = self._refs(k)
-        u = placement.infra_nuc if math.isfinite(placement.infra_nuc) else 10.0 * u_ref
-        return 0.5 * placement.infra_d / d_ref - 0.5 * u / u_ref
+    hide = set() if cfg.keep_traffic else {label_id(n) for n in TRAFFIC_LABELS}
+    geometry, hidden = scene.static_geometry(hide)
+    backend_cls, notice = factory(cfg.backend)
+    settings = ScanSettings(seed=cfg.scan_seed, frame_space="world", noise=cfg.noise,
+                            dropout=cfg.dropout, motion="snapshot", ghosting=cfg.ghosting)
+    _, rmax = resolve_range(preset, settings)
+    centre = np.r_[polygon.mean(axis=0), 0.0]
+    reach = max(np.linalg.norm(np.array(c.position) - centre) for c in cands) + rmax + 1.0
+    session = ScanSession(backend_cls)
+    t_build = time.perf_counter()
+    prepared = session.prepared(geometry, centre, reach)
+    t_scan = time.perf_counter()
+    pattern = preset.pattern(frame)
+    xy_all, counts = [], []
+    for i, c in enumerate(cands):
+        t = time.perf_counter()
+        result = scan_frame(prepared, pattern, c.pose, preset, settings, frame=frame,
+                            sensor=c.name)
+        xy = layout.select([result.points], label_ids)
+        xy_all.append(xy)
+        counts.append(layout.counts(xy))
+        c.n_points, c.scan_points, c.rays = len(xy), len(result.points), result.rays
+        c.seconds = time.perf_counter() - t
+        if progress is not None:
+            elapsed = time.perf_counter() - t_scan
+            progress(i + 1, len(cands), c, elapsed / (i + 1) * (len(cands) - i - 1))
+    t_search = time.perf_counter()
+    groups = [c.mount for c in cands] if cfg.one_per_mount else None
+    cc = CandidateCounts([c.n_points for c in cands], np.array(counts), layout.area_m2, layout.p,
+                         groups)
+    for c, p in zip(cands, cc.evaluate([(c.index,) for c in cands])):
+        c.infra_d, c.infra_nuc = p.infra_d, p.infra_nuc
+    searches = {}
+    for k in cfg.k:
+        try:
+            searches[k] = cc.search(k, exhaustive_limit=cfg.exhaustive_limit)
+        except SettingsError as exc:
+            raise SceneError(f"k = {k}: {exc}") from None
+    t_end = time.perf_counter()
+    timing = {"total_s": t_end - t0, "build_s": t_scan - t_build, "scan_s": t_search - t_scan,
+              "search_s": t_end - t_search,
+              "per_candidate_s": (t_search - t_scan) / max(len(cands), 1)}
+    return StudyResult(cfg, scene.name, frame,
+                       {"id": preset.id, "name": preset.name, "source": preset.source},
+                       polygon, layout, cands, cc, searches, xy_all, timing, hidden,
+                       prepared.backend, session.builds, [notice] if notice else [])
 
 
 def orientation_matrix(yaw_rad, pitch_down_rad, roll_rad=0.0):
@@ -304,19 +265,20 @@ def parse_values(text, what="values"):
     if isinstance(text, (int, float)):
         return [float(text)]
     text = str(text).strip()
+    bad = RegionError(f"{what}: expected V, V1,V2,... or START:STOP:STEP, got {text!r}")
     try:
         if ":" in text:
             parts = [float(t) for t in text.split(":")]
             if len(parts) != 3 or parts[2] <= 0:
-                raise ValueError
+                raise bad
             a, b, step = parts
             count = int(math.floor((b - a) / step + 1e-9)) + 1
             if count < 1:
-                raise ValueError
+                raise bad
             return [round(a + i * step, 9) for i in range(count)]
         vals = [float(t) for t in text.split(",") if t.strip()]
     except ValueError:
-        raise RegionError(f"{what}: expected V, V1,V2,... or START:STOP:STEP, got {text!r}") from None
+        raise bad from None
     if not vals:
         raise RegionError(f"{what}: no values in {text!r}")
     return vals

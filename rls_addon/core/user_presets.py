@@ -12,7 +12,7 @@ import shutil
 from pathlib import Path
 
 from .errors import OutputError, PresetError
-from .presets import custom_pattern_path, load_preset, presets_in
+from .presets import builtin_presets, custom_pattern_path, load_preset, presets_in
 
 TOP_ORDER = ("schema", "id", "name", "family", "source", "fitted", "frequency_hz", "attenuation_per_m")
 
@@ -103,15 +103,31 @@ def _write_preset(preset, dest, pattern_name, overwrite):
     return dest
 
 
+def refuse_builtin_id(preset_id, where="", action="save"):
+    """The one rule between user and built-in presets: a user preset never takes a
+    built-in preset's id (it would shadow it), and built-in presets are read-only."""
+    if preset_id in builtin_presets():
+        prefix = f"{where}: key 'id': " if where else ""
+        if action == "delete":
+            raise PresetError(f"'{preset_id}' is a built-in preset and read-only; only user "
+                              "presets can be deleted")
+        raise PresetError(f"{prefix}'{preset_id}' is a built-in preset id; give the "
+                          f"{'imported ' if action == 'import' else ''}preset another id")
+
+
 def save_user_preset(preset, user_dir, overwrite=False):
-    """Store ``preset`` as ``<user_dir>/<id>.toml`` (self-contained). Returns the path."""
+    """Store ``preset`` as ``<user_dir>/<id>.toml`` (self-contained). Returns the path.
+    A built-in preset's id is refused."""
+    refuse_builtin_id(preset.id)
     d = Path(user_dir)
     return _write_preset(preset, d / f"{preset.id}.toml", f"patterns/{preset.id}.csv", overwrite)
 
 
 def import_preset(src, user_dir, overwrite=False):
-    """Validate the preset file ``src`` and store it in ``user_dir``; returns the stored preset."""
+    """Validate the preset file ``src`` and store it in ``user_dir``; returns the stored
+    preset. A file whose id is a built-in preset's is refused."""
     p = load_preset(src)
+    refuse_builtin_id(p.id, where=str(src), action="import")
     return load_preset(save_user_preset(p, user_dir, overwrite))
 
 
@@ -131,7 +147,9 @@ def user_presets(user_dir):
 
 
 def delete_user_preset(preset_id, user_dir):
-    """Remove ``<user_dir>/<id>.toml`` (and its copied pattern CSV, if any)."""
+    """Remove ``<user_dir>/<id>.toml`` (and its copied pattern CSV, if any); built-in
+    presets are read-only."""
+    refuse_builtin_id(preset_id, action="delete")
     d = Path(user_dir)
     p = user_presets(d).get(preset_id)
     if p is None:

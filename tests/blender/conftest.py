@@ -57,10 +57,7 @@ def ground(size=60.0, z=0.0, name="Ground"):
 def scan(obj, frame=None):
     from rls_addon.blender.scan import scan_lidar
 
-    scene = bpy.context.scene
-    if frame is not None:
-        scene.frame_set(frame)
-    return scan_lidar(bpy.context.evaluated_depsgraph_get(), obj, scene.frame_current)
+    return scan_lidar(obj, frame, backend="bvhtree")
 
 
 def xyz(points):

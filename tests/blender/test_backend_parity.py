@@ -5,10 +5,10 @@ float64 refinement, identical hit/miss sets away from triangle edges)."""
 import numpy as np
 import pytest
 
-from rls_addon.blender import backends
-from rls_addon.blender.bvh_caster import BVHCaster
-from rls_addon.core import embree_caster
-from rls_addon.core.raycast import NumpyCaster
+from rls_addon.core import casting as backends
+from rls_addon.core.casting import BVHCaster
+from rls_addon.core.casting import embree as embree_caster
+from rls_addon.core.casting import NumpyCaster
 from tests import parity
 
 pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
@@ -84,17 +84,15 @@ def test_caster_factory_names_and_fallback_notice(monkeypatch):
 @needs_embree
 def test_scan_with_embree_equals_scan_with_bvhtree(scene):
     """The whole frame (effects included) is the same whichever backend cast it."""
-    import bpy
 
     from rls_addon.blender.sample_scene import build_street
-    from rls_addon.blender.scan import ScanSession
+    from rls_addon.blender.scan import scan_lidar
     from tests.blender.conftest import add_lidar
 
     mount = build_street(scene)
     lidar = add_lidar(location=mount)
-    dg = bpy.context.evaluated_depsgraph_get()
-    a, info_a = ScanSession(BVHCaster).scan(dg, lidar, scene.frame_current)
-    b, info_b = ScanSession(embree_caster.EmbreeCaster).scan(dg, lidar, scene.frame_current)
+    a, info_a = scan_lidar(lidar, backend="bvhtree")
+    b, info_b = scan_lidar(lidar, backend="embree")
     assert info_b["backend"] == "embree" and info_a["backend"] == "bvhtree"
     pa, pb = a.points, b.points
     # Rays grazing an edge may differ; everything else is identical.

@@ -123,15 +123,18 @@ def test_an_animated_modifier_is_read_every_frame(scene):
 def test_a_still_lidar_builds_its_static_scene_once(scene, backend):
     """Over frames of a static scene, the session neither reads the meshes again nor
     joins and digests the static geometry again; an edit is seen in the next frame."""
-    from rls_addon.blender import scan as scan_module
-    from rls_addon.blender.scan import session_for
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core import session as scan_module
+    from rls_addon.core.casting import caster_factory
 
     wall = mesh_object("Wall", [(5, -5, -3), (5, 5, -3), (5, 5, 5), (5, -5, 5)],
                        [(0, 1, 2, 3)])
     mesh_object("Ground", [(-9, -9, -2), (9, -9, -2), (9, 9, -2), (-9, 9, -2)], [(0, 1, 2, 3)])
     lidar = add_lidar()
-    lidar.rls_lidar.frame_space = "WORLD"
-    session, _ = session_for(backend)
+    lidar.rls_lidar.frame_space = "world"
+    session = scan_module.ScanSession(caster_factory(backend)[0])
+    source = BlenderScene(scene)
     joins = []
     join = scan_module.world_geometry
 
@@ -143,19 +146,17 @@ def test_a_still_lidar_builds_its_static_scene_once(scene, backend):
     try:
         xs = []
         for frame in (1, 2, 3):
-            scene.frame_set(frame)
-            res, info = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, frame)
+            res, info = scan_lidar(lidar, frame, session=session, source=source)
             xs.append(wall_x(res.points))
-        assert session.builds == 1 and len(joins) == 1 and session.meshes.reads == 2
+        assert session.builds == 1 and len(joins) == 1 and source.meshes.reads == 2
         assert info["static_cast_reused"]
         for v in wall.data.vertices:
             v.co.x = 6.0
         wall.data.update()
-        scene.frame_set(4)
-        res, info = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, 4)
+        res, info = scan_lidar(lidar, 4, session=session, source=source)
     finally:
         scan_module.world_geometry = join
-    assert session.builds == 2 and len(joins) == 2 and session.meshes.reads == 3
+    assert session.builds == 2 and len(joins) == 2 and source.meshes.reads == 3
     assert not info["static_cast_reused"]
     assert xs[0] == pytest.approx(5.0, abs=1e-6) and xs[0] == xs[1] == xs[2]
     assert wall_x(res.points) == pytest.approx(6.0, abs=1e-6)

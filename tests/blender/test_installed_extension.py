@@ -62,7 +62,7 @@ if site:
     sys.path.insert(0, site[0])
     import embreex
     embree['embreex_file'] = embreex.__file__
-    backends = importlib.import_module(mods[0] + '.blender.backends')
+    backends = importlib.import_module(mods[0] + '.core.casting')
     factory, notice = backends.caster_factory('embree')
     c = factory(np.array([[-1.0, -1, 0], [3, -1, 0], [-1, 3, 0]]), np.array([[0, 1, 2]]))
     dist, tri = c.cast(np.array([[0.0, 0, 2]]), np.array([[0.0, 0, -1], [0, 0, 1]]), 10.0)

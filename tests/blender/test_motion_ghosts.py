@@ -45,7 +45,7 @@ def moving_box_setup(scene):
     step = V / FPS  # metres per frame
     linear_keys(car, "location", [(1, tuple(start)), (11, tuple(start + [0, 10 * step, 0]))])
     lidar = add_lidar(location=(0, 0, 0))
-    lidar.rls_lidar.frame_space = "WORLD"
+    lidar.rls_lidar.frame_space = "world"
     return lidar, start
 
 
@@ -65,17 +65,14 @@ def test_rigid_motion_exact_every_point_on_the_box_at_its_time(scene):
 
 
 def test_substeps_and_snapshot_modes_through_blender(scene):
-    import dataclasses
-
-    from rls_addon.blender.scan import ScanSession
-    from rls_addon.blender.sensor import scan_inputs
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.sensor import read_settings
 
     lidar, start = moving_box_setup(scene)
-    scene.frame_set(1)
-    _, base = scan_inputs(lidar)
+    base = read_settings(lidar)
     for mode, n in (("substeps", 4), ("snapshot", 0)):
-        settings = dataclasses.replace(base, motion=mode, substeps=n)
-        res, info = ScanSession().scan(bpy.context.evaluated_depsgraph_get(), lidar, 1, settings)
+        settings = base.override(motion=mode, substeps=n)
+        res, info = scan_lidar(lidar, 1, backend="bvhtree", settings=settings)
         p = res.points
         centre = start + np.outer(p["time"], [0, V, 0])
         err = np.abs(box_sdf(points_xyz(p), centre, np.array([1, 2, 1])))
@@ -87,7 +84,7 @@ def test_moving_sensor_in_static_room_follows_its_pose(scene):
     scene.render.fps, scene.render.fps_base = FPS, 1.0
     room = box("Room", (-10, -6, -1), (10, 6, 5))
     lidar = add_lidar(location=(-2, 0.5, 1.5))
-    lidar.rls_lidar.frame_space = "WORLD"
+    lidar.rls_lidar.frame_space = "world"
     # 10 m/s along +X: 0.4 m per frame.
     linear_keys(lidar, "location", [(1, (-2.0, 0.5, 1.5)), (11, (2.0, 0.5, 1.5))])
     result, info = scan(lidar, frame=1)
@@ -114,7 +111,7 @@ def test_deforming_object_is_substepped_adaptively(scene):
         v.co.x += 4.0  # the wall moves 4 m in x at full weight
     linear_keys(key, "value", [(1, 0.0), (11, 1.0)])  # 10 frames = 0.4 s for 4 m: 10 m/s
     lidar = add_lidar(location=(0, 0, 0))
-    lidar.rls_lidar.frame_space = "WORLD"
+    lidar.rls_lidar.frame_space = "world"
     result, info = scan(lidar, frame=1)
     p = result.points
     n = info["motion"]["substeps"]["Wall"]
@@ -141,7 +138,7 @@ def test_glossy_principled_material_makes_ghosts(scene):
     wall.data.materials.append(mat)
     box("Car", (-3.0, -1, -1), (-2.0, 1, 1))
     lidar = add_lidar(location=(0, 0, 0))
-    lidar.rls_lidar.frame_space = "WORLD"
+    lidar.rls_lidar.frame_space = "world"
     result, info = scan(lidar)
     g = result.points[result.points["ghost"] == 1]
     assert info["ghosts"] == len(g) > 20
@@ -156,13 +153,17 @@ def test_one_session_over_frames_keeps_every_point_on_the_moving_box(scene, back
     (with Embree: the car traced as an instance), and the street's cast of the still
     lidar: every frame gives what a fresh session gives, and every car point lies on
     the car."""
-    from rls_addon.blender.scan import ScanSession, session_for
-    from rls_addon.core.engine import PreparedScene
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.casting import caster_factory
+    from rls_addon.core.session import ScanSession
 
     lidar, start = moving_box_setup(scene)
     box("Ground", (-30, -30, -3), (30, 30, -2))
-    session, notice = session_for(backend)
+    factory, notice = caster_factory(backend)
     assert notice is None
+    session, source = ScanSession(factory), BlenderScene(scene)
     static_casts = []
     cast = PreparedScene._cast
 
@@ -174,10 +175,8 @@ def test_one_session_over_frames_keeps_every_point_on_the_moving_box(scene, back
     step = V / FPS
     try:
         for frame in (1, 3, 6):
-            scene.frame_set(frame)
-            dg = bpy.context.evaluated_depsgraph_get()
-            result, info = session.scan(dg, lidar, frame)
-            fresh, _ = ScanSession(session.caster_factory).scan(dg, lidar, frame)
+            result, info = scan_lidar(lidar, frame, session=session, source=source)
+            fresh, _ = scan_lidar(lidar, frame, session=ScanSession(factory))
             p = result.points
             assert info["motion"]["rigid"] == ["Car"]
             assert info["static_cast_reused"] == (frame != 1)  # in the sidecar too
@@ -207,23 +206,25 @@ def test_a_driving_lidar_shares_one_built_scene_over_frames(scene, backend):
     """Once the lidar has moved, its static scene is prepared wider and kept while the
     lidar stays inside it: frames share one structure, and give what a fresh session
     gives; far enough on, the scene is prepared anew."""
-    from rls_addon.blender import scan as scan_module
-    from rls_addon.blender.scan import ScanSession, session_for
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core import session as scan_module
+    from rls_addon.core.casting import caster_factory
+    from rls_addon.core.session import ScanSession
 
     scene.render.fps, scene.render.fps_base = FPS, 1.0
     box("Street", (-60, -8, -1), (60, 8, 6))
     box("Kiosk", (3, 2, -1), (5, 4, 1))
     lidar = add_lidar(location=(-2, 0.5, 1.5))
-    lidar.rls_lidar.frame_space = "WORLD"
+    lidar.rls_lidar.frame_space = "world"
     lidar.rls_lidar.use_max_range, lidar.rls_lidar.max_range = True, 20.0
     # 10 m/s along +X: 0.4 m per frame
     linear_keys(lidar, "location", [(1, (-2.0, 0.5, 1.5)), (101, (38.0, 0.5, 1.5))])
-    session, _ = session_for(backend)
+    factory = caster_factory(backend)[0]
+    session, source = ScanSession(factory), BlenderScene(scene)
     for frame in (1, 2, 3, 4, 5, 6):
-        scene.frame_set(frame)
-        dg = bpy.context.evaluated_depsgraph_get()
-        result, info = session.scan(dg, lidar, frame)
-        fresh, _ = ScanSession(session.caster_factory).scan(dg, lidar, frame)
+        result, info = scan_lidar(lidar, frame, session=session, source=source)
+        fresh, _ = scan_lidar(lidar, frame, session=ScanSession(factory))
         assert info["motion"]["sensor_moves"]
         assert len(result.points) == len(fresh.points) > 1000
         assert np.abs(result.points["range"] - fresh.points["range"]).max() <= 1e-6
@@ -231,6 +232,5 @@ def test_a_driving_lidar_shares_one_built_scene_over_frames(scene, backend):
     # frame 1 where it stood, frame 2 on the wider scene, kept since
     assert session.builds == 2
     far = 1 + int((20.0 * scan_module.DRIVING_SLACK) / 0.4) + 2  # past the slack
-    scene.frame_set(far)
-    session.scan(bpy.context.evaluated_depsgraph_get(), lidar, far)
+    scan_lidar(lidar, far, session=session, source=source)
     assert session.builds == 3

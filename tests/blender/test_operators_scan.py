@@ -64,7 +64,7 @@ def test_scan_frame_writes_only_the_chosen_fields_and_colours_the_preview(scene,
 
     labelled_ground()
     obj = add_lidar_op(out=tmp_path, file_format="ply_binary", fields={"intensity", "label"},
-                       frame_space="WORLD", preview_color="ring")
+                       frame_space="world", preview_color="ring")
     assert bpy.ops.rls.scan_frame() == {"FINISHED"}
     files = _files(tmp_path)
     assert files == ["Scene_LiDAR_000001.json", "Scene_LiDAR_000001.ply"]
@@ -81,23 +81,24 @@ def test_scan_frame_writes_only_the_chosen_fields_and_colours_the_preview(scene,
 
 
 def test_scan_settings_are_mapped_in_one_place(scene):
-    from rls_addon.blender.sensor import scan_inputs
+    from rls_addon.blender.sensor import read_settings, sensor_job
 
     obj = add_lidar_op("velodyne_vlp16")
     s = obj.rls_lidar
-    s.seed, s.frame_space, s.noise, s.dropout = 7, "WORLD", True, False
+    s.seed, s.frame_space, s.noise, s.dropout = 7, "world", True, False
     s.use_min_range, s.min_range = True, 1.5
     s.use_max_range, s.max_range = True, 42.0
     s.use_noise_sigma, s.noise_sigma = True, 0.05
     s.motion, s.substeps, s.ghosting = "substeps", 6, False
-    preset, st = scan_inputs(obj)
+    job = sensor_job(obj)
+    preset, st = job.preset, job.settings.scan
     assert preset.id == "velodyne_vlp16"
     assert (st.seed, st.frame_space, st.noise, st.dropout) == (7, "world", True, False)
     assert (st.min_range_m, st.max_range_m) == (1.5, 42.0)
     assert st.noise_sigma_m == pytest.approx(0.05)
     assert (st.motion, st.substeps, st.ghosting) == ("substeps", 6, False)
     s.use_min_range = s.use_max_range = s.use_noise_sigma = False
-    _, st = scan_inputs(obj)
+    st = read_settings(obj).scan
     assert st.min_range_m is None and st.max_range_m is None and st.noise_sigma_m is None
 
 
@@ -227,7 +228,7 @@ def test_noise_override_changes_the_points(scene, tmp_path):
 
     labelled_ground()
     obj = add_lidar_op(out=tmp_path, noise=True, use_noise_sigma=True, noise_sigma=0.0,
-                       frame_space="WORLD")
+                       frame_space="world")
     assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}
     z = np.array([v.co.z for v in bpy.data.objects["LiDAR points"].data.vertices])
     assert np.abs(z).max() < 1e-4  # sigma overridden to 0: exact ground
@@ -253,7 +254,7 @@ def test_modal_path_progress_and_esc(scene, tmp_path):
     fake = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append((kind, msg)))
     fake._end = lambda c: Op._end(fake, c)
     fake._status = lambda c, t: Op._status(fake, c, t)
-    fake._job = batch.ScanJob(ctx, [bpy.context.active_object], [1, 2, 3, 4, 5])
+    fake._job = batch.make_run(ctx, [bpy.context.active_object], [1, 2, 3, 4, 5])
     ctx.window_manager.progress_begin(0, fake._job.total)
     timer = SimpleNamespace(type="TIMER")
     assert Op.modal(fake, ctx, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}

@@ -97,21 +97,21 @@ def test_empty_scene_gives_no_points_and_a_warning(scene):
 
 
 def test_static_geometry_is_built_once_and_rebuilt_when_it_changes(scene):
-    from rls_addon.blender.scan import ScanSession
-    import bpy
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core.casting import BVHCaster
+    from rls_addon.core.session import ScanSession
 
     ground()
     box = mesh_object("Box", [(5, -1, 0), (5, 1, 0), (5, 1, 3), (5, -1, 3)], [(0, 1, 2, 3)])
     lidar = add_lidar(location=(0, 0, 2))
-    session = ScanSession()
+    session, source = ScanSession(BVHCaster), BlenderScene(scene)
     outs = []
     for frame in (1, 2, 3):
-        scene.frame_set(frame)
-        outs.append(session.scan(bpy.context.evaluated_depsgraph_get(), lidar, frame)[0])
+        outs.append(scan_lidar(lidar, frame, session=session, source=source)[0])
     assert session.builds == 1
     assert outs[0].points.tobytes() == outs[2].points.tobytes()
     box.location.x += 1.0
-    scene.frame_set(4)
-    p = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, 4)[0].points
+    p = scan_lidar(lidar, 4, session=session, source=source)[0].points
     assert session.builds == 2
     assert np.isclose(p["x"], 6.0, atol=1e-4).sum() > 0

@@ -54,7 +54,8 @@ def test_study_scan_matches_a_lidar_object_scan(scene):
     """The study casts candidates against one prepared structure; a LiDAR object at the
     same pose scanned the ordinary way (vehicles hidden) gives the same points."""
     from rls_addon.blender.scan import scan_lidar
-    from rls_addon.blender.study import StudyConfig, run_study
+    from rls_addon.blender.study import run_study
+    from rls_addon.core.study import StudyConfig
 
     info = build_scene("intersection", scene)
     cfg = StudyConfig(mounts=("TL NE",), pitches=(10.0,), noise=False, dropout=False,
@@ -67,22 +68,19 @@ def test_study_scan_matches_a_lidar_object_scan(scene):
         bpy.data.objects[name].hide_render = True
     lidar = add_lidar("Check", location=cand.position,
                       rotation=(0.0, np.radians(cand.pitch_deg), np.radians(cand.yaw_deg)))
-    lidar.rls_lidar.frame_space = "WORLD"
-    import dataclasses
+    lidar.rls_lidar.frame_space = "world"
+    from rls_addon.blender.sensor import read_settings
 
-    from rls_addon.blender.sensor import scan_inputs
-
-    _, settings = scan_inputs(lidar)
-    settings = dataclasses.replace(settings, motion="snapshot", ghosting=False)
-    dg = bpy.context.evaluated_depsgraph_get()
-    result, _ = scan_lidar(dg, lidar, scene.frame_current, settings=settings)
+    settings = read_settings(lidar).override(motion="snapshot", ghosting=False)
+    result, _ = scan_lidar(lidar, settings=settings)
     xy = res.layout.select([result.points], [1, 2])
     assert len(xy) == cand.n_points
     np.testing.assert_allclose(np.sort(xy, axis=0), np.sort(res.xy[0], axis=0), atol=1e-6)
 
 
 def test_traffic_is_left_out_unless_kept(scene):
-    from rls_addon.blender.study import StudyConfig, run_study
+    from rls_addon.blender.study import run_study
+    from rls_addon.core.study import StudyConfig
 
     build_scene("t_junction", scene)
     scene.frame_set(30)  # the turning car is inside the region

@@ -50,7 +50,7 @@ def _explode(*a, **k):
 @pytest.fixture
 def no_heavy_work(monkeypatch):
     """Patch the disk and the expensive calls so any use from draw() fails the test."""
-    import rls_addon.blender.scan as scan
+    import rls_addon.core.session as scan
     import rls_addon.core.metrics as metrics
     import rls_addon.core.presets as presets
     from rls_addon.blender import preset_catalog

@@ -5,20 +5,19 @@ BVHTree works in float32 and lets such rays slip between neighbouring triangles
 watertight wrapper must catch every one, with the range refined in float64 (fused
 into the compiled Embree loop)."""
 
-import functools
 
 import bmesh
 import numpy as np
 import pytest
 
-from rls_addon.blender.bvh_caster import BVHCaster
-from rls_addon.core import embree_caster
-from rls_addon.core.raycast import WatertightCaster, cast_exact, triangle_planes
+from rls_addon.core.casting import BVHCaster
+from rls_addon.core.casting import embree as embree_caster
+from rls_addon.core.casting import WatertightCaster, cast_exact, triangle_planes
 
 FACTORIES = {
     "bvhtree": BVHCaster,
     "embree": embree_caster.EmbreeCaster,
-    "embree_fast": functools.partial(embree_caster.EmbreeCaster, robust=False),
+    "embree_fast": embree_caster.EmbreeCaster.configured(robust=False),
 }
 
 

@@ -1,9 +1,11 @@
 """The compiled Embree packet loop gives exactly what the Python packet loop gives."""
 
 import numpy as np
+
+from rls_addon.core.errors import CastingError
 import pytest
 
-embree_caster = pytest.importorskip("rls_addon.core.embree_caster")
+embree_caster = pytest.importorskip("rls_addon.core.casting.embree")
 if not embree_caster.available():
     pytest.skip(f"embreex missing: {embree_caster.unavailable_reason()}", allow_module_level=True)
 
@@ -43,7 +45,7 @@ def test_native_equals_python_packets(n_rays, per_ray_origins):
 def test_any_thread_count_casts_every_ray_once(n_rays):
     """Workers and the collecting caller take blocks of rays from one counter: any
     count of them (1: the caller alone) casts every ray exactly once."""
-    from rls_addon.core.raycast import triangle_planes
+    from rls_addon.core.casting import triangle_planes
 
     v, t = scene(7)
     planes = triangle_planes(v, t)
@@ -68,7 +70,7 @@ def test_any_thread_count_casts_every_ray_once(n_rays):
 def test_fused_refinement_equals_numpy_refinement(per_ray_origins):
     """The compiled loop refines each hit against its plane in float64 exactly as
     ``raycast.refine_hits`` does, and gives the same unit normals."""
-    from rls_addon.core.raycast import cast_exact, refine_hits, triangle_planes
+    from rls_addon.core.casting import cast_exact, refine_hits, triangle_planes
 
     v, t = scene(3)
     planes = triangle_planes(v, t)
@@ -103,7 +105,7 @@ def test_started_cast_runs_while_python_works_and_may_be_dropped():
     d = rng.normal(size=(20000, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     c = embree_caster.EmbreeCaster(v, t, threads=2)
-    from rls_addon.core.raycast import triangle_planes
+    from rls_addon.core.casting import triangle_planes
 
     planes = triangle_planes(v, t)
     pending = c.start_refined(np.zeros((1, 3)), d.copy(), 30.0, planes)
@@ -123,7 +125,7 @@ def test_started_cast_runs_while_python_works_and_may_be_dropped():
 
 def test_trace_order_changes_speed_not_results():
     """Rays traced in another order (shared packets) land in their own slots."""
-    from rls_addon.core.raycast import triangle_planes
+    from rls_addon.core.casting import triangle_planes
 
     v, t = scene(7)
     planes = triangle_planes(v, t)
@@ -136,5 +138,5 @@ def test_trace_order_changes_speed_not_results():
     b = c.cast_refined(np.zeros((1, 3)), d, 30.0, planes, order=order)
     for x, y in zip(a, b):
         assert np.array_equal(x, y)
-    with pytest.raises(ValueError, match="order"):
+    with pytest.raises(CastingError, match="order"):
         c.cast_refined(np.zeros((1, 3)), d, 30.0, planes, order=order[:-1])

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from rls_addon.core import embree_caster
-from rls_addon.core.raycast import NumpyCaster
+from rls_addon.core.casting import embree as embree_caster
+from rls_addon.core.casting import NumpyCaster
 from tests import parity
 
 pytestmark = [
@@ -20,7 +20,7 @@ MODES = ["packets", "embreex"]
 
 
 def factory(mode):
-    return lambda v, t: embree_caster.EmbreeCaster(v, t, mode=mode)
+    return embree_caster.EmbreeCaster.configured(mode=mode)
 
 
 def rays():

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from rls_addon.core.engine import ScanSettings, scan_frame
+from rls_addon.core.frame import scan_frame
+from rls_addon.core.settings import ScanSettings
 from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 from rls_addon.core.patterns.spinning import spinning_pattern
 from rls_addon.core.presets import DevicePreset, RangeModel
-from rls_addon.core.raycast import NumpyCaster
+from rls_addon.core.casting import NumpyCaster
 
 PRESET = DevicePreset(id="t", name="t", family="spinning", source="test", frequency_hz=10.0,
                       range=RangeModel(0.1, 100.0, 0.02))

@@ -6,16 +6,19 @@ import numpy as np
 import pytest
 
 from rls_addon.core import instancing
-from rls_addon.core.engine import PreparedScene, RigidBodies, ScanSettings, World, scan_frame
+from rls_addon.core.bodies import PreparedScene, RigidBodies
+from rls_addon.core.frame import scan_frame
+from rls_addon.core.settings import ScanSettings
+from rls_addon.core.world import World
 from rls_addon.core.geometry import ObjectInfo, SceneGeometry
 from rls_addon.core.motion import Track
 from rls_addon.core.patterns.spinning import spinning_pattern
 from rls_addon.core.presets import DevicePreset, RangeModel
-from rls_addon.core.raycast import NumpyCaster, WatertightCaster
+from rls_addon.core.casting import NumpyCaster, WatertightCaster
 
 from .scenes import box_geometry, box_sdf, merge
 
-embree_caster = pytest.importorskip("rls_addon.core.embree_caster")
+embree_caster = pytest.importorskip("rls_addon.core.casting.embree")
 if not embree_caster.available():
     pytest.skip(f"embreex missing: {embree_caster.unavailable_reason()}", allow_module_level=True)
 Embree = embree_caster.EmbreeCaster

@@ -141,10 +141,13 @@ def test_writing_onto_a_directory_is_refused(tmp_path):
         write_cloud(tmp_path / "d.pcd", sample_cloud(1), overwrite=True)
 
 
-def test_unknown_format_and_field_are_output_errors(tmp_path):
-    with pytest.raises(OutputError, match="unknown cloud format"):
+def test_unknown_format_and_field_are_settings_errors_naming_the_choices(tmp_path):
+    from rls_addon.core.errors import SettingsError
+
+    with pytest.raises(SettingsError, match="unknown cloud format 'las'; choose one of "
+                                            "pcd_binary, .*ply_ascii"):
         write_cloud(tmp_path / "c.las", sample_cloud(1), "las")
-    with pytest.raises(OutputError, match="unknown point field"):
+    with pytest.raises(SettingsError, match="unknown point field"):
         write_cloud(tmp_path / "c.pcd", sample_cloud(1), fields=["x", "colour"])
 
 

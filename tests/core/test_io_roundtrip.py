@@ -6,6 +6,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from rls_addon.core.errors import InputError
 from rls_addon.core.io import DEFAULT_FIELDS, FORMATS, encode_cloud, read_cloud, write_cloud
 from rls_addon.core.io import lzf
 from rls_addon.core.io.cloud import read_records
@@ -92,9 +93,9 @@ def test_lzf_compresses_repetitive_columns():
 
 
 def test_lzf_rejects_corrupt_stream():
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         lzf.decompress(bytes([0x20, 0x05]), 3)  # back reference before start
-    with pytest.raises(ValueError):
+    with pytest.raises(InputError):
         lzf.decompress(bytes([5, 1, 2]), 6)  # literal run past end
 
 

@@ -227,7 +227,7 @@ def test_speed_one_million_points_six_thousand_disks():
 def test_no_point_in_any_disk_is_an_error_not_perfect_uniformity():
     from rls_addon.core.errors import RegionError
     from rls_addon.core.metrics import infra_nuc
-    from rls_addon.core.study import set_metrics
+    from rls_addon.core.placement import set_metrics
 
     with pytest.raises(RegionError, match="none of the 3 disks"):
         infra_nuc(np.zeros(3), 5, 0.01)

@@ -187,8 +187,17 @@ def test_pattern_span_continues_times():
 
 @pytest.mark.parametrize("pid", ["hesai_pandar64", "livox_avia", "robosense_m1", "generic_uniform32"])
 def test_user_preset_round_trip(tmp_path, pid):
-    src = get_preset(pid)
+    import dataclasses
+
+    builtin = get_preset(pid)
     user = tmp_path / "user"
+    with pytest.raises(PresetError, match="built-in preset id"):  # never shadows it
+        save_user_preset(builtin, user)
+    shared_builtin = export_preset(builtin, tmp_path / "builtin.toml")  # sharing is fine
+    with pytest.raises(PresetError, match="built-in preset id"):
+        import_preset(shared_builtin, user)
+    src = dataclasses.replace(builtin, id=f"{pid}_team")
+    pid = src.id
     path = save_user_preset(src, user)
     assert path == user / f"{pid}.toml"
     assert pid in user_presets(user)
@@ -209,6 +218,8 @@ def test_user_preset_round_trip(tmp_path, pid):
     assert get_preset(pid, user_dir=tmp_path / "user2").id == pid
     delete_user_preset(pid, user)
     assert pid not in user_presets(user)
+    with pytest.raises(PresetError, match="read-only"):
+        delete_user_preset(builtin.id, user)
 
 
 def test_custom_preset_export_carries_pattern(tmp_path):

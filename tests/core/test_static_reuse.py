@@ -5,12 +5,14 @@ again would give."""
 import numpy as np
 import pytest
 
-from rls_addon.core.engine import PreparedScene, RigidBodies, ScanSettings, scan_frame
+from rls_addon.core.bodies import PreparedScene, RigidBodies
+from rls_addon.core.frame import scan_frame
+from rls_addon.core.settings import ScanSettings
 from rls_addon.core.geometry import MaterialInfo, SceneGeometry
 from rls_addon.core.motion import Track
 from rls_addon.core.patterns.spinning import spinning_pattern
 from rls_addon.core.presets import DevicePreset, RangeModel
-from rls_addon.core.raycast import NumpyCaster
+from rls_addon.core.casting import NumpyCaster
 
 from .scenes import box_geometry, merge
 
@@ -21,7 +23,7 @@ GLASS = MaterialInfo("glass", 0.3, glossy=True, ghost_ratio=0.5)
 
 def factories():
     out = [NumpyCaster]
-    from rls_addon.core import embree_caster
+    from rls_addon.core.casting import embree as embree_caster
 
     if embree_caster.available():
         out.append(embree_caster.EmbreeCaster)

@@ -8,9 +8,8 @@ import pytest
 
 from rls_addon.core.metrics import infra_lob_metrics
 from rls_addon.core.points import POINT_DTYPE
-from rls_addon.core.study import (CandidateCounts, DiskLayout, facing_yaw_deg, grid_positions,
-                                  orientation_matrix, pareto_front, parse_values, pose_matrix,
-                                  set_metrics)
+from rls_addon.core.placement import CandidateCounts, DiskLayout, pareto_front, set_metrics
+from rls_addon.core.study import facing_yaw_deg, grid_positions, orientation_matrix, parse_values, pose_matrix
 from rls_addon.core.errors import RegionError
 
 SQUARE = [(0, 0), (20, 0), (20, 10), (0, 10)]

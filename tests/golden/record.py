@@ -16,7 +16,6 @@ import json
 import sys
 from pathlib import Path
 
-import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
@@ -32,9 +31,7 @@ def sha(data):
 # ---- core: numpy caster, no Blender ----------------------------------------------------
 
 def core_cases():
-    from rls_addon.core.geometry import MaterialInfo
     from rls_addon.core.io import encode_cloud
-    from rls_addon.core.motion import Track
     from tests.golden.scenes import core_scan
 
     out = {}
@@ -48,7 +45,6 @@ def core_cases():
 # ---- Blender: the demo street through a scan session --------------------------------------
 
 def blender_cases():
-    import bpy
 
     from rls_addon.core.io import encode_cloud
     from tests.golden.scenes import blender_street_scans

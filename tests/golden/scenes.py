@@ -19,11 +19,13 @@ def core_scene():
 
 
 def core_scan(mode, substeps, space):
-    from rls_addon.core.engine import PreparedScene, RigidBodies, ScanSettings, scan_frame
+    from rls_addon.core.bodies import PreparedScene, RigidBodies
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.settings import ScanSettings
     from rls_addon.core.motion import Track
     from rls_addon.core.patterns.spinning import spinning_pattern
     from rls_addon.core.presets import DevicePreset, DropoutModel, RangeModel
-    from rls_addon.core.raycast import NumpyCaster
+    from rls_addon.core.casting import NumpyCaster
 
     preset = DevicePreset(id="g", name="g", family="spinning", source="golden",
                           frequency_hz=10.0, range=RangeModel(0.3, 60.0, 0.02),
@@ -71,19 +73,19 @@ def _street():
 def blender_street_scans():
     """[(name, points)] of the demo street's pole lidar, frames 1 and 9, both backends,
     exact and snapshot motion."""
-    import bpy
-
-    from rls_addon.blender.scan import session_for
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core.casting import caster_factory
+    from rls_addon.core.session import ScanSession
 
     out = []
     scene, lidar = _street()
     for backend in ("bvhtree", "embree"):
         for motion in ("exact", "snapshot"):
             lidar.rls_lidar.motion = motion
-            session, _ = session_for(backend)
+            session, source = ScanSession(caster_factory(backend)[0]), BlenderScene(scene)
             for frame in (1, 9):
-                scene.frame_set(frame)
-                result, _ = session.scan(bpy.context.evaluated_depsgraph_get(), lidar, frame)
+                result, _ = scan_lidar(lidar, frame, session=session, source=source)
                 out.append((f"street/{backend}/{motion}/{frame}", result.points))
     lidar.rls_lidar.motion = "exact"
     return out
@@ -95,7 +97,8 @@ def junction_study():
 
     import rls_addon
     from rls_addon.blender.scenes import build_scene
-    from rls_addon.blender.study import StudyConfig, run_study
+    from rls_addon.blender.study import run_study
+    from rls_addon.core.study import StudyConfig
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if not hasattr(bpy.types.Object, "rls_lidar"):

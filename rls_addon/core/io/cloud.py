@@ -48,7 +48,7 @@ def read_records(path):
         if blob.startswith(b"ply"):
             return ply.decode(blob)
         return pcd.decode(blob)
-    except (ValueError, UnicodeDecodeError, IndexError) as exc:
+    except (InputError, ValueError, UnicodeDecodeError, IndexError) as exc:
         raise InputError(f"{path} is not a readable PCD/PLY point cloud: {exc}") from None
 
 

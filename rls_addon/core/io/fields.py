@@ -8,10 +8,11 @@ All on-disk types are little-endian.
 
 import numpy as np
 
-from ..errors import OutputError
+from ..choices import FIELDS, FORMATS as FORMAT_CHOICES
+from ..errors import OutputError, SettingsError
 from ..points import POINT_DTYPE
 
-FORMATS = ("pcd_ascii", "pcd_binary", "pcd_binary_compressed", "ply_ascii", "ply_binary")
+FORMATS = FORMAT_CHOICES.ids
 FORMAT_EXT = {
     "pcd_ascii": ".pcd",
     "pcd_binary": ".pcd",
@@ -36,12 +37,12 @@ FILE_TYPES = {
     "ghost": "u1",
 }
 TIME_DTYPES = ("float64", "float32")
+assert set(FILE_TYPES) == set(REQUIRED_FIELDS) | set(FIELDS.ids)  # one list of fields
 
 
 def check_format(fmt):
-    if fmt not in FORMATS:
-        raise OutputError(f"unknown cloud format {fmt!r}; choose one of {', '.join(FORMATS)}")
-    return fmt
+    """``fmt`` when it is a known cloud format, else ``SettingsError`` naming them."""
+    return FORMAT_CHOICES.check(fmt)
 
 
 def resolve_fields(fields):
@@ -53,7 +54,7 @@ def resolve_fields(fields):
     wanted = set(fields)
     unknown = sorted(wanted - set(FILE_TYPES))
     if unknown:
-        raise OutputError(
+        raise SettingsError(
             f"unknown point field(s) {', '.join(unknown)}; known: {', '.join(FILE_TYPES)}"
         )
     order = REQUIRED_FIELDS + tuple(f for f in FILE_TYPES if f not in REQUIRED_FIELDS)

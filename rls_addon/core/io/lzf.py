@@ -21,6 +21,8 @@ once per emitted back reference, not once per byte.
 
 import numpy as np
 
+from ..errors import InputError
+
 MAX_OFFSET = 8192  # 13-bit distance
 MAX_MATCH = 264  # 7 + 255 + 2
 MAX_LITERAL = 32
@@ -137,7 +139,7 @@ def compress(data, segments=None):
 
 
 def decompress(data, expected_size):
-    """Decode an LZF stream; raises ``ValueError`` if it is corrupt."""
+    """Decode an LZF stream; raises ``InputError`` if it is corrupt."""
     src = bytes(data)
     out = bytearray()
     ip = 0
@@ -148,23 +150,23 @@ def decompress(data, expected_size):
         if ctrl < 32:
             run = ctrl + 1
             if ip + run > n:
-                raise ValueError("LZF literal run past end of input")
+                raise InputError("LZF literal run past end of input")
             out += src[ip:ip + run]
             ip += run
             continue
         length = ctrl >> 5
         if length == 7:
             if ip >= n:
-                raise ValueError("LZF stream truncated")
+                raise InputError("LZF stream truncated")
             length += src[ip]
             ip += 1
         if ip >= n:
-            raise ValueError("LZF stream truncated")
+            raise InputError("LZF stream truncated")
         offset = ((ctrl & 31) << 8 | src[ip]) + 1
         ip += 1
         length += 2
         if offset > len(out):
-            raise ValueError("LZF back reference before start of output")
+            raise InputError("LZF back reference before start of output")
         startp = len(out) - offset
         if offset >= length:
             out += out[startp:startp + length]
@@ -173,5 +175,5 @@ def decompress(data, expected_size):
             reps = -(-length // offset)
             out += (pattern * reps)[:length]
     if len(out) != expected_size:
-        raise ValueError(f"LZF data decodes to {len(out)} bytes, expected {expected_size}")
+        raise InputError(f"LZF data decodes to {len(out)} bytes, expected {expected_size}")
     return bytes(out)

@@ -11,6 +11,8 @@ import struct
 
 import numpy as np
 
+from ..errors import InputError
+
 from . import lzf
 from .text import ascii_rows, parse_rows
 
@@ -50,7 +52,7 @@ def _columns(records):
 def encode(records, encoding):
     """Complete PCD file contents for a packed structured array."""
     if encoding not in ENCODINGS:
-        raise ValueError(f"unknown PCD encoding {encoding!r}")
+        raise InputError(f"unknown PCD encoding {encoding!r}")
     head = header(records, encoding)
     if encoding == "ascii":
         return head + ascii_rows(records)
@@ -66,7 +68,7 @@ def _parse_header(blob):
     while True:
         end = blob.find(b"\n", pos)
         if end < 0:
-            raise ValueError("PCD header has no DATA line")
+            raise InputError("PCD header has no DATA line")
         line = blob[pos:end].decode("ascii", "replace").strip()
         pos = end + 1
         if not line or line.startswith("#"):
@@ -80,17 +82,17 @@ def _parse_header(blob):
 def _dtype(meta):
     names = meta.get("FIELDS")
     if not names:
-        raise ValueError("PCD header has no FIELDS")
+        raise InputError("PCD header has no FIELDS")
     sizes = [int(v) for v in meta.get("SIZE", [])]
     types = meta.get("TYPE", [])
     counts = [int(v) for v in meta.get("COUNT", ["1"] * len(names))]
     if not (len(sizes) == len(types) == len(counts) == len(names)):
-        raise ValueError("PCD header FIELDS, SIZE, TYPE and COUNT differ in length")
+        raise InputError("PCD header FIELDS, SIZE, TYPE and COUNT differ in length")
     fields, seen = [], {}
     for name, size, typ, count in zip(names, sizes, types, counts):
         kind = {"F": "f", "U": "u", "I": "i"}.get(typ.upper())
         if kind is None:
-            raise ValueError(f"PCD field {name} has unknown TYPE {typ}")
+            raise InputError(f"PCD field {name} has unknown TYPE {typ}")
         if name == "_":  # PCL padding
             seen[name] = seen.get(name, 0) + 1
             name = f"_pad{seen['_']}"
@@ -113,14 +115,14 @@ def decode(blob):
     if encoding == "binary":
         need = dt.itemsize * n
         if len(blob) - pos < need:
-            raise ValueError(f"PCD binary data is {len(blob) - pos} bytes, expected {need}")
+            raise InputError(f"PCD binary data is {len(blob) - pos} bytes, expected {need}")
         return np.frombuffer(blob, dtype=dt, count=n, offset=pos).copy()
     if encoding == "binary_compressed":
         if n == 0 and len(blob) - pos < 8:
             return np.empty(0, dtype=dt)
         csize, usize = struct.unpack_from("<II", blob, pos)
         if usize != dt.itemsize * n:
-            raise ValueError(f"PCD compressed data holds {usize} bytes, expected {dt.itemsize * n}")
+            raise InputError(f"PCD compressed data holds {usize} bytes, expected {dt.itemsize * n}")
         raw = lzf.decompress(blob[pos + 8:pos + 8 + csize], usize)
         out = np.empty(n, dtype=dt)
         off = 0
@@ -130,4 +132,4 @@ def decode(blob):
             out[f] = np.frombuffer(raw, dtype=sub.base, count=n * max(1, int(np.prod(sub.shape))), offset=off).reshape(out[f].shape)
             off += size
         return out
-    raise ValueError(f"unknown PCD DATA encoding {encoding!r}")
+    raise InputError(f"unknown PCD DATA encoding {encoding!r}")

@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from ..errors import InputError
+
 from .text import ascii_rows, parse_rows
 
 ENCODINGS = ("ascii", "binary_little_endian")
@@ -27,7 +29,7 @@ def header(records, encoding):
 
 def encode(records, encoding):
     if encoding not in ENCODINGS:
-        raise ValueError(f"unknown PLY encoding {encoding!r}")
+        raise InputError(f"unknown PLY encoding {encoding!r}")
     head = header(records, encoding)
     if encoding == "ascii":
         return head + ascii_rows(records)
@@ -38,7 +40,7 @@ def decode(blob):
     """Structured array of the ``vertex`` element's scalar properties."""
     end = blob.find(b"end_header")
     if not blob.startswith(b"ply") or end < 0:
-        raise ValueError("not a PLY file (no 'ply' magic or no end_header)")
+        raise InputError("not a PLY file (no 'ply' magic or no end_header)")
     nl = blob.find(b"\n", end)
     body = nl + 1 if nl >= 0 else len(blob)
     lines = blob[:end].decode("ascii", "replace").splitlines()
@@ -53,20 +55,20 @@ def decode(blob):
             elements.append((parts[1], int(parts[2]), []))
         elif parts[0] == "property":
             if not elements:
-                raise ValueError("PLY property before any element")
+                raise InputError("PLY property before any element")
             if parts[1] == "list":
                 elements[-1][2].append((parts[4], None))
             else:
                 if parts[1] not in _TYPE:
-                    raise ValueError(f"unknown PLY property type {parts[1]}")
+                    raise InputError(f"unknown PLY property type {parts[1]}")
                 elements[-1][2].append((parts[2], _TYPE[parts[1]]))
     if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise ValueError(f"unsupported PLY format {fmt!r}")
+        raise InputError(f"unsupported PLY format {fmt!r}")
     if not elements or elements[0][0] != "vertex":
-        raise ValueError("PLY file does not start with a vertex element")
+        raise InputError("PLY file does not start with a vertex element")
     _, n, props = elements[0]
     if any(t is None for _, t in props):
-        raise ValueError("PLY vertex element has list properties, which clouds do not use")
+        raise InputError("PLY vertex element has list properties, which clouds do not use")
     order = "<" if fmt != "binary_big_endian" else ">"
     dt = np.dtype([(name, order + t if t[1] != "1" else t) for name, t in props])
     if fmt == "ascii":
@@ -75,6 +77,6 @@ def decode(blob):
         return parse_rows("\n".join(rows), dt, n)
     need = dt.itemsize * n
     if len(blob) - body < need:
-        raise ValueError(f"PLY vertex data is {len(blob) - body} bytes, expected {need}")
+        raise InputError(f"PLY vertex data is {len(blob) - body} bytes, expected {need}")
     out = np.frombuffer(blob, dtype=dt, count=n, offset=body)
     return out.copy()

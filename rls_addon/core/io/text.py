@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from ..errors import InputError
+
 
 def _spec(dt):
     if dt.kind == "f":
@@ -29,7 +31,7 @@ def parse_rows(text, dtype, count):
     width = sum(flat)
     tokens = text.split()
     if len(tokens) < width * count:
-        raise ValueError(f"expected {count} rows of {width} values, found {len(tokens)} values")
+        raise InputError(f"expected {count} rows of {width} values, found {len(tokens)} values")
     out = np.empty(count, dtype=dtype)
     if count == 0:
         return out

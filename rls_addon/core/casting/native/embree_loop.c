@@ -7,7 +7,7 @@
  * that are neighbours in that order share a packet; results go back to each ray's own
  * slot). With a plane table, every hit is then refined
  * in float64 against its triangle's plane along the original ray (what
- * rls_addon/core/raycast.py:refine_hits does in numpy), and the triangle's unit normal
+ * rls_addon/core/casting/base.py:refine_hits does in numpy), and the triangle's unit normal
  * is written out, in the same worker thread while the triangle's data is warm.
  * Rays may carry a scene time (for instances with motion time steps); then the
  * instance each hit lies in is written out too. With an instance table, instance i's
@@ -21,7 +21,7 @@
  *
  * No Embree header is needed: the caller passes the address of rtcIntersect16 from
  * the libembree4 already loaded by the embreex wheel, and the RTCRayHit16 layout
- * (offsets in 4-byte words) is the one rls_addon/core/embree_caster.py checks with a
+ * (offsets in 4-byte words) is the one rls_addon/core/casting/embree.py checks with a
  * probe packet before using either path.
  *
  * Built by tools/build_native.py (gcc -O2 -shared -fPIC -pthread). */

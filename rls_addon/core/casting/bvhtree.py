@@ -1,4 +1,5 @@
-"""Ray casting on Blender's ``mathutils.bvhtree.BVHTree``.
+"""Ray casting on Blender's ``mathutils.bvhtree.BVHTree`` (``mathutils`` is imported
+when a caster is built, so the core still imports without Blender).
 
 The per-ray ``ray_cast`` call is the only Python loop in a scan. It runs as one chain
 of C iterators (``map`` -> ``itemgetter`` -> ``chain`` -> ``np.fromiter``), so no
@@ -17,6 +18,8 @@ from operator import itemgetter
 
 import numpy as np
 
+from .base import CasterBase
+
 _INDEX_DIST = itemgetter(2, 3)
 
 
@@ -32,7 +35,9 @@ def gc_paused():
             gc.enable()
 
 
-class BVHCaster:
+class BVHCaster(CasterBase):
+    """Blender's BVHTree, one ``ray_cast`` call per ray from a C-level iterator chain."""
+
     name = "bvhtree"
 
     def __init__(self, vertices, triangles):

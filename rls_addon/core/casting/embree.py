@@ -1,18 +1,18 @@
 """Ray casting on Intel Embree 4 through the ``embreex`` wheel (optional dependency).
 
-Same interface as ``raycast.NumpyCaster``:
+Same interface as ``casting.NumpyCaster``:
 
     caster = EmbreeCaster(vertices (V,3) float64, triangles (T,3) int)
     dist, tri = caster.cast(origins (1,3) or (N,3), directions (N,3) unit, max_dist)
 
 ``dist`` float64 (inf for a miss), ``tri`` int64 (-1 for a miss). Embree works in
 float32; the engine recomputes every range exactly in float64 afterwards
-(``raycast.refine_hits``), so Embree only decides which triangle a ray hits.
+(``casting.refine_hits``), so Embree only decides which triangle a ray hits.
 
 Two ways to drive Embree, chosen automatically (``mode="auto"``):
 
 ``packets``  Calls ``rtcIntersect16`` of the Embree library that the ``embreex`` wheel
-             bundles. With the compiled loop (``rls_addon/native``, built by
+             bundles. With the compiled loop (``native/`` beside this file, built by
              ``tools/build_native.py`` and shipped in the Linux zip) one ``ctypes`` call
              casts every ray on its own threads without the GIL; without it, 16-ray
              packets laid out by numpy go through ``ctypes`` from a thread pool (the
@@ -31,6 +31,9 @@ import os
 import threading
 
 import numpy as np
+
+from ..errors import CastingError, SettingsError
+from .base import CasterBase
 
 _LOCK = threading.RLock()
 _LIB = None          # ctypes handle on libembree4, or False when not usable
@@ -55,7 +58,6 @@ _ORG, _TNEAR, _DIR, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 48, 64, 112, 128, 144,
 _PRIM, _GEOM, _INST = 272, 288, 304
 _STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
 _CHUNK_PACKETS = 2048  # at most 32768 rays per task (3 MiB of packet buffer per thread)
-_USE_MAP = True
 _SERIAL_BELOW = 8192  # small batches (moving objects, re-checks): the pool's handoff costs more
 _TASKS_PER_THREAD = 2  # few tasks: each one costs GIL-bound numpy work; 2 per thread balances load
 
@@ -148,7 +150,7 @@ def _bind(lib):
         fn.restype, fn.argtypes = res, args
 
 
-_NATIVE = None  # ctypes handle on rls_addon/native/_rls_embree_loop.so, or False
+_NATIVE = None  # ctypes handle on native/_rls_embree_loop.so (next to this file), or False
 
 
 def _native_loop():
@@ -157,7 +159,7 @@ def _native_loop():
     global _NATIVE
     with _LOCK:
         if _NATIVE is None:
-            path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+            path = os.path.join(os.path.dirname(os.path.abspath(__file__)),
                                 "native", "_rls_embree_loop.so")
             try:
                 lib = ctypes.CDLL(path)
@@ -331,7 +333,7 @@ class _MotionScene(_SceneBase):
                                      dtype=np.float32)
             if not 1 <= len(m) <= _MAX_TIME_STEPS:
                 self.release()
-                raise ValueError(f"an instance needs 1 to {_MAX_TIME_STEPS} time steps")
+                raise CastingError(f"an instance needs 1 to {_MAX_TIME_STEPS} time steps")
             geom = lib.rtcNewGeometry(self.device, _GEOMETRY_TYPE_INSTANCE)
             lib.rtcSetGeometryInstancedScene(geom, scene.handle)
             lib.rtcSetGeometryTimeStepCount(geom, len(m))
@@ -363,16 +365,16 @@ def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=
     o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
     n = d.shape[0]
     if o.shape[0] not in (1, n):
-        raise ValueError("origins must be (1, 3) or one per direction")
+        raise CastingError("origins must be (1, 3) or one per direction")
     pl = None
     if planes is not None:
         pl = np.ascontiguousarray(planes, dtype=np.float64)
         if pl.shape != (triangle_count, 4):
-            raise ValueError("planes must hold one (nx, ny, nz, offset) row per triangle")
+            raise CastingError("planes must hold one (nx, ny, nz, offset) row per triangle")
     if order is not None:
         order = np.ascontiguousarray(order, dtype=np.int64)
         if order.shape != (n,):
-            raise ValueError("order must hold one index per ray")
+            raise CastingError("order must hold one index per ray")
     tm = None
     if times is not None:
         tm = np.ascontiguousarray(np.clip(np.broadcast_to(times, (n,)), 0.0, 1.0),
@@ -425,7 +427,7 @@ class _Batch:
         self._wait()
 
 
-class EmbreeCaster:
+class EmbreeCaster(CasterBase):
     """Embree 4 (via ``embreex``) closest-hit ray casting; see the module docstring.
 
     threads  worker threads for packet mode (default: the CPUs this process may use)
@@ -444,9 +446,10 @@ class EmbreeCaster:
         self.use_native = bool(native)
         lib = _packet_library() if mode in ("auto", "packets") else None
         if mode == "packets" and lib is None:
-            raise RuntimeError(f"Embree packet mode is not usable here ({_LIB_ERROR})")
+            raise CastingError(f"Embree packet mode is not usable here ({_LIB_ERROR})")
         if mode not in ("auto", "packets", "embreex"):
-            raise ValueError(f"unknown Embree mode {mode!r}")
+            raise SettingsError(f"unknown Embree mode {mode!r}; choose one of auto, "
+                                "packets, embreex")
         self._scene = self._es = None
         if len(t) == 0:
             self.mode = "empty"
@@ -466,7 +469,7 @@ class EmbreeCaster:
 
     @classmethod
     def behind_watertight(cls, vertices, triangles):
-        """The build ``raycast.WatertightCaster`` casts through: Embree's robust mode
+        """The build ``casting.WatertightCaster`` casts through: Embree's robust mode
         off. The wrapper re-checks every miss, so robust traversal buys nothing there;
         without it a Pandar64 frame's cast on the benchmark street is ~14% faster
         (robust Embree let 0 of 2M rays aimed at shared edges escape, the fast build
@@ -493,7 +496,7 @@ class EmbreeCaster:
         if n == 0 or self.mode == "empty":
             return dist, tri
         if o.shape[0] not in (1, n):
-            raise ValueError("origins must be (1, 3) or one per direction")
+            raise CastingError("origins must be (1, 3) or one per direction")
         tfar = np.float32(min(float(max_dist), 3.0e38))
         if self.mode == "embreex":
             ob = np.ascontiguousarray(np.broadcast_to(o, d.shape))
@@ -516,7 +519,7 @@ class EmbreeCaster:
     def cast_refined(self, origins, directions, max_dist, planes, order=None):
         """(dist, tri, unit normals) with every hit refined in float64 against its
         triangle's plane (``planes``: (T, 4) rows nx, ny, nz, n.v0, see
-        ``raycast.triangle_planes``), fused into the compiled loop; None when the loop
+        ``casting.triangle_planes``), fused into the compiled loop; None when the loop
         is not available (the caller then refines in numpy). ``order``: an optional
         permutation of the rays to trace them in (neighbours in it share packets: a
         coherent order is faster); the results are the same."""
@@ -546,13 +549,9 @@ class EmbreeCaster:
         fn, valid, scene = self._scene.lib.rtcIntersect16, self._valid.ctypes.data, \
             self._scene.handle
         base = b.ctypes.data
-        if _USE_MAP:
-            # One C-level loop: the GIL is held only for ctypes' own call setup.
-            deque(map(fn, repeat(valid, p), repeat(scene, p),
-                      range(base, base + p * _STRIDE * 4, _STRIDE * 4), repeat(None, p)), 0)
-        else:
-            for addr in range(base, base + p * _STRIDE * 4, _STRIDE * 4):
-                fn(valid, scene, addr, None)
+        # One C-level loop: the GIL is held only for ctypes' own call setup.
+        deque(map(fn, repeat(valid, p), repeat(scene, p),
+                  range(base, base + p * _STRIDE * 4, _STRIDE * 4), repeat(None, p)), 0)
         # Results straight into the caller's arrays, whole packets as (P, 16) views:
         # few temporaries (large ones are page-faulted fresh and slow the threads).
         words = b.view(np.uint32)
@@ -598,7 +597,7 @@ class EmbreeInstances:
     instance it lies in (``placed`` order) and the triangle within it.
 
     placed  [(caster, matrices (4, 4) or (S, 4, 4), planes or None)]; an instance's
-            planes (``raycast.triangle_planes`` of its caster's triangles) let the
+            planes (``casting.triangle_planes`` of its caster's triangles) let the
             compiled loop refine its hits in float64: in the instance's coordinates,
             with the matrix interpolated at the ray's time as Embree does.
 
@@ -608,7 +607,7 @@ class EmbreeInstances:
 
     def __init__(self, placed):
         if not self.usable(*(c for c, _, _ in placed)):
-            raise RuntimeError("Embree instancing needs the compiled loop and packet mode")
+            raise CastingError("Embree instancing needs the compiled loop and packet mode")
         self.casters = [c for c, _, _ in placed]
         self.threads = max((c.threads for c in self.casters), default=1)
         self._scene = _MotionScene(_packet_library(),
@@ -619,7 +618,7 @@ class EmbreeInstances:
     def usable(*casters):
         """True when these casters can be instanced (packet mode, compiled loop, and
         the per-process instancing check passed)."""
-        if not all(getattr(c, "mode", None) == "packets" and getattr(c, "use_native", False)
+        if not all(isinstance(c, EmbreeCaster) and c.mode == "packets" and c.use_native
                    for c in casters):
             return False
         return _instancing_works()
@@ -632,7 +631,7 @@ class EmbreeInstances:
                       times=times, instances=self._tables[:3], threads=self.threads,
                       keep=self)
         if got is None:
-            raise RuntimeError("the compiled Embree loop could not start")
+            raise CastingError("the compiled Embree loop could not start")
         return got
 
     def close(self):
@@ -641,7 +640,7 @@ class EmbreeInstances:
             scene.release()
 
 
-EmbreeCaster.instances = EmbreeInstances  # what instancing.InstancedWorld looks for
+EmbreeCaster.instances = EmbreeInstances  # this backend traces moving instances
 
 
 def _instance_tables(placed):
@@ -660,7 +659,7 @@ def _instance_tables(placed):
         if pl is not None:
             pl = np.ascontiguousarray(pl, dtype=np.float64)
             if pl.shape != (c.triangle_count, 4):
-                raise ValueError("planes must hold one row per triangle of the instance")
+                raise CastingError("planes must hold one row per triangle of the instance")
         planes.append(pl)
     planes_of = (ctypes.c_void_p * max(len(placed), 1))(
         *[None if pl is None else pl.ctypes.data for pl in planes])

@@ -1,133 +1,9 @@
-"""Ray casting backends share one small interface:
-
-    caster = factory(vertices (V,3) float64, triangles (T,3) int)
-    dist, tri = caster.cast(origins (N,3) float64, directions (N,3) float64 unit, max_dist)
-
-``dist`` is float64 (inf where nothing was hit), ``tri`` int64 (-1 for a miss) indexes
-the triangles given to the factory. The Blender layer provides the BVHTree backend;
-this module holds a brute-force numpy reference, exact in float64, for tests and tiny
-scenes.
-"""
+"""Watertight casting over any backend: rays aimed exactly at a shared edge or vertex
+never slip between the triangles (see ``WatertightCaster``)."""
 
 import numpy as np
 
-
-class NumpyCaster:
-    """Brute-force Moller-Trumbore intersection over all triangles, in chunks.
-
-    Costs O(rays x triangles): meant as an exact reference for tests, not for scenes.
-    Edges and vertices are closed (a ray through a shared edge hits one of the faces).
-    """
-
-    name = "numpy"
-
-    def __init__(self, vertices, triangles, chunk=2_000_000):
-        v = np.asarray(vertices, dtype=np.float64)
-        t = np.asarray(triangles, dtype=np.int64).reshape(-1, 3)
-        self.v0 = v[t[:, 0]]
-        self.e1 = v[t[:, 1]] - self.v0
-        self.e2 = v[t[:, 2]] - self.v0
-        self.chunk = chunk
-
-    def cast(self, origins, directions, max_dist):
-        o = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
-        d = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-        n = d.shape[0]
-        if o.shape[0] == 1 and n != 1:
-            o = np.broadcast_to(o, d.shape)
-        dist = np.full(n, np.inf)
-        tri = np.full(n, -1, dtype=np.int64)
-        m = self.v0.shape[0]
-        if m == 0 or n == 0:
-            return dist, tri
-        step = max(1, self.chunk // m)
-        for s in range(0, n, step):
-            dd, oo = d[s:s + step, None, :], o[s:s + step, None, :]
-            p = np.cross(dd, self.e2[None])
-            det = np.einsum("ijk,jk->ij", p, self.e1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                inv = 1.0 / det
-                tv = oo - self.v0[None]
-                u = np.einsum("ijk,ijk->ij", tv, p) * inv
-                q = np.cross(tv, self.e1[None])
-                w = np.einsum("ijk,ik->ij", q, d[s:s + step]) * inv
-                t = np.einsum("ijk,jk->ij", q, self.e2) * inv
-                eps = 1e-12
-                ok = (np.abs(det) > 1e-300) & (u >= -eps) & (w >= -eps) & (u + w <= 1 + eps)
-                ok &= (t > 0) & (t <= max_dist)
-            t = np.where(ok, t, np.inf)
-            j = np.argmin(t, axis=1)
-            best = t[np.arange(t.shape[0]), j]
-            hit = np.isfinite(best)
-            dist[s:s + step] = best
-            tri[s:s + step] = np.where(hit, j, -1)
-        return dist, tri
-
-
-def triangle_planes(vertices, triangles):
-    """Plane of each triangle as a (T, 4) float64 table: unit normal (nx, ny, nz) and
-    offset n . v0 (degenerate triangles get NaN rows)."""
-    t = np.asarray(triangles, np.int64).reshape(-1, 3)
-    v0 = vertices[t[:, 0]]
-    out = np.empty((len(t), 4))
-    n = out[:, :3]
-    n[:] = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        n /= np.linalg.norm(n, axis=1, keepdims=True)
-    out[:, 3] = np.einsum("ij,ij->i", n, v0)
-    return out
-
-
-# Below this |cos| between ray and plane the float64 plane answer is ill-conditioned
-# (grazing): the backend's own distance is kept (as the compiled Embree loop does).
-GRAZING = 1e-6
-
-
-def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None):
-    """Recompute hit distances exactly in float64 against each hit triangle's plane.
-
-    Backends that work in float32 (BVHTree, Embree) then only decide *which*
-    triangle was hit; the range itself is exact. ``planes`` is the triangles'
-    ``triangle_planes`` table when precomputed. Returns (dist, unit normals) with the
-    normal of every hit triangle (zeros for misses).
-    """
-    dist = np.array(dist, dtype=np.float64, copy=True)
-    normals = np.zeros((dist.shape[0], 3))
-    hit = np.nonzero(tri >= 0)[0]
-    if len(hit) == 0:
-        return dist, normals
-    th = tri[hit]
-    pl = triangle_planes(vertices, np.asarray(triangles, np.int64)[th]) if planes is None \
-        else planes[th]
-    n, off = pl[:, :3], pl[:, 3]
-    o = np.asarray(origins, np.float64).reshape(-1, 3)
-    d = directions[hit]
-    denom = np.einsum("ij,ij->i", n, d)
-    no = (n @ o[0]) if o.shape[0] == 1 else np.einsum("ij,ij->i", n, o[hit])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        exact = (off - no) / denom
-    # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
-    # where the float64 answer is ill-conditioned anyway.
-    use = np.isfinite(exact) & (np.abs(denom) > GRAZING) & (exact > 0)
-    dist[hit[use]] = exact[use]
-    normals[hit] = n
-    return dist, normals
-
-
-def cast_exact(caster, origins, directions, max_dist, planes, order=None):
-    """Cast and refine: (dist, tri, unit normals), every hit's range recomputed in
-    float64 against its plane (``planes`` from ``triangle_planes`` of the caster's
-    triangles). Backends that can fuse the two (``cast_refined``, the compiled Embree
-    loop) do it while casting; the others are refined here with ``refine_hits``.
-    ``order``: an optional permutation to trace the rays in (a coherent order is
-    faster where the backend traces rays in packets; the results do not change)."""
-    fused = getattr(caster, "cast_refined", None)
-    got = fused(origins, directions, max_dist, planes, order) if fused is not None else None
-    if got is not None:
-        return got
-    dist, tri = caster.cast(origins, directions, max_dist)
-    dist, normals = refine_hits(None, None, origins, directions, dist, tri, planes)
-    return dist, tri, normals
+from .base import CasterBase, cast_exact, refine_hits
 
 
 # Generic (irrational-ish) vectors used to pick a perpendicular nudge for each retry.
@@ -185,7 +61,7 @@ def outside_distance(vertices, triangles, tri, origins, directions):
     return np.where(np.isfinite(out) & (s > 0), out, np.inf)
 
 
-class WatertightCaster:
+class WatertightCaster(CasterBase):
     """Makes any backend's float32 traversal watertight for rays that miss.
 
     Backends in float32 (BVHTree) let a ray aimed exactly at a shared edge or vertex
@@ -202,8 +78,8 @@ class WatertightCaster:
     def __init__(self, factory, vertices, triangles, groups=None, cell=None):
         # A backend may offer a faster build for use behind this wrapper (Embree without
         # its robust mode): edge-exactness is this class's job then.
-        self.primary = getattr(factory, "behind_watertight", factory)(vertices, triangles)
-        self.name = getattr(self.primary, "name", "caster")
+        self.primary = factory.behind_watertight(vertices, triangles)
+        self.name = self.primary.name
         v = np.asarray(vertices, np.float64)
         tv = v[np.asarray(triangles, np.int64)]
         lo_all, hi_all = tv.reshape(-1, 3).min(0), tv.reshape(-1, 3).max(0)
@@ -226,14 +102,18 @@ class WatertightCaster:
         self._recheck(o, d, max_dist, dist, tri)
         return dist, tri
 
-    def cast_refined(self, origins, directions, max_dist, planes, order=None):
+    def start_refined(self, origins, directions, max_dist, planes, order=None):
         """``cast`` with every hit refined (see ``cast_exact``): the primary cast is
-        refined by its backend, the few rays won back by the re-check here."""
+        refined by its backend, the few rays won back by the re-check here. Casts
+        right away (the re-check needs the primary cast's misses)."""
         d = np.asarray(directions, np.float64)
         o = np.asarray(origins, np.float64).reshape(-1, 3)
         dist, tri, normals = cast_exact(self.primary, o, d, max_dist, planes, order)
         self.win_back(o, d, max_dist, planes, dist, tri, normals)
-        return dist, tri, normals
+        return lambda: (dist, tri, normals)
+
+    def describe(self):
+        return self.primary.describe()
 
     def win_back(self, o, d, max_dist, planes, dist, tri, normals, limit=None):
         """Re-check the misses (``tri`` -1) of a refined cast of the primary build and

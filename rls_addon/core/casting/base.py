@@ -1,0 +1,145 @@
+"""What every ray-casting backend must do, what it may do, and the float64 refinement
+that makes every backend's ranges exact.
+
+A backend is a class (the *factory*) built on one set of triangles:
+
+    caster = Backend(vertices (V,3) float64, triangles (T,3) int)
+    dist, tri = caster.cast(origins (1,3) or (N,3) float64, directions (N,3) unit, max_dist)
+
+``dist`` is float64 (inf where nothing was hit), ``tri`` int64 (-1 for a miss) indexes
+the triangles given to the constructor. That is all a backend *must* do (``Caster``).
+What it *may* do is declared on ``CasterBase``, whose defaults say "not offered":
+
+- ``start_refined``: cast and refine every hit in float64 without Python (the compiled
+  Embree loop), returning a function that waits for the result; else None and the
+  engine refines in numpy (``cast_exact``).
+- ``behind_watertight``: the build to use behind ``WatertightCaster``, which re-checks
+  misses itself (Embree drops its slower robust mode there).
+- ``instances``: a class that traces several casters of this backend as instances in
+  one traversal, with per-ray times (Embree); None: each moving object is cast on its
+  own (``bodies.RigidBodies``).
+
+Kept static casts need nothing from a backend: ``bodies.PreparedScene`` keeps its last
+cast of a still sensor's rays and gives it back.
+
+The backends: ``numpy_caster.NumpyCaster`` (brute force, exact, for tests and tiny
+scenes), ``bvhtree.BVHCaster`` (Blender's BVHTree), ``embree.EmbreeCaster`` (Intel
+Embree with the compiled loop in ``native/``); ``casting.caster_factory`` picks one
+by name.
+"""
+
+from typing import Callable, Protocol
+
+import numpy as np
+
+
+class Caster(Protocol):
+    """The one thing every backend must do (see the module docstring)."""
+
+    name: str
+
+    def cast(self, origins: np.ndarray, directions: np.ndarray,
+             max_dist: float) -> tuple[np.ndarray, np.ndarray]: ...
+
+
+class CasterBase:
+    """Base of the backends: ``cast`` to implement, the optional abilities declared with
+    their "not offered" defaults (see the module docstring)."""
+
+    name = "caster"
+    instances = None  # class tracing casters of this backend as moving instances, or None
+
+    def cast(self, origins, directions, max_dist):
+        raise NotImplementedError
+
+    @classmethod
+    def behind_watertight(cls, vertices, triangles):
+        """The build ``WatertightCaster`` casts through (default: the usual one)."""
+        return cls(vertices, triangles)
+
+    def start_refined(self, origins, directions, max_dist, planes,
+                      order=None) -> Callable | None:
+        """Start a cast whose hits are refined in float64 against ``planes`` (see
+        ``cast_exact``); a function giving (dist, tri, unit normals), or None when
+        this backend cannot (then ``cast_exact`` refines in numpy)."""
+        return None
+
+    def describe(self):
+        """The backend and how it runs, for reports."""
+        return self.name
+
+    @classmethod
+    def configured(cls, **options):
+        """This backend with fixed constructor options, as a factory of its own (e.g.
+        ``EmbreeCaster.configured(mode="embreex")``); options given at a build win
+        (e.g. ``behind_watertight``'s)."""
+        return type(f"{cls.__name__}Configured", (cls,), {
+            "__init__": lambda self, v, t, **more: cls.__init__(self, v, t,
+                                                                 **{**options, **more})})
+
+
+def triangle_planes(vertices, triangles):
+    """Plane of each triangle as a (T, 4) float64 table: unit normal (nx, ny, nz) and
+    offset n . v0 (degenerate triangles get NaN rows)."""
+    t = np.asarray(triangles, np.int64).reshape(-1, 3)
+    v0 = vertices[t[:, 0]]
+    out = np.empty((len(t), 4))
+    n = out[:, :3]
+    n[:] = np.cross(vertices[t[:, 1]] - v0, vertices[t[:, 2]] - v0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+    out[:, 3] = np.einsum("ij,ij->i", n, v0)
+    return out
+
+
+# Below this |cos| between ray and plane the float64 plane answer is ill-conditioned
+# (grazing): the backend's own distance is kept (as the compiled Embree loop does).
+GRAZING = 1e-6
+
+
+def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None):
+    """Recompute hit distances exactly in float64 against each hit triangle's plane.
+
+    Backends that work in float32 (BVHTree, Embree) then only decide *which*
+    triangle was hit; the range itself is exact. ``planes`` is the triangles'
+    ``triangle_planes`` table when precomputed. Returns (dist, unit normals) with the
+    normal of every hit triangle (zeros for misses).
+    """
+    dist = np.array(dist, dtype=np.float64, copy=True)
+    normals = np.zeros((dist.shape[0], 3))
+    hit = np.nonzero(tri >= 0)[0]
+    if len(hit) == 0:
+        return dist, normals
+    th = tri[hit]
+    pl = triangle_planes(vertices, np.asarray(triangles, np.int64)[th]) if planes is None \
+        else planes[th]
+    n, off = pl[:, :3], pl[:, 3]
+    o = np.asarray(origins, np.float64).reshape(-1, 3)
+    d = directions[hit]
+    denom = np.einsum("ij,ij->i", n, d)
+    no = (n @ o[0]) if o.shape[0] == 1 else np.einsum("ij,ij->i", n, o[hit])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        exact = (off - no) / denom
+    # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
+    # where the float64 answer is ill-conditioned anyway.
+    use = np.isfinite(exact) & (np.abs(denom) > GRAZING) & (exact > 0)
+    dist[hit[use]] = exact[use]
+    normals[hit] = n
+    return dist, normals
+
+
+def cast_exact(caster, origins, directions, max_dist, planes, order=None):
+    """Cast and refine: (dist, tri, unit normals), every hit's range recomputed in
+    float64 against its plane (``planes`` from ``triangle_planes`` of the caster's
+    triangles). Backends that can fuse the two (``start_refined``, the compiled Embree
+    loop) do it while casting; the others are refined here with ``refine_hits``.
+    ``order``: an optional permutation to trace the rays in (a coherent order is
+    faster where the backend traces rays in packets; the results do not change)."""
+    pending = caster.start_refined(origins, directions, max_dist, planes, order)
+    if pending is not None:
+        return pending()
+    dist, tri = caster.cast(origins, directions, max_dist)
+    dist, normals = refine_hits(None, None, origins, directions, dist, tri, planes)
+    return dist, tri, normals
+
+

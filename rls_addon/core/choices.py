@@ -1,0 +1,88 @@
+"""Every enumeration a user chooses from, defined once: the core validates with it,
+Blender's ``EnumProperty`` items and argparse's ``choices`` are made from it.
+
+    MOTION.ids                 ('exact', 'substeps', 'snapshot')
+    MOTION.items()             [(id, label, description), ...] for an EnumProperty
+    MOTION.check("fast")       SettingsError: unknown motion mode 'fast'; choose one of ...
+"""
+
+from dataclasses import dataclass
+
+from .errors import SettingsError
+
+
+@dataclass(frozen=True)
+class Choice:
+    id: str
+    label: str
+    description: str
+
+
+class Choices:
+    """An ordered set of named choices (``what`` names the setting in messages)."""
+
+    def __init__(self, what, choices):
+        self.what = what
+        self.choices = tuple(Choice(*c) for c in choices)
+        self.ids = tuple(c.id for c in self.choices)
+
+    def __iter__(self):
+        return iter(self.choices)
+
+    def __contains__(self, value):
+        return value in self.ids
+
+    def items(self):
+        """(id, label, description) tuples, as ``bpy.props.EnumProperty(items=...)`` takes."""
+        return [(c.id, c.label, c.description) for c in self.choices]
+
+    def label(self, value):
+        return next(c.label for c in self.choices if c.id == value)
+
+    def check(self, value):
+        """``value`` when it is one of the choices, else ``SettingsError`` naming them."""
+        if value not in self.ids:
+            raise SettingsError(f"unknown {self.what} {value!r}; choose one of "
+                                + ", ".join(self.ids))
+        return value
+
+
+MOTION = Choices("motion mode", [
+    ("exact", "Exact", "Every ray sees the scene at its own firing time (moving objects and "
+                       "a moving sensor distort the cloud as on a real device)"),
+    ("substeps", "Sub-steps", "The sweep is split into N partial sweeps, each with one scene "
+                              "state (the paper's method; N = 0 chooses N from how far "
+                              "things move)"),
+    ("snapshot", "Snapshot", "One scene state per frame, as CARLA: no motion distortion"),
+])
+
+BACKENDS = Choices("ray-casting backend", [
+    ("auto", "Automatic", "Embree (bundled, all cores) when available, else Blender's BVHTree"),
+    ("bvhtree", "BVHTree", "Blender's BVHTree: always available, one core"),
+    ("embree", "Embree", "Intel Embree from the bundled embreex wheel (falls back to BVHTree "
+                         "with a notice where it is missing)"),
+])
+
+FORMATS = Choices("cloud format", [
+    ("pcd_binary", "PCD binary", "PCD v0.7, binary"),
+    ("pcd_binary_compressed", "PCD binary compressed", "PCD v0.7, LZF-compressed binary"),
+    ("pcd_ascii", "PCD ASCII", "PCD v0.7, text"),
+    ("ply_binary", "PLY binary", "PLY, binary little endian"),
+    ("ply_ascii", "PLY ASCII", "PLY, text"),
+])
+
+FRAME_SPACES = Choices("coordinate frame", [
+    ("sensor", "Sensor", "Point coordinates in the sensor frame (as the device reports them)"),
+    ("world", "World", "Point coordinates in world space"),
+])
+
+# Optional point fields of a cloud file (x, y, z are always written).
+FIELDS = Choices("point field", [
+    ("intensity", "Intensity", "Return strength, 0..1 (float32)"),
+    ("ring", "Ring", "Vendor channel index (uint16)"),
+    ("time", "Time", "Seconds since the start of the sweep (float64)"),
+    ("label", "Label", "Semantic class id (uint32)"),
+    ("instance", "Instance", "Per-object id (uint32)"),
+    ("ghost", "Ghost", "1 for ghost points from glossy surfaces (uint8)"),
+    ("range", "Range", "Distance along the ray in metres (float32)"),
+])

@@ -1,0 +1,262 @@
+"""One frame of one sensor: from a prepared scene, the moving bodies and a scan pattern
+to points. The per-ray pipeline after casting (ranges, ghosts, intensity, noise,
+dropout, point records) lives here; what is cast into is in ``bodies`` and ``world``.
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import blas, effects, ghost
+from .bodies import PreparedScene
+from .errors import SceneError
+from .motion import effective_times, polar
+from .points import POINT_DTYPE
+from .settings import resolve_range
+from .sweep import adaptive_substeps
+from .world import World
+
+
+@dataclass
+class ScanResult:
+    points: np.ndarray
+    rays: int
+    triangles: int
+    seconds: float
+    warnings: list = field(default_factory=list)
+    stats: dict = field(default_factory=dict)
+
+
+def sensor_axes(sensor_to_world):
+    """Origins and orthonormal rotations of 4x4 poses (one (4, 4) or a stack (N, 4, 4));
+    scale and shear are removed, and a mirrored sensor still looks along its own axes."""
+    m = np.asarray(sensor_to_world, dtype=np.float64)
+    rot, _ = polar(m.reshape(-1, 4, 4)[:, :3, :3])
+    return m[..., :3, 3].copy(), rot.reshape(m.shape[:-2] + (3, 3))
+
+
+@dataclass
+class Returns:
+    """What each ray of the pattern brought back, one row per ray (kept per ray, not
+    compacted per hit, so no step copies the records: rows are selected once, for the
+    points)."""
+
+    valid: np.ndarray     # the ray returned a point within range
+    dist: np.ndarray      # range (for ghosts: total path a + b)
+    surface: np.ndarray   # (N, 2) object and material index of what sent the light back
+    normals: np.ndarray   # unit normal of that surface
+    ghost: np.ndarray | None = None  # uint8 flag per ray (None: no ghosts)
+
+
+class _Bounces:
+    """Ghost points from glossy surfaces, in two steps around the frame's other work.
+
+    ``__init__`` picks a seeded share of the glossy returns (drawn per ray, so one
+    ray's fate never depends on which other rays returned) and starts casting their
+    reflected beams (see ``World.start_cast``: with the compiled Embree loop the
+    frame's per-ray shading goes on meanwhile).
+    ``finish`` turns the beams that found something into ghost points at total path
+    a + b along the original beam, labelled as what the reflected beam found; glossy
+    returns whose reflected beam finds nothing return nothing."""
+
+    def __init__(self, world, rng, origins, dirs, times, ret, rmax):
+        self.world, self.rmax = world, rmax
+        obj_glossy, mat_glossy, mat_ratio = ghost.glossy_tables(world.geometry,
+                                                                ghost.glossy_labels())
+        obj, mat = ret.surface[:, 0], ret.surface[:, 1]
+        glossy = mat_glossy[mat]
+        if obj_glossy.any():
+            glossy |= obj_glossy[obj]
+        cand = np.nonzero(glossy & ret.valid)[0]
+        self.stats = {"glossy_hits": int(len(cand)), "ghosts": 0, "bounce_rays": 0}
+        self.chosen = cand[rng.random(len(ret.dist))[cand] < mat_ratio[mat[cand]]] \
+            if len(cand) else cand
+        self.stats["bounce_rays"] = int(len(self.chosen))
+        self.pending = None
+        if len(self.chosen) == 0:
+            return
+        c = self.chosen
+        self.a = ret.dist[c]
+        uc, nc = dirs.take(c, axis=0), ret.normals.take(c, axis=0)
+        o = origins if origins.shape[0] == 1 else origins[c]
+        self.r = ghost.reflect(uc, nc)
+        self.p = o + uc * self.a[:, None]
+        # Reflected beams start on a surface, inside its cluster box: the watertight
+        # re-check would re-cast every one that escapes to the sky. A crack missed by a
+        # ghost ray only loses one ghost point, so they are cast once.
+        self.start = ghost.bounce_origins(self.p, uc, nc, self.a)
+        self.pending = world.start_cast(self.start, self.r, times[c], rmax)
+
+    def finish(self, ret):
+        """Apply the bounces to ``ret``; returns (ghost rows, their last-leg
+        directions, their mirrors' reflectivity)."""
+        none = np.zeros(0, np.int64)
+        if len(self.chosen) == 0:
+            return none, np.zeros((0, 3)), np.zeros(0)
+        b, body2, tri2, n2 = self.pending()
+        found = tri2 >= 0
+        # The second leg measured from the mirror point itself, not the lifted start.
+        b = np.where(found, np.linalg.norm(
+            self.start + self.r * np.where(found, b, 0)[:, None] - self.p, axis=1), b)
+        found &= self.a + b <= self.rmax
+        fi = np.nonzero(found)[0]
+        g = self.chosen[fi]
+        ret.valid[self.chosen[~found]] = False
+        self.stats["ghosts"] = int(len(g))
+        if len(g) == 0:
+            return none, np.zeros((0, 3)), np.zeros(0)
+        mirror = self.world.geometry.material_field("reflectivity")[ret.surface[g, 1]]
+        ret.dist[g] = self.a[fi] + b[fi]
+        ret.surface[g] = self.world.surface_ids(body2[fi], tri2[fi])
+        ret.normals[g] = n2.take(fi, axis=0)
+        ret.ghost = np.zeros(len(ret.dist), np.uint8)
+        ret.ghost[g] = 1
+        return g, self.r.take(fi, axis=0), mirror
+
+
+def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
+    """Warn when nearly all points on an object land on the back of its faces: the
+    sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
+    ``obj`` (index into ``world.geometry.objects``) and ``back`` (bool) are per point."""
+    if len(obj) < min_hits or np.count_nonzero(back) < min_hits:
+        return []
+    objects = world.geometry.objects
+    behind = np.bincount(obj[back], minlength=len(objects))
+    cand = np.nonzero(behind >= min_hits)[0]  # a suspect has that many back hits
+    if len(cand) == 0:
+        return []
+    # All hits of the candidates: for a few, one comparison each; else one count.
+    total = np.array([np.count_nonzero(obj == c) for c in cand]) if len(cand) <= 4 \
+        else np.bincount(obj, minlength=len(objects))[cand]
+    sel = behind[cand] >= share * total
+    return [f"the sensor is inside '{objects[i].name if i < len(objects) else i}' "
+            f"({behind[i] / t:.0%} of its {int(t)} hits are on the back of its "
+            "faces); fine for a room or tunnel, otherwise move the sensor"
+            for i, t in zip(cand[sel], total[sel])]
+
+
+def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
+               frame=0, sensor="sensor", sensor_track=None, moving=()):
+    """Scan one frame.
+
+    scene            PreparedScene covering the sensor, or a SceneGeometry (world
+                     coordinates), prepared here around the sensor with caster_factory
+    pattern          ScanPattern (directions in the sensor frame, per-ray times)
+    sensor_to_world  4x4 pose of the sensor at the start of the sweep
+    sensor_track     optional Track of the sensor over the sweep (a moving sensor)
+    moving           RigidBody / TimedScene bodies (moving and deforming objects)
+    Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
+    as the device reports them (each in the sensor frame at its own firing time).
+    """
+    with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
+        return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
+                           frame, sensor, sensor_track, moving)
+
+
+def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
+                sensor, sensor_track, moving):
+    t0 = time.perf_counter()
+    s = settings
+    rmin, rmax = resolve_range(preset, s)
+    sigma = preset.range.noise_sigma_m if s.noise_sigma_m is None else s.noise_sigma_m
+    atten = preset.attenuation_per_m if s.attenuation_per_m is None else s.attenuation_per_m
+    rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
+
+    n = len(pattern)
+    substeps_used = None
+    if s.motion == "substeps":
+        substeps_used = s.substeps or adaptive_substeps(
+            moving, sensor_track,
+            s.motion_tolerance_m or preset.range.noise_sigma_m or 0.01)
+    tscene = effective_times(pattern.times, pattern.period, s.motion, substeps_used)
+    dirs_sensor = pattern.directions
+    if sensor_track is None or sensor_track.is_static:
+        origin, rot = sensor_axes(sensor_to_world if sensor_track is None
+                                  else sensor_track.matrices[0])
+        origins = origin.reshape(1, 3)
+        dirs = pattern.rotated(rot)
+    else:
+        # One pose per distinct firing time (the channels of a firing share it): a
+        # spinning lidar has 64 to 128 times fewer poses to take apart than rays.
+        times, at = np.unique(tscene, return_inverse=True)
+        origins, rots = sensor_axes(sensor_track.at(times))
+        origins = origins[at]
+        dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
+    if not isinstance(scene, PreparedScene):
+        scene = PreparedScene(scene, origins.mean(axis=0),
+                              rmax + np.ptp(origins, axis=0).max(initial=0.0), caster_factory)
+    elif not scene.covers(origins, rmax):
+        raise SceneError("the prepared scene does not cover this sensor's range: prepare "
+                         "it around the sensor with a reach of at least its range")
+    world = World(scene, list(moving))
+    warnings = list(scene.warnings)
+    if scene.geometry.triangle_count == 0 and not moving:
+        warnings.append("the scene has no geometry to scan")
+    elif len(scene.triangles) == 0 and not moving:
+        warnings.append(f"no geometry within {rmax:g} m of the sensor")
+
+    # A sensor that does not move casts the same rays into the same static scene every
+    # frame: the static part is cast once and reused (see PreparedScene.cast).
+    reused = scene.reused
+    dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax,
+                                         order=pattern.trace_order, reuse=True)
+    reused = scene.reused > reused
+    ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
+                  world.surface_ids(body, tri), normals)
+    bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
+        if s.ghosting and ret.valid.any() else None
+
+    # Per ray from here on (misses carry harmless values and are dropped at the end);
+    # ghost rows are redone once their reflected beams are back.
+    g = world.geometry
+    refl = g.material_field("reflectivity").astype(np.float64)
+    dot = np.einsum("ij,ij->i", dirs, ret.normals)  # > 0: the back of a face
+    inten = effects.intensity(refl[ret.surface[:, 1]], np.abs(dot),
+                              np.where(ret.valid, ret.dist, 0.0) if atten else None, atten)
+    # Noise and dropout are drawn per ray, not per hit, so a ray's draws never depend on
+    # which other rays returned (ghosting or moving objects change only their own rays).
+    noise = effects.range_noise(rng, n, sigma) if s.noise else None
+    stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
+    if bounces is not None:
+        rows, last_leg, mirror = bounces.finish(ret)
+        stats = bounces.stats
+        if len(rows):
+            dot[rows] = np.einsum("ij,ij->i", last_leg, ret.normals.take(rows, axis=0))
+            inten[rows] = mirror * effects.intensity(refl[ret.surface[rows, 1]],
+                                                     np.abs(dot[rows]), ret.dist[rows], atten)
+    d = ret.dist if noise is None else ret.dist + noise
+    keep = ret.valid
+    if s.dropout:
+        keep &= effects.dropout_keep(rng, inten, preset.dropout.general_rate,
+                                     preset.dropout.intensity_limit,
+                                     preset.dropout.intensity_zero)
+    keep &= d > 0
+    idx = np.nonzero(keep)[0]
+    obj = ret.surface[:, 0]
+    d = d[idx]
+    o_idx = obj[idx]
+    instance = g.object_field("instance")[o_idx]
+    warnings += _inside_warnings(world, o_idx, dot[idx] > 0)
+
+    pts = np.empty(len(idx), dtype=POINT_DTYPE)
+    if s.frame_space == "world":
+        cols = dirs.T
+        for k, f in enumerate("xyz"):
+            np.multiply(cols[k][idx], d, out=pts[f])
+            pts[f] += origins[0, k] if origins.shape[0] == 1 else origins[idx, k]
+    else:
+        cols = pattern.columns
+        for k, f in enumerate("xyz"):
+            np.multiply(cols[k].take(idx), d, out=pts[f])
+    pts["range"] = d
+    pts["intensity"] = inten.take(idx)
+    pts["ring"] = pattern.channels.take(idx)
+    pts["time"] = pattern.times.take(idx)
+    pts["label"] = g.object_field("label")[o_idx]
+    pts["instance"] = instance
+    pts["ghost"] = 0 if ret.ghost is None else ret.ghost.take(idx)
+    stats["moving_bodies"] = len(moving)
+    stats["substeps_used"] = substeps_used
+    stats["static_cast_reused"] = reused
+    return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats)

@@ -1,0 +1,68 @@
+"""A scene as a scene source hands it over: object instances, each with its triangles in
+its own frame and its world matrix, sharing one material table. The core joins any
+subset of them in world space (``world_geometry``), or keeps one in its own frame for
+a moving body."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import ObjectInfo, concatenate
+
+
+@dataclass
+class Instance:
+    """One object instance: its triangles in its own frame, and its matrix."""
+
+    key: str              # unique name ('Object', or 'Instancer/Object#id' for instances)
+    source: str           # name of the original object
+    parent: str           # name of the instancing object ('' when not instanced)
+    label: int
+    vertices: np.ndarray  # local, float64
+    triangles: np.ndarray
+    materials: np.ndarray  # per triangle, index into the shared material table
+    matrix: np.ndarray    # 4x4 world matrix
+    slot_map: np.ndarray = None  # material slot -> index into the shared material table
+    mesh_id: int = 0  # the source's id of the mesh read (equal ids: equal meshes; 0: none)
+
+    def material_indices(self, slot_indices):
+        """Shared-table material index of per-triangle material slot indices."""
+        return self.slot_map[np.clip(slot_indices, 0, len(self.slot_map) - 1)]
+
+
+def object_table(instances):
+    """ObjectInfo per instance, with instance ids 1..K in key order."""
+    order = {k: i + 1 for i, k in enumerate(sorted(i.key for i in instances))}
+    return [ObjectInfo(i.key, i.label, order[i.key]) for i in instances]
+
+
+def world_geometry(instances, objects, materials, select=None, matrices=None, local=False):
+    """Join instances (all, or those whose index is in ``select``) into one geometry.
+
+    matrices  optional {instance index: 4x4} replacing the stored matrices
+    local     keep each instance's own coordinates (for a single moving object)
+    Triangle object indices refer to ``objects`` (one entry per instance)."""
+    parts = []
+    for k, inst in enumerate(instances):
+        if select is not None and k not in select:
+            continue
+        v = inst.vertices
+        if not local:
+            m = inst.matrix if matrices is None or k not in matrices else matrices[k]
+            v = v @ m[:3, :3].T + m[:3, 3]
+        parts.append((v, inst.triangles, np.full(len(inst.triangles), k, np.int32), inst.materials))
+    return concatenate(parts, objects, materials)
+
+
+def static_key(instances, objects, materials, select):
+    """A key equal for equal static geometry, from what was read (no digest of the
+    triangles): each selected instance's mesh id, matrix, materials and label, and the
+    object and material tables. None when a mesh has no id."""
+    parts = []
+    for k in sorted(select):
+        inst = instances[k]
+        if not inst.mesh_id:
+            return None
+        parts.append((inst.key, inst.label, inst.mesh_id, inst.matrix.tobytes(),
+                      inst.slot_map.tobytes()))
+    return ("instances", tuple(parts), repr((objects, materials)))

@@ -1,0 +1,209 @@
+"""One scan run, frames x sensors, behind every entry point (the UI's scan operators,
+``rls scan``, scripts): sessions that keep prepared scenes, per-frame seeds (from
+(seed, sensor, frame), see ``effects.scan_rng``), files and sidecars, resume, cancel
+and progress.
+
+Blender comes in through small interfaces: a scene source (``source.SceneSource``),
+a caster factory (``casting.caster_factory``), a writer (``io.writer.CloudWriter``
+or anything with its ``check``/``existing``/``write``) and callbacks for progress,
+results (previews) and cancelling. A run advances one (frame, sensor) step per
+``step()`` call, so a modal operator can run it between UI events and a script or the
+command line can ``run()`` it straight through.
+"""
+
+import time
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from .casting import caster_factory
+from .errors import SceneError
+from .session import ScanSession
+
+
+@dataclass(frozen=True)
+class SensorJob:
+    """One sensor of a run: its name in the scene, its settings, its device."""
+
+    name: str
+    settings: object   # settings.LidarSettings
+    preset: object     # presets.DevicePreset
+
+
+@dataclass
+class Step:
+    """What one (frame, sensor) step did, as progress callbacks see it."""
+
+    frame: int
+    sensor: str
+    done: int              # steps done so far, this one included
+    total: int
+    points: int
+    seconds: float         # the scan's own time (0 for a resumed step)
+    path: str = None       # the cloud written or kept (None without a writer)
+    resumed: bool = False  # kept from an earlier run
+    eta_s: float = 0.0     # estimate of the time left
+    warnings: list = field(default_factory=list)
+
+
+class Writer(Protocol):
+    def path(self, sensor: str, output, frame: int): ...
+
+    def check(self, sensor: str, output, frame: int) -> None: ...
+
+    def existing(self, sensor: str, output, frame: int) -> int | None: ...
+
+    def write(self, sensor: str, output, frame: int, points, info: dict): ...
+
+
+class ScanRun:
+    """Scan ``frames`` x ``sensors`` (``SensorJob``) of ``source``.
+
+    writer     where clouds go (None: scan only, e.g. a preview)
+    progress   called with a ``Step`` after every step
+    on_result  called with (job, frame, ScanResult, info) after every scan (previews)
+    cancelled  a function polled before every scan (after the frame is set, so a
+               frame-change handler may ask to stop); True ends the run there
+    factory    ``casting.caster_factory``-like: name -> (backend class, notice)
+    """
+
+    def __init__(self, source, sensors, frames, writer=None, progress=None, on_result=None,
+                 cancelled=None, factory=caster_factory):
+        if not sensors:
+            raise SceneError(f"scene '{source.name}' has no LiDAR objects "
+                             f"(add one with Add > LiDAR)")
+        if not frames:
+            raise SceneError("no frames to scan (the frame range is empty)")
+        self.source, self.sensors, self.frames = source, list(sensors), list(frames)
+        self.writer, self.progress, self.on_result = writer, progress, on_result
+        self._cancelled = cancelled or (lambda: False)
+        self.plan = [(f, job) for f in self.frames for job in self.sensors]
+        if writer is not None:  # fail before scanning anything
+            for job in self.sensors:
+                writer.check(job.name, job.settings.output, self.frames[0])
+        self.sessions, self.notices = {}, []
+        for job in self.sensors:
+            backend = job.settings.backend
+            if backend not in self.sessions:
+                backend_cls, notice = factory(backend)
+                self.sessions[backend] = ScanSession(backend_cls)
+                if notice and notice not in self.notices:
+                    self.notices.append(notice)
+        self.original_frame = source.current_frame()
+        self.index = 0
+        self.scanned = self.resumed = self.points = 0
+        self.paths, self.outputs, self.frames_done = [], [], []
+        self.warnings = list(self.notices)
+        self.cancelled = False
+        self.last = None
+        self._frame_set = None
+        self._scan_time = 0.0
+        self.t0 = time.perf_counter()
+
+    @property
+    def total(self):
+        return len(self.plan)
+
+    @property
+    def finished(self):
+        return self.cancelled or self.index >= len(self.plan)
+
+    @property
+    def structure_builds(self):
+        return sum(s.builds for s in self.sessions.values())
+
+    def eta(self):
+        """Seconds left, estimated from the steps scanned so far."""
+        if not self.scanned:
+            return 0.0
+        return self._scan_time / self.scanned * (self.total - self.index)
+
+    def status(self):
+        frame, job = self.plan[min(self.index, len(self.plan) - 1)]
+        return (f"LiDAR scan: frame {frame} ({job.name}), {self.index}/{self.total} done, "
+                f"about {self.eta():.0f} s left (Esc to cancel)")
+
+    def step(self):
+        """Do the next (frame, sensor); False when nothing is left or a cancel was
+        asked for before this step's scan began."""
+        if self.finished:
+            return False
+        frame, job = self.plan[self.index]
+        out = job.settings.output
+        kept = self.writer.existing(job.name, out, frame) if self.writer is not None else None
+        if kept is not None:
+            self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
+                                        str(self.writer.path(job.name, out, frame)), True))
+            self.resumed += 1
+            return not self.finished
+        if self._frame_set != frame or self.source.current_frame() != frame:
+            self.source.set_frame(frame)
+            self._frame_set = frame
+        if self._cancelled():
+            self.cancelled = True
+            return False
+        t = time.perf_counter()
+        session = self.sessions[job.settings.backend]
+        result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame)
+        path = None
+        if self.writer is not None:
+            path = str(self.writer.write(job.name, out, frame, result.points, info))
+            self.paths.append(path)
+        if self.on_result is not None:
+            self.on_result(job, frame, result, info)
+        self.scanned += 1
+        self._scan_time += time.perf_counter() - t
+        warnings = [f"{job.name} frame {frame}: {w}" for w in result.warnings]
+        self.warnings += warnings
+        self.last = (result, info)
+        self._done(frame, job, Step(frame, job.name, self.index + 1, self.total,
+                                    len(result.points), result.seconds, path, False,
+                                    warnings=warnings))
+        return not self.finished
+
+    def _done(self, frame, job, step):
+        self.index += 1
+        self.points += step.points
+        step.eta_s = self.eta()
+        self.outputs.append(step)
+        if self.index == len(self.plan) or self.plan[self.index][0] != frame:
+            self.frames_done.append(frame)
+        if self.progress is not None:
+            self.progress(step)
+
+    def run(self, interrupt_cancels=False):
+        """Every step to the end; Ctrl+C ends the run as a cancel when
+        ``interrupt_cancels`` (scripts in Blender), else it propagates (the command
+        line reports it). The source is put back at its frame either way."""
+        try:
+            while self.step():
+                pass
+        except KeyboardInterrupt:
+            if not interrupt_cancels:
+                raise
+            self.cancelled = True
+        finally:
+            self.finish()
+        return self
+
+    def finish(self):
+        """Put the scene back at the frame it was at when the run began."""
+        if self.source.current_frame() != self.original_frame:
+            self.source.set_frame(self.original_frame)
+
+    def summary(self):
+        """The run as plain data (the command line prints it as JSON)."""
+        return {"scene": self.source.name, "frames": self.frames,
+                "sensors": [j.name for j in self.sensors],
+                "structure_builds": self.structure_builds, "points": self.points,
+                "seconds": round(time.perf_counter() - self.t0, 3),
+                "scanned": self.scanned, "resumed": self.resumed,
+                "cancelled": self.cancelled,
+                "outputs": [self._output(s) for s in self.outputs]}
+
+    @staticmethod
+    def _output(s):
+        out = {"sensor": s.sensor, "frame": s.frame, "points": s.points,
+               "seconds": round(s.seconds, 4), "file": s.path}
+        if s.resumed:
+            out["resumed"] = True
+        return out

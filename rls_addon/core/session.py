@@ -1,0 +1,193 @@
+"""A scan session: one frame of one sensor at a time from a scene source, keeping what
+can be kept between frames and sensors.
+
+- Static geometry is built into a ray-casting structure once and reused while it is
+  unchanged (the same meshes, matrices, materials and labels; else its digest decides).
+- A lidar that moves gets its static scene prepared ``DRIVING_SLACK`` of its range
+  wider once it has moved, kept while it stays inside: a driving lidar's frames share
+  one built structure instead of one per frame.
+- Each group of rigidly moving objects keeps its own structure; deforming objects are
+  rebuilt per sub-step.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from .bodies import PreparedScene, RigidBodies, TimedScene
+from .frame import scan_frame
+from .instances import object_table, static_key, world_geometry
+from .settings import resolve_range
+from .sweep import SweepMotion, classify, substep_count
+
+MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
+DRIVING_SLACK = 0.25
+KEEP_PREPARED = 16     # prepared scenes and body groups kept per session
+
+
+class ScanSession:
+    """Scans frames of sensors from scene sources with one ray-casting backend
+    (``caster_factory``, see ``casting``)."""
+
+    def __init__(self, caster_factory):
+        self.caster_factory = caster_factory
+        self._prepared = {}
+        self._bodies = {}
+        self.builds = 0
+        self._anchors = {}  # sensor name -> (centre, reach, range) its scene is prepared for
+
+    def _cached(self, store, key, make):
+        item = store.get(key)
+        if item is None:
+            if len(store) >= KEEP_PREPARED:  # bounded: a moving sensor keeps seeing new geometry
+                store.pop(next(iter(store)))
+            item = store[key] = make()
+            self.builds += 1
+        return item
+
+    def prepared(self, geometry, centre, reach, key=None):
+        """The ``PreparedScene`` of ``geometry`` (or of ``geometry()``, a function that
+        builds it, when ``key`` identifies it without its digest)."""
+        if key is None:
+            geometry = geometry() if callable(geometry) else geometry
+            key = geometry.fingerprint()
+        key = (key, tuple(np.round(centre, 9)), reach)
+        return self._cached(self._prepared, key, lambda: PreparedScene(
+            geometry() if callable(geometry) else geometry, centre, reach, self.caster_factory))
+
+    def _anchor(self, name, centre, rmax):
+        """(centre, reach) to prepare a sensor's static scene for: where it stands, with
+        its range, until it moves; then around where it moved to, reaching
+        ``DRIVING_SLACK`` of its range farther, kept while it stays inside (with room
+        for ``MOVER_MARGIN_M`` of travel within a sweep)."""
+        got = self._anchors.get(name)
+        moved = False
+        if got is not None and got[2] == rmax:
+            anchor, reach, _ = got
+            gap = float(np.linalg.norm(centre - anchor))
+            if gap == 0.0 or gap + rmax + MOVER_MARGIN_M <= reach:
+                return anchor, reach
+            moved = True
+        reach = rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M if moved else rmax
+        self._anchors[name] = (centre.copy(), reach, rmax)
+        return centre, reach
+
+    def scan(self, source, sensor, preset, settings, frame):
+        """Scan ``frame`` (the source is already at it) of sensor ``sensor`` with device
+        ``preset`` and ``ScanSettings`` ``settings``. Returns (ScanResult, info dict
+        for the sidecar)."""
+        pose = source.sensor_pose(sensor)
+        rmin, rmax = resolve_range(preset, settings)
+        centre = pose[:3, 3]
+        anchor, reach = self._anchor(sensor, centre, rmax)
+        read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
+        instances, materials = read.instances, read.materials
+        objects = object_table(instances)
+        motion = SweepMotion()
+        if settings.motion != "snapshot":
+            with source.sweep(frame, preset.period) as sweep:
+                motion = classify(sweep, preset.period, instances,
+                                  source.mobility(instances, sensor), sensor)
+                n_used, substeps = self._substep_counts(preset, settings, instances, motion)
+                moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
+                                         motion, substeps)
+        else:
+            n_used, substeps, moving = None, {}, []
+        # "substeps" motion with N = 0: the sweep is cast with the N chosen above.
+        cast_settings = settings if n_used is None else dataclasses.replace(settings,
+                                                                            substeps=n_used)
+        track = motion.sensor
+        if track is not None:
+            sweep_path = track.matrices[:, :3, 3]
+            if np.linalg.norm(sweep_path - anchor, axis=1).max() + rmax > reach:
+                # The sweep leaves the anchored scene: one around this sweep alone.
+                anchor = centre
+                reach = rmax + float(np.linalg.norm(sweep_path - centre, axis=1).max())
+        static_sel = set(range(len(instances))) - motion.moved
+        # Joined (and digested) only when the session has not built it before.
+        scene = self.prepared(
+            lambda: world_geometry(instances, objects, materials, select=static_sel), anchor,
+            reach, static_key(instances, objects, materials, static_sel))
+        result = scan_frame(scene, preset.pattern(frame), pose, preset, cast_settings,
+                            frame=frame, sensor=sensor, sensor_track=track, moving=moving)
+        return result, self._info(preset, settings, sensor, frame, pose, rmin, rmax, motion,
+                                  instances, substeps, n_used, objects, scene, result, read)
+
+    @staticmethod
+    def _substep_counts(preset, settings, instances, motion):
+        """(N of "substeps" motion or None, {deforming instance index: N}). Both follow
+        ``settings.substeps``: fixed, or (0) chosen from how far things move."""
+        tol = settings.motion_tolerance_m or preset.range.noise_sigma_m or 0.01
+        n_used = None
+        if settings.motion == "substeps":
+            n_used = substep_count(motion.max_travel(instances), tol, settings.substeps)
+        deforming = {k: n_used if n_used is not None else substep_count(m, tol, settings.substeps)
+                     for k, m in motion.deforming}
+        return n_used, deforming
+
+    def _bodies_of(self, sweep, period, instances, objects, materials, motion, substeps):
+        """The moving bodies of a sweep: each deforming instance's sub-steps, then one
+        group of the rigid ones (kept by the session while their meshes are the same)."""
+        bodies = []
+        for k, _ in motion.deforming:
+            bodies += self._substeps(sweep, period, instances[k], k, objects, materials,
+                                     substeps[k])
+        if motion.rigid:
+            rigid = [(instances[k].key,
+                      world_geometry(instances, objects, materials, select={k}, local=True),
+                      track) for k, track in motion.rigid]
+            key = tuple((name, local.fingerprint()) for name, local, _ in rigid)
+            group = self._cached(self._bodies, key, lambda: RigidBodies(
+                [(local, tr) for _, local, tr in rigid], self.caster_factory))
+            group.tracks = [tr for _, _, tr in rigid]  # this sweep's motion
+            bodies.append(group)
+        return bodies
+
+    def _substeps(self, sweep, period, inst, k, objects, materials, n):
+        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps."""
+        out = []
+        step = period / n
+        for j in range(n):
+            snap = sweep.instance_at((j + 0.5) * step, inst)
+            if snap is None:
+                continue
+            geom = world_geometry([snap], [objects[k]], materials)
+            scene = PreparedScene(geom, snap.matrix[:3, 3], np.inf, self.caster_factory)
+            self.builds += 1
+            t1 = (j + 1) * step if j < n - 1 else np.inf
+            out.append(TimedScene(scene, j * step if j else -np.inf, t1))
+        return out
+
+    @staticmethod
+    def _info(preset, settings, sensor, frame, pose, rmin, rmax, motion, instances, substeps,
+              n_used, objects, scene, result, read):
+        keys = {k: instances[k].key for k in range(len(instances))}
+        summary = {"rigid": [keys[k] for k, _ in motion.rigid],
+                   "deforming": [keys[k] for k, _ in motion.deforming],
+                   "samples": motion.samples,
+                   "substeps": {keys[k]: n for k, n in substeps.items()},
+                   "sensor_moves": motion.sensor is not None}
+        return {
+            "device": {"id": preset.id, "name": preset.name, "source": preset.source},
+            "sensor": sensor,
+            "frame": frame,
+            "frame_space": settings.frame_space,
+            "sensor_to_world": pose.tolist(),
+            "seed": settings.seed,
+            "effects": {"noise": settings.noise, "dropout": settings.dropout,
+                        "range_m": [rmin, rmax],
+                        "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
+                        "motion": settings.motion, "substeps": settings.substeps,
+                        "substeps_used": n_used, "ghosting": settings.ghosting},
+            "motion": summary,
+            "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
+            "backend": scene.backend,
+            "rays": result.rays,
+            "points": int(len(result.points)),
+            "triangles_cast": result.triangles,
+            "objects_read": read.stats.get("objects", len(instances)),
+            "objects_culled_by_range": read.stats.get("culled_by_range", 0),
+            "ghosts": result.stats.get("ghosts", 0),
+            "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
+            "warnings": result.warnings,
+        }

@@ -1,0 +1,106 @@
+"""What a user chooses for a LiDAR, as plain values: one ``LidarSettings`` per LiDAR.
+
+The Blender layer reads a LiDAR's properties into one of these, once
+(``blender.sensor.lidar_settings_of``); the command line overrides it field by field
+(``LidarSettings.override``); the core scans and writes with it. Every enumerated
+value is checked against ``choices`` here, so a typo anywhere ends in one
+``SettingsError`` that lists the valid values.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from .choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
+from .errors import SettingsError
+from .io.fields import DEFAULT_FIELDS, resolve_fields
+
+DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
+DEFAULT_OUTPUT_DIR = "//lidar/"
+
+
+@dataclass(frozen=True)
+class ScanSettings:
+    """How a scan behaves, beyond the device preset.
+
+    Range and noise fields left as None take the preset's values."""
+
+    seed: int = 0
+    frame_space: str = "sensor"  # see choices.FRAME_SPACES
+    noise: bool = True
+    dropout: bool = True
+    min_range_m: float | None = None
+    max_range_m: float | None = None
+    noise_sigma_m: float | None = None
+    attenuation_per_m: float | None = None
+    # Motion distortion (choices.MOTION): "exact" (every ray at its own time),
+    # "substeps" (the paper's N partial sweeps) or "snapshot" (one scene state per
+    # frame, as CARLA).
+    motion: str = "exact"
+    # Sub-steps of "substeps" motion and of deforming objects: 0 chooses N so that
+    # nothing moves more than the motion tolerance within one sub-step; N: fixed.
+    substeps: int = 0
+    motion_tolerance_m: float | None = None  # adaptive sub-step tolerance (None: preset)
+    ghosting: bool = True  # ghost points from glossy surfaces
+
+    def __post_init__(self):
+        FRAME_SPACES.check(self.frame_space)
+        MOTION.check(self.motion)
+        if int(self.substeps) != self.substeps or self.substeps < 0:
+            raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "
+                                f"got {self.substeps}")
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """Where and how a LiDAR's clouds are written (its Output panel)."""
+
+    directory: str = DEFAULT_OUTPUT_DIR  # '//' is the folder of the .blend file
+    format: str = "pcd_binary"           # see choices.FORMATS
+    fields: tuple = DEFAULT_FIELDS  # x, y, z and every field but 'range'
+    template: str = DEFAULT_TEMPLATE
+
+    def __post_init__(self):
+        FORMATS.check(self.format)
+        for f in self.fields:
+            if f not in ("x", "y", "z"):
+                FIELDS.check(f)
+        # x, y, z first and always; the rest in the files' own order
+        object.__setattr__(self, "fields", resolve_fields(tuple(self.fields)))
+
+
+@dataclass(frozen=True)
+class LidarSettings:
+    """Everything about one LiDAR but its pose: the device, the scan, the output."""
+
+    preset: str = "generic_uniform32"    # device preset id
+    scan: ScanSettings = field(default_factory=ScanSettings)
+    output: OutputSettings = field(default_factory=OutputSettings)
+    backend: str = "auto"                # see choices.BACKENDS
+
+    def __post_init__(self):
+        BACKENDS.check(self.backend)
+
+    def override(self, **changes):
+        """A copy with the given fields replaced; a change of None keeps the value (so
+        unset command-line flags pass straight through). Names are those of this
+        class, ``ScanSettings`` or ``OutputSettings``; an unknown name is an error."""
+        changes = {k: v for k, v in changes.items() if v is not None}
+        scan_names = {f.name for f in dataclasses.fields(ScanSettings)}
+        out_names = {f.name for f in dataclasses.fields(OutputSettings)}
+        own = {"preset", "backend"}
+        unknown = sorted(set(changes) - scan_names - out_names - own)
+        if unknown:
+            raise SettingsError(f"unknown setting(s) {', '.join(unknown)}")
+        scan = dataclasses.replace(self.scan, **{k: v for k, v in changes.items()
+                                                 if k in scan_names})
+        output = dataclasses.replace(self.output, **{k: v for k, v in changes.items()
+                                                     if k in out_names})
+        return dataclasses.replace(self, scan=scan, output=output,
+                                   **{k: v for k, v in changes.items() if k in own})
+
+
+def resolve_range(preset, settings):
+    """(min, max) range in metres after the settings' overrides."""
+    rmin = preset.range.min_m if settings.min_range_m is None else settings.min_range_m
+    rmax = preset.range.max_m if settings.max_range_m is None else settings.max_range_m
+    return rmin, rmax

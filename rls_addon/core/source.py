@@ -1,0 +1,75 @@
+"""What the core asks of a scene: the interface a scene source implements.
+
+The core owns the scan: which objects move and how (``sweep``), what is prepared and
+kept (``session``), frames x sensors, seeds, files, resume, cancel and progress
+(``run``). A *scene source* only answers questions about one scene at one time. The
+Blender layer's source (``blender.source.BlenderScene``) answers them from a
+depsgraph; core tests answer them with small fakes, in milliseconds.
+"""
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from .instances import Instance
+
+
+@dataclass
+class SceneRead:
+    """Everything within reach of a sensor at the current frame."""
+
+    instances: list           # [Instance]
+    materials: list           # [MaterialInfo], shared by every instance
+    stats: dict = field(default_factory=dict)  # objects, culled_by_range, hidden
+
+
+@dataclass
+class Mobility:
+    """Which of a read's instances can change over time (animation, constraints,
+    physics, modifiers ...), and whether the sensor can. Objects that cannot change are
+    never sampled."""
+
+    candidates: list = field(default_factory=list)  # indices into SceneRead.instances
+    deformable: set = field(default_factory=set)    # keys of those whose mesh may change
+    sensor_moves: bool = False
+
+
+class Sweep(Protocol):
+    """The scene over one sweep of one frame: states at times ``t`` in seconds since the
+    sweep start. Used as a context manager: leaving it puts the scene back at the
+    frame."""
+
+    def state(self, t: float, keys: set, deform_keys: set,
+              sensor: str) -> tuple[dict, dict, np.ndarray | None]:
+        """({key: 4x4 world matrix} of ``keys``, {key: local vertices} of
+        ``deform_keys``, the sensor's 4x4 world matrix or None)."""
+
+    def instance_at(self, t: float, instance: Instance) -> Instance | None:
+        """``instance`` as it is at ``t`` (a deforming object's mesh and matrix), or
+        None when it is gone."""
+
+    def __enter__(self): ...
+
+    def __exit__(self, *exc): ...
+
+
+class SceneSource(Protocol):
+    """A scene the core can scan (see the module docstring)."""
+
+    name: str    # the scene's name (used in file names)
+
+    def current_frame(self) -> int: ...
+
+    def set_frame(self, frame: int) -> None: ...
+
+    def sensor_pose(self, sensor: str) -> np.ndarray:
+        """The sensor's 4x4 world matrix at the current frame."""
+
+    def read(self, centre: np.ndarray, max_range: float, exclude: set) -> SceneRead:
+        """Instances within ``max_range`` of ``centre`` at the current frame, but the
+        objects named in ``exclude`` (the sensor itself)."""
+
+    def mobility(self, instances: list, sensor: str) -> Mobility: ...
+
+    def sweep(self, frame: int, period: float) -> Sweep: ...
