@@ -1,6 +1,9 @@
 # RLS: realistic LiDAR simulation for Blender.
 #   make demo    set up .venv, scan the sample street scene, print where the output is
-#   make test    set up .venv and system tools, build the extension, run all tests
+#   make test    set up .venv and system tools, build the extension, run all three tiers:
+#     make test-core     the bpy-free core (Blender's modules blocked), with fakes
+#     make test-blender  the bpy module: operators, extraction, the installed extension
+#     make test-cli      python -m rls_addon in subprocesses, as users run it
 #   make build   build and validate dist/rls_addon-<version>.zip with Blender's tooling
 #   make bench   benchmarks (about 3 minutes): docs/benchmarks.md and docs/bench_*.png
 
@@ -12,7 +15,7 @@ TEST_STAMP    := $(VENV)/.test-installed
 VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 ZIP     := dist/rls_addon-$(VERSION).zip
 
-.PHONY: venv demo test build system-deps clean bench native
+.PHONY: venv demo test test-core test-blender test-cli build system-deps clean bench native
 
 venv: $(RUNTIME_STAMP)
 
@@ -49,8 +52,16 @@ build: native
 demo: native
 	$(PY) -m rls_addon demo --out out/demo
 
-test: $(TEST_STAMP) system-deps build
-	$(PY) -m pytest
+test: test-core test-blender test-cli
+
+test-core: $(TEST_STAMP) system-deps native
+	$(PY) -m pytest tests/core -p tests.no_blender
+
+test-blender: $(TEST_STAMP) system-deps build
+	$(PY) -m pytest tests/blender
+
+test-cli: $(TEST_STAMP) build
+	$(PY) -m pytest tests/cli
 
 # The benchmark needs what the tests need (embreex, open3d, matplotlib).
 bench: $(TEST_STAMP) native

@@ -38,6 +38,13 @@ def _poll_active_lidar(cls, context):
     return True
 
 
+def _poll_any_lidar(cls, context):
+    if not lidar_objects(context.scene):
+        cls.poll_message_set("The scene has no LiDAR objects (Add > LiDAR)")
+        return False
+    return True
+
+
 def _select_only(context, obj):
     for o in context.view_layer.objects:
         o.select_set(False)
@@ -263,12 +270,7 @@ class RLS_OT_scan_all(_ScanOperator, bpy.types.Operator):
     bl_idname = "rls.scan_all"
     bl_label = "Scan All LiDARs"
 
-    @classmethod
-    def poll(cls, context):
-        if not lidar_objects(context.scene):
-            cls.poll_message_set("The scene has no LiDAR objects (Add > LiDAR)")
-            return False
-        return True
+    poll = classmethod(_poll_any_lidar)
 
     def _sensors(self, context):
         return lidar_objects(context.scene)
@@ -293,12 +295,7 @@ class RLS_OT_scan_range(_ScanOperator, bpy.types.Operator):
     frame_end: IntProperty(name="End", default=1, description="Last frame to scan")
     frame_step: IntProperty(name="Step", default=1, min=1, description="Scan every Nth frame")
 
-    @classmethod
-    def poll(cls, context):
-        if not lidar_objects(context.scene):
-            cls.poll_message_set("The scene has no LiDAR objects (Add > LiDAR)")
-            return False
-        return True
+    poll = classmethod(_poll_any_lidar)
 
     def _sensors(self, context):
         if self.all_lidars:

@@ -275,3 +275,68 @@ def test_fov_follows_a_preset_set_by_id(scene):
     fov = next(c for c in obj.children if c.get("rls_fov"))
     assert fov["rls_fov_preset"] == "robosense_m1"
     assert obj.rls_lidar.preset == "robosense_m1"
+
+
+def test_every_property_and_operator_option_has_a_tooltip(scene):
+    from rls_addon import operators, properties
+
+    missing = []
+    for cls in properties.CLASSES + operators.CLASSES:
+        if issubclass(cls, bpy.types.Operator):
+            mod, op = cls.bl_idname.split(".")
+            props = getattr(getattr(bpy.ops, mod), op).get_rna_type().properties
+        else:
+            props = cls.bl_rna.properties
+        for p in props:
+            if p.identifier in ("rna_type", "name") and not issubclass(cls, bpy.types.Operator):
+                continue  # PropertyGroup's own
+            if p.identifier != "rna_type" and not p.description.strip():
+                missing.append(f"{cls.__name__}.{p.identifier}")
+    assert not missing
+
+
+def test_scan_operators_that_make_objects_are_undoable(scene):
+    from rls_addon import operators
+
+    for cls in (operators.RLS_OT_scan_frame, operators.RLS_OT_scan_all,
+                operators.RLS_OT_scan_range, operators.RLS_OT_compute_metrics,
+                operators.OBJECT_OT_rls_add_lidar, operators.OBJECT_OT_rls_add_infralob):
+        assert "UNDO" in cls.bl_options, cls.__name__
+
+
+@pytest.mark.parametrize("op_name", ["RLS_OT_scan_frame", "RLS_OT_scan_all"])
+def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_path, op_name):
+    """Scan Frame and Scan All LiDARs run through the same modal loop as Scan Frame
+    Range: a step per timer event, status text with an estimate, Esc stops."""
+    from types import SimpleNamespace
+
+    from rls_addon import operators
+    from rls_addon.operators import LAST_RUN
+
+    Op = getattr(operators, op_name)
+    labelled_ground()
+    add_lidar_op(out=tmp_path, location=(0, 0, 2))
+    add_lidar_op(out=tmp_path, location=(4, 0, 2))
+    ctx = bpy.context
+    reports = []
+    fake = SimpleNamespace(_timer=None, write=True, preview=True,
+                           report=lambda kind, msg: reports.append((kind, msg)))
+    fake._sensors = lambda c: Op._sensors(fake, c)
+    fake._frames = lambda c: Op._frames(fake, c)
+    fake._end = lambda c: Op._end(fake, c)
+    fake._status = lambda c, t: Op._status(fake, c, t)
+    fake._job = Op._make_run(fake, ctx)
+    steps = fake._job.total
+    assert steps == (2 if op_name == "RLS_OT_scan_all" else 1)
+    assert "0/%d done" % steps in fake._job.status()
+    ctx.window_manager.progress_begin(0, steps)
+    timer = SimpleNamespace(type="TIMER")
+    if steps == 2:
+        assert Op.modal(fake, ctx, timer) == {"RUNNING_MODAL"}
+        assert "1/2 done" in fake._job.status()
+        assert Op.modal(fake, ctx, SimpleNamespace(type="ESC")) == {"CANCELLED"}
+        assert LAST_RUN["cancelled"] and LAST_RUN["steps_done"] == 1
+        assert len(list(tmp_path.glob("*.pcd"))) == 1
+    else:
+        assert Op.modal(fake, ctx, timer) == {"FINISHED"}
+        assert not LAST_RUN["cancelled"] and len(list(tmp_path.glob("*.pcd"))) == 1

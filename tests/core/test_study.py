@@ -146,3 +146,95 @@ def test_poses_and_parsing():
         parse_values("a:b")
     g = grid_positions(SQUARE, 10, [5, 7])
     assert len(g) == 3 * 2 * 2 and (20.0, 10.0, 7.0) in g
+
+
+class FakeStudyScene:
+    """A road slab with a parked van (label vehicle) and three poles, for the core's
+    study loop without Blender."""
+
+    name = "fake junction"
+
+    def __init__(self):
+        from rls_addon.core.geometry import MaterialInfo, ObjectInfo
+        from rls_addon.core.instances import Instance, world_geometry
+
+        from .scenes import BOX_TRIS, box_vertices
+
+        boxes = {"road": ((-30, -30, -0.1), (30, 30, 0.0), 1),
+                 "van": ((2, -3, 0.0), (7, -1, 2.5), 11),
+                 "building": ((-12, 8, 0.0), (12, 14, 9.0), 4)}
+        self.instances = [Instance(n, n, "", lab, box_vertices(lo, hi), BOX_TRIS, np.ones(12),
+                                   np.eye(4), np.array([1])) for n, (lo, hi, lab) in boxes.items()]
+        self.materials = [MaterialInfo("default"), MaterialInfo("grey", 0.4)]
+        self._join = world_geometry
+        self._objects = [ObjectInfo(i.key, i.label, k + 1) for k, i in enumerate(self.instances)]
+        self.frame, self.frames_set = 1, []
+
+    def current_frame(self):
+        return self.frame
+
+    def set_frame(self, frame):
+        self.frames_set.append(frame)
+        self.frame = frame
+
+    def region(self, name):
+        if name not in (None, "LOB"):
+            raise RegionError(f"no object named {name!r}")
+        return np.array([(-10.0, -8.0), (10.0, -8.0), (10.0, 6.0), (-10.0, 6.0)])
+
+    def mounts(self, names):
+        spots = [("pole A", (-12.0, -9.0, 6.0)), ("pole B", (12.0, -9.0, 6.0)),
+                 ("pole C", (0.0, 7.0, 6.0))]
+        return [s for s in spots if not names or s[0] in names]
+
+    def static_geometry(self, hidden_labels):
+        keep = {k for k, i in enumerate(self.instances) if i.label not in hidden_labels}
+        hidden = sorted(i.key for k, i in enumerate(self.instances) if k not in keep)
+        return self._join(self.instances, self._objects, self.materials, select=keep), hidden
+
+
+def test_study_loop_runs_in_the_core_with_a_fake_scene():
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.study import StudyConfig, run_study
+    from rls_addon.core.frame import scan_frame
+
+    scene = FakeStudyScene()
+    seen = []
+    cfg = StudyConfig(device="generic_uniform32", k=(1, 2), pitches=(0.0, 20.0), disks=300,
+                      noise=False, dropout=False, frame=4)
+    res = run_study(scene, cfg, progress=lambda d, t, c, eta: seen.append((d, t)),
+                    factory=lambda name: (NumpyCaster, None))
+    assert scene.frames_set == [4] and res.frame == 4
+    assert [c.name for c in res.candidates] == [f"pole {p} pitch {a:g} yaw +0"
+                                                for p in "ABC" for a in (0.0, 20.0)]
+    assert seen == [(i, 6) for i in range(1, 7)]
+    assert res.hidden_traffic == ["van"] and res.structure_builds == 1
+    assert res.backend == "numpy" and set(res.searches) == {1, 2}
+    assert all(len(set(res.candidates[i].mount for i in p.members)) == 2
+               for p in res.searches[2].evaluated)  # one sensor per mount
+    # a single candidate's metrics equal infra_lob_metrics on its own cloud
+    c = max(res.candidates, key=lambda c: c.n_points)
+    from rls_addon.core.presets import get_preset
+    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.bodies import PreparedScene
+
+    geom, _ = scene.static_geometry({11})
+    settings = ScanSettings(frame_space="world", noise=False, dropout=False, motion="snapshot")
+    preset = get_preset("generic_uniform32")
+    pts = scan_frame(PreparedScene(geom, c.position, 200.0, NumpyCaster), preset.pattern(4),
+                     c.pose, preset, settings, frame=4, sensor=c.name).points
+    ref = infra_lob_metrics([pts], scene.region(None), labels="road,sidewalk", disks=300)
+    assert c.n_points == ref.n_points
+    assert c.infra_d == pytest.approx(ref.infra_d) and c.infra_nuc == pytest.approx(ref.infra_nuc)
+
+
+def test_study_errors_say_what_to_do():
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.errors import SceneError
+    from rls_addon.core.study import StudyConfig, run_study
+
+    factory = lambda name: (NumpyCaster, None)  # noqa: E731
+    with pytest.raises(SceneError, match="k = 4 needs 4 distinct mounts; the candidates have 3"):
+        run_study(FakeStudyScene(), StudyConfig(k=(4,)), factory=factory)
+    with pytest.raises(RegionError, match="no object named 'elsewhere'"):
+        run_study(FakeStudyScene(), StudyConfig(lob="elsewhere"), factory=factory)

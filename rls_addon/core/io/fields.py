@@ -52,11 +52,8 @@ def resolve_fields(fields):
     if isinstance(fields, str):
         fields = [f.strip() for f in fields.split(",") if f.strip()]
     wanted = set(fields)
-    unknown = sorted(wanted - set(FILE_TYPES))
-    if unknown:
-        raise SettingsError(
-            f"unknown point field(s) {', '.join(unknown)}; known: {', '.join(FILE_TYPES)}"
-        )
+    for f in sorted(wanted - set(REQUIRED_FIELDS)):
+        FIELDS.check(f)  # SettingsError naming the fields there are
     order = REQUIRED_FIELDS + tuple(f for f in FILE_TYPES if f not in REQUIRED_FIELDS)
     return tuple(f for f in order if f in REQUIRED_FIELDS or f in wanted)
 

@@ -1,0 +1,152 @@
+"""``rls scan`` writes what each LiDAR's panels say unless a flag says otherwise, and
+every entry point (command line, UI operator, core) makes the same motion decisions."""
+
+import json
+import math
+import subprocess
+import sys
+
+import pytest
+
+from .conftest import ROOT, one_line_error, rls
+
+SPEED = 5.55   # m/s of the moving box
+FPS = 25
+
+BUILD = r"""
+import sys, bpy
+sys.path.insert(0, sys.argv[1])
+import rls_addon
+rls_addon.register()
+bpy.ops.wm.read_factory_settings(use_empty=True)
+if not hasattr(bpy.types.Object, "rls_lidar"):
+    rls_addon.register()
+scene = bpy.context.scene
+scene.name = "moving"
+scene.render.fps, scene.render.fps_base = FPS, 1.0
+
+def mesh(name, lo, hi):
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    v = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+         (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
+    f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(v, [], f)
+    ob = bpy.data.objects.new(name, me)
+    scene.collection.objects.link(ob)
+    return ob
+
+mesh("Ground", (-40, -40, -1.1), (40, 40, -1.0))["rls_label"] = "road"
+box = mesh("Box", (-1, -1, -1), (1, 1, 1))
+for frame, y in ((1, -5.0), (101, -5.0 + SPEED * 100 / FPS)):
+    box.location = (8.0, y, 0.0)
+    box.keyframe_insert("location", frame=frame)
+for layer in box.animation_data.action.layers:
+    for strip in layer.strips:
+        for bag in strip.channelbags:
+            for fc in bag.fcurves:
+                for kp in fc.keyframe_points:
+                    kp.interpolation = "LINEAR"
+lidar = bpy.data.objects.new("LiDAR", None)
+scene.collection.objects.link(lidar)
+s = lidar.rls_lidar
+s.is_lidar, s.preset_id, s.noise, s.dropout = True, "generic_uniform32", False, False
+s.file_format, s.fields = "ply_binary", {"intensity", "range", "ring"}
+s.motion, s.substeps = "substeps", 0
+s.output_dir = sys.argv[3]
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
+""".replace("SPEED", repr(SPEED)).replace("FPS", repr(FPS))
+
+OPERATOR = r"""
+import sys, json, bpy
+sys.path.insert(0, sys.argv[1])
+import rls_addon
+bpy.ops.wm.open_mainfile(filepath=sys.argv[2])
+if not hasattr(bpy.types.Object, "rls_lidar"):
+    rls_addon.register()
+lidar = bpy.data.objects["LiDAR"]
+bpy.context.view_layer.objects.active = lidar
+lidar.rls_lidar.output_dir = sys.argv[3]
+bpy.context.scene.frame_set(1)
+assert bpy.ops.rls.scan_frame() == {"FINISHED"}
+"""
+
+
+@pytest.fixture(scope="module")
+def moving_blend(tmp_path_factory):
+    d = tmp_path_factory.mktemp("moving")
+    blend = d / "moving.blend"
+    proc = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(blend), str(d / "panel")],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return blend
+
+
+def test_scan_writes_what_the_output_panel_says_unless_a_flag_overrides(moving_blend, tmp_path):
+    from plyfile import PlyData
+
+    out = tmp_path / "ply"
+    proc = rls("scan", moving_blend, "--frames", "1-2", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    files = sorted(p.name for p in out.iterdir())
+    assert files == ["moving_LiDAR_000001.json", "moving_LiDAR_000001.ply",
+                     "moving_LiDAR_000002.json", "moving_LiDAR_000002.ply"]
+    ply = PlyData.read(str(out / files[1]))  # plyfile, not our reader, judges the file
+    props = [p.name for p in ply["vertex"].properties]
+    assert props == ["x", "y", "z", "range", "intensity", "ring"]
+    assert len(ply["vertex"]["range"]) > 1000 and ply["vertex"]["range"].min() > 0
+    pcd = tmp_path / "pcd"
+    proc = rls("scan", moving_blend, "--frames", "1-2", "--out", pcd, "--format", "pcd_binary",
+               "--fields", "intensity,label")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.suffix for p in pcd.iterdir()) == [".json", ".json", ".pcd", ".pcd"]
+    head = (pcd / "moving_LiDAR_000001.pcd").read_bytes()[:400].decode("ascii", "replace")
+    assert "FIELDS x y z intensity label\n" in head
+    # without --out, the LiDAR's own folder (saved in the file) is used
+    proc = rls("scan", moving_blend, "--frames", "3", "--overwrite")
+    assert proc.returncode == 0, proc.stderr
+    assert (moving_blend.parent / "panel" / "moving_LiDAR_000003.ply").is_file()
+
+
+def test_adaptive_substeps_agree_in_ui_command_line_and_core(moving_blend, tmp_path):
+    from rls_addon.core.io import read_sidecar
+    from rls_addon.core.presets import get_preset
+    from rls_addon.core.sweep import substep_count
+
+    preset = get_preset("generic_uniform32")
+    tol = preset.range.noise_sigma_m or 0.01
+    want = substep_count(SPEED * preset.period, tol)  # the core's rule on the known motion
+    assert want == math.ceil(SPEED * preset.period / tol) == 56
+    cli = tmp_path / "cli"
+    assert rls("scan", moving_blend, "--frames", "1", "--out", cli).returncode == 0
+    cli_side = read_sidecar(cli / "moving_LiDAR_000001.ply")
+    ui = tmp_path / "ui"
+    proc = subprocess.run([sys.executable, "-c", OPERATOR, str(ROOT), str(moving_blend), str(ui)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    ui_side = read_sidecar(ui / "moving_LiDAR_000001.ply")
+    for side in (cli_side, ui_side):
+        assert side["effects"]["motion"] == "substeps" and side["effects"]["substeps"] == 0
+        assert side["effects"]["substeps_used"] == want
+        assert side["motion"]["rigid"] == ["Box"]
+    assert (cli / "moving_LiDAR_000001.ply").read_bytes() == \
+        (ui / "moving_LiDAR_000001.ply").read_bytes()
+    fixed = tmp_path / "fixed"
+    assert rls("scan", moving_blend, "--frames", "1", "--out", fixed, "--substeps", "3").returncode == 0
+    assert read_sidecar(fixed / "moving_LiDAR_000001.ply")["effects"]["substeps_used"] == 3
+
+
+def test_unknown_choices_end_with_one_line_naming_them(moving_blend, tmp_path):
+    proc = rls("scan", moving_blend, "--out", tmp_path, "--fields", "intensity,colour")
+    assert "unknown point field 'colour'; choose one of intensity, ring" in one_line_error(proc)
+    proc = rls("scan", moving_blend, "--out", tmp_path, "--motion", "fast")
+    assert proc.returncode == 2 and "invalid choice: 'fast'" in proc.stderr
+
+
+def test_presets_import_refuses_a_builtin_id(tmp_path):
+    shared = tmp_path / "vlp.toml"
+    assert rls("presets", "export", "velodyne_vlp16", shared).returncode == 0
+    proc = rls("presets", "import", shared, "--user-dir", tmp_path / "user")
+    assert "'velodyne_vlp16' is a built-in preset id" in one_line_error(proc)
+    assert not (tmp_path / "user").exists() or not list((tmp_path / "user").iterdir())
+    json.dumps({})

@@ -1,0 +1,215 @@
+"""The scan run's orchestration with a fake scene source and the numpy caster: no
+Blender, milliseconds a test. Files, seeds, resume, cancel, progress, caching, motion
+decisions and errors, as every entry point (UI, command line, demo) gets them."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from rls_addon.core.errors import OutputError, SceneError, SettingsError
+from rls_addon.core.io import read_cloud, read_records, read_sidecar
+from rls_addon.core.io.writer import CloudWriter
+from rls_addon.core.run import ScanRun, SensorJob
+from rls_addon.core.settings import LidarSettings, OutputSettings, ScanSettings
+
+from .fakes import numpy_factory, small_preset, street
+
+PRESET = small_preset()
+
+
+def job(name, out=None, **scan):
+    settings = LidarSettings(preset=PRESET.id, scan=ScanSettings(noise=False, **scan),
+                             output=OutputSettings(directory=str(out or "unused")))
+    return SensorJob(name, settings, PRESET)
+
+
+def run_of(scene, jobs, frames, out=None, **kw):
+    writer = CloudWriter(scene.name, **kw.pop("writer_kw", {})) if out is not None else None
+    return ScanRun(scene, jobs, frames, writer=writer, factory=numpy_factory, **kw)
+
+
+def test_frames_by_sensors_write_clouds_and_sidecars(tmp_path):
+    scene = street()
+    steps = []
+    run = run_of(scene, [job("pole", tmp_path), job("mast", tmp_path)], [1, 2], tmp_path,
+                 progress=steps.append).run()
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == sorted(f"fake_{s}_{f:06d}.{e}" for s in ("pole", "mast") for f in (1, 2)
+                           for e in ("pcd", "json"))
+    assert [(s.frame, s.sensor, s.done, s.total) for s in steps] == [
+        (1, "pole", 1, 4), (1, "mast", 2, 4), (2, "pole", 3, 4), (2, "mast", 4, 4)]
+    assert steps[-1].eta_s == 0.0 and all(s.points > 500 for s in steps)
+    side = read_sidecar(tmp_path / "fake_pole_000001.pcd")
+    assert side["sensor"] == "pole" and side["frame"] == 1 and side["points"] == steps[0].points
+    assert side["format"] == "pcd_binary" and side["backend"] == "numpy"
+    assert len(read_cloud(tmp_path / "fake_pole_000001.pcd")) == steps[0].points
+    s = run.summary()
+    assert (s["scanned"], s["resumed"], s["cancelled"]) == (4, 0, False)
+    assert s["points"] == sum(x.points for x in steps) and len(s["outputs"]) == 4
+    assert run.frames_done == [1, 2] and scene.frame == 1  # put back where it was
+    json.dumps(s)
+
+
+def test_a_sensor_is_written_as_its_output_settings_say(tmp_path):
+    scene = street()
+    j = job("pole", tmp_path)
+    j = SensorJob("pole", j.settings.override(format="ply_binary",
+                                              fields=("x", "y", "z", "range", "ring"),
+                                              template="{sensor}/{frame:03d}"), PRESET)
+    run_of(scene, [j], [3], tmp_path).run()
+    rec = read_records(tmp_path / "pole" / "003.ply")
+    assert rec.dtype.names == ("x", "y", "z", "range", "ring")
+    r = np.sqrt(rec["x"].astype(float) ** 2 + rec["y"] ** 2 + rec["z"] ** 2)
+    assert np.abs(r - rec["range"]).max() < 1e-3
+
+
+def test_seeds_come_from_seed_sensor_and_frame():
+    scene = street()
+    noisy = [SensorJob(n, LidarSettings(scan=ScanSettings(seed=3)), small_preset(noise=0.02))
+             for n in ("pole", "mast")]
+    a = run_of(scene, noisy, [1, 2]).run()
+    b = run_of(scene, noisy[:1], [2]).run()  # the same scan alone, in another run
+    pts = {}
+
+    def keep(job, frame, result, info):
+        pts[(job.name, frame)] = result.points.tobytes()
+
+    run_of(scene, noisy, [1, 2], on_result=keep).run()
+    again = {}
+    run_of(scene, noisy[:1], [2], on_result=lambda j, f, r, i: again.update(
+        {(j.name, f): r.points.tobytes()})).run()
+    assert again[("pole", 2)] == pts[("pole", 2)]       # same inputs, same bytes
+    assert pts[("pole", 1)] != pts[("pole", 2)]          # another frame, other draws
+    assert a.points and b.points
+
+
+def test_a_still_sensor_prepares_its_scene_once_and_reuses_its_cast():
+    scene = street()
+    infos = []
+    run = run_of(scene, [job("pole")], [1, 2, 3],
+                 on_result=lambda j, f, r, i: infos.append(i)).run()
+    assert run.structure_builds == 1
+    assert [i["static_cast_reused"] for i in infos] == [False, True, True]
+
+
+def test_a_moving_car_is_cast_exactly_in_its_own_frame():
+    v = 15.0
+    scene = street(car_speed=v)
+    got = []
+    run_of(scene, [job("pole", frame_space="world")], [2],
+           on_result=lambda j, f, r, i: got.append((r, i))).run()
+    result, info = got[0]
+    assert info["motion"]["rigid"] == ["car"] and info["effects"]["substeps_used"] is None
+    p = result.points[result.points["label"] == 11]
+    assert len(p) > 20
+    y0 = -8.0 + v * scene.seconds(2, p["time"])  # the car's centre at each ray's time
+    # every car point lies on the car where it was at the point's own time
+    inside_y = np.abs(p["y"] - y0) <= 0.9 + 1e-6
+    on_x = np.minimum(np.abs(p["x"] - 1.75), np.abs(p["x"] - 6.25)) <= 1e-6
+    on_face = np.isclose(np.abs(p["y"] - y0), 0.9, atol=1e-6) | np.isclose(p["z"], 0.5, atol=1e-6)
+    assert np.all(inside_y & (on_x | on_face))
+
+
+def test_adaptive_substeps_are_chosen_from_the_motion_and_recorded():
+    """motion 'substeps' with N = 0: enough sub-steps that nothing moves more than the
+    tolerance (the preset's noise, else 1 cm) within one; the sidecar says which N."""
+    v = 12.0
+    scene = street(car_speed=v)
+    got = []
+    run_of(scene, [job("pole", motion="substeps", substeps=0)], [1],
+           on_result=lambda j, f, r, i: got.append((r, i))).run()
+    result, info = got[0]
+    travel = v * PRESET.period  # the car's box moves this far in one sweep
+    want = min(64, math.ceil(travel / 0.01))
+    assert info["effects"]["substeps"] == 0 and info["effects"]["substeps_used"] == want
+    assert result.stats["substeps_used"] == want
+    # scan_frame on its own (no session) decides the same N from the bodies it is given
+    from rls_addon.core.sweep import adaptive_substeps
+
+    fixed = []
+    run_of(scene, [job("pole", motion="substeps", substeps=5)], [1],
+           on_result=lambda j, f, r, i: fixed.append(i)).run()
+    assert fixed[0]["effects"]["substeps_used"] == 5
+    still = []
+    run_of(street(), [job("pole", motion="substeps")], [1],
+           on_result=lambda j, f, r, i: still.append(i)).run()
+    assert still[0]["effects"]["substeps_used"] == 1  # nothing moves: one sweep
+    assert adaptive_substeps([], None, 0.01) == 1
+
+
+def test_cancel_is_asked_after_the_frame_is_set_and_leaves_complete_files(tmp_path):
+    scene = street()
+    run = run_of(scene, [job("pole", tmp_path), job("mast", tmp_path)], [1, 2, 3], tmp_path,
+                 cancelled=lambda: scene.frame == 2)
+    run.run()
+    assert run.cancelled and run.frames_done == [1] and run.index == 2
+    assert len(list(tmp_path.glob("*.pcd"))) == 2 and len(list(tmp_path.glob("*.json"))) == 2
+    assert scene.frame == 1
+
+
+def test_resume_keeps_finished_outputs_and_redoes_broken_ones(tmp_path):
+    scene = street()
+    jobs = [job("pole", tmp_path)]
+    run_of(scene, jobs, [1, 2, 3], tmp_path).run()
+    (tmp_path / "fake_pole_000002.json").unlink()
+    cloud = tmp_path / "fake_pole_000003.pcd"
+    cloud.write_bytes(cloud.read_bytes()[:200])
+    with pytest.raises(OutputError, match="already exists"):
+        run_of(scene, jobs, [1, 2, 3], tmp_path).run()
+    again = run_of(scene, jobs, [1, 2, 3, 4], tmp_path, writer_kw={"resume": True}).run()
+    assert (again.resumed, again.scanned) == (1, 3)
+    assert [o.resumed for o in again.outputs] == [True, False, False, False]
+    for f in (1, 2, 3, 4):
+        p = tmp_path / f"fake_pole_{f:06d}.pcd"
+        assert len(read_cloud(p)) == read_sidecar(p)["points"]
+
+
+def test_bad_input_fails_before_anything_is_scanned(tmp_path):
+    scene = street()
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(OutputError, match="cannot create output folder"):
+        run_of(scene, [job("pole", blocker / "out")], [1], tmp_path)
+    with pytest.raises(SceneError, match="no LiDAR objects"):
+        run_of(scene, [], [1])
+    with pytest.raises(SceneError, match="no frames"):
+        run_of(scene, [job("pole")], [])
+    bad_template = SensorJob("pole", job("pole", tmp_path).settings.override(
+        template="{camera}"), PRESET)
+    with pytest.raises(OutputError, match="unknown placeholder"):
+        run_of(scene, [bad_template], [1], tmp_path)
+    assert scene.calls["read"] == 0 and sorted(p.name for p in tmp_path.iterdir()) == ["file"]
+
+
+def test_settings_choices_are_checked_with_the_valid_values_named():
+    with pytest.raises(SettingsError, match="unknown motion mode 'fast'; choose one of "
+                                            "exact, substeps, snapshot"):
+        ScanSettings(motion="fast")
+    with pytest.raises(SettingsError, match="unknown ray-casting backend 'optix'"):
+        LidarSettings(backend="optix")
+    with pytest.raises(SettingsError, match="unknown cloud format 'las'"):
+        OutputSettings(format="las")
+    with pytest.raises(SettingsError, match="unknown coordinate frame"):
+        ScanSettings(frame_space="camera")
+    with pytest.raises(SettingsError, match="sub-steps"):
+        ScanSettings(substeps=-1)
+    with pytest.raises(SettingsError, match="unknown setting"):
+        LidarSettings().override(colour="red")
+    from rls_addon.core.casting import caster_factory
+
+    with pytest.raises(SettingsError, match="choose one of auto, bvhtree, embree"):
+        caster_factory("optix")
+
+
+def test_overrides_change_only_the_fields_given():
+    base = LidarSettings(preset="velodyne_vlp16",
+                         scan=ScanSettings(seed=4, motion="snapshot"),
+                         output=OutputSettings(format="ply_binary", fields=("x", "y", "z", "range")))
+    got = base.override(seed=None, format=None, motion="exact", template="{frame}")
+    assert got.scan.seed == 4 and got.output.format == "ply_binary"
+    assert got.scan.motion == "exact" and got.output.template == "{frame}"
+    assert got.output.fields == ("x", "y", "z", "range") and got.preset == "velodyne_vlp16"
+    assert OutputSettings(fields=("ring", "x", "y", "z", "range")).fields == \
+        ("x", "y", "z", "range", "ring")  # always the files' own order
