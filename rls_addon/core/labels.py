@@ -26,7 +26,11 @@ DEFAULT_LABELS = {
     15: "ground",
     16: "static",
     17: "metal",
+    18: "cyclist",
 }
+
+# Labels whose objects get ground-truth boxes by default (see ``ground_truth``).
+OBJECT_CLASSES = ("vehicle", "pedestrian", "cyclist")
 
 ALIASES = {
     "roads": "road",
@@ -48,6 +52,16 @@ ALIASES = {
     "cars": "vehicle",
     "pedestrians": "pedestrian",
     "people": "pedestrian",
+    "person": "pedestrian",
+    "cyclists": "cyclist",
+    "bicycle": "cyclist",
+    "bicycles": "cyclist",
+    "bike": "cyclist",
+    "bikes": "cyclist",
+    "rider": "cyclist",
+    "truck": "vehicle",
+    "trucks": "vehicle",
+    "bus": "vehicle",
 }
 
 NAME_TO_ID = {name: i for i, name in DEFAULT_LABELS.items()}
