@@ -151,6 +151,16 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
                                       "deforming objects (0: chosen from how far things "
                                       "move, so that nothing moves more than the range "
                                       "noise within one)")
+    use_sweep_start: BoolProperty(
+        name="Set Sweep Start", default=False,
+        description="Start each sweep at your own azimuth instead of the head's forward "
+                    "direction (spinning devices)")
+    sweep_start: FloatProperty(
+        name="Sweep Start", default=180.0, min=-360.0, max=360.0, precision=1,
+        description="Azimuth in degrees (counter-clockwise from the LiDAR's +X) where each "
+                    "sweep starts and the last one ended: an object there is scanned at both "
+                    "ends of the sweep, a period apart. 180 (behind the sensor) keeps the "
+                    "seam off the road a pole LiDAR watches")
     ghosting: BoolProperty(name="Ghost Points", default=True,
                            description="Ghost points from glossy surfaces (mirror-like bounces)")
     backend: EnumProperty(name="Ray Casting", default="auto", items=BACKENDS.items(),

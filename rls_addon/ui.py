@@ -199,6 +199,11 @@ class OBJECT_PT_rls_lidar_motion(_LidarPanel, bpy.types.Panel):
         sub = layout.row()
         sub.active = s.motion == "substeps"
         sub.prop(s, "substeps")
+        row = layout.row(heading="Sweep Start")
+        row.prop(s, "use_sweep_start", text="")
+        sub = row.row()
+        sub.active = s.use_sweep_start
+        sub.prop(s, "sweep_start", text="")
         layout.prop(s, "ghosting")
         layout.prop(s, "backend")
 

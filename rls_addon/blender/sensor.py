@@ -53,6 +53,7 @@ def read_settings(obj):
         motion=s.motion,
         substeps=int(s.substeps),
         ghosting=bool(s.ghosting),
+        sweep_start_deg=float(s.sweep_start) if s.use_sweep_start else None,
     )
     output = OutputSettings(directory=s.output_dir, format=s.file_format,
                             fields=("x", "y", "z") + tuple(sorted(s.fields)),

@@ -21,6 +21,8 @@ class BlenderScene:
         self.scene = scene
         self.context = context or bpy.context
         self.name = scene.name
+        self.fps = scene.render.fps / scene.render.fps_base
+        self.frame_start = scene.frame_start
         self.meshes = MeshReader()
 
     def depsgraph(self):

@@ -5,8 +5,10 @@ JSON file (``--lob-polygon``: ``[[x, y], ...]`` or ``{"polygon": [[x, y], ...]}`
 in world coordinates. Clouds are PCD/PLY files. Their points must end up in
 the world frame: when a cloud has a JSON sidecar (same stem, ``.json``) that
 says the points are in the sensor frame (``"frame_space": "sensor"``, or
-``"frame": "sensor"``), its ``"sensor_to_world"`` 4x4 matrix maps them to world.
-Clouds without a sidecar are taken as world-frame. Prints the result as JSON.
+``"frame": "sensor"``), its ``"sensor_to_world"`` 4x4 matrix maps them to world,
+or, for a sensor that moved during its sweep, its ``"sensor_poses"`` knots map each
+point with the sensor's pose at the point's own time. Clouds without a sidecar are
+taken as world-frame. Prints the result as JSON.
 """
 
 import json
@@ -83,6 +85,19 @@ def world_points(path):
         return pts
     if space != "sensor":
         raise InputError(f"sidecar of {path}: unknown coordinate frame {space!r} (expected sensor or world)")
+    knots = info.get("sensor_poses")
+    if knots:
+        from ..core.motion import poses_at
+
+        try:
+            poses = poses_at(knots["times_s"], knots["matrices"], pts["time"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"sidecar of {path}: unreadable sensor_poses ({exc})") from None
+        xyz = np.stack([pts["x"], pts["y"], pts["z"]], 1)
+        w = np.einsum("nij,nj->ni", poses[:, :3, :3], xyz) + poses[:, :3, 3]
+        out = pts.copy()
+        out["x"], out["y"], out["z"] = w[:, 0], w[:, 1], w[:, 2]
+        return out
     m = np.asarray(info.get("sensor_to_world"), dtype=np.float64) if info.get("sensor_to_world") is not None else None
     if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
         raise InputError(f"sidecar of {path} says the points are in the sensor frame but has no valid 4x4 sensor_to_world")

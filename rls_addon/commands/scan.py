@@ -45,6 +45,9 @@ def add_parser(sub):
                         "(default: each LiDAR's)")
     p.add_argument("--ghosting", choices=("on", "off"), default=None,
                    help="ghost points from glossy surfaces (default: each LiDAR's setting)")
+    p.add_argument("--sweep-start", type=float, default=None, metavar="DEG",
+                   help="spinning devices: azimuth where each sweep starts (degrees, "
+                        "counter-clockwise from the LiDAR's +X; 180 = behind it)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="skip scans whose cloud and sidecar already exist and agree "
@@ -63,6 +66,7 @@ def overrides(args):
     return {"seed": args.seed, "frame_space": args.frame_space, "motion": args.motion,
             "substeps": args.substeps, "backend": args.backend, "format": args.format,
             "fields": fields, "template": args.template, "directory": args.out,
+            "sweep_start_deg": args.sweep_start,
             "ghosting": None if args.ghosting is None else args.ghosting == "on"}
 
 

@@ -245,7 +245,7 @@ class RigidBodies:
         parts = []
         for k, track in enumerate(self.tracks):
             centre, radius = self._swept_sphere(k)
-            idx = np.nonzero(_ray_meets_sphere(o1, directions, centre, radius, max_range))[0]
+            idx = np.nonzero(ray_meets_sphere(o1, directions, centre, radius, max_range))[0]
             if len(idx) == 0:
                 continue
             lo, hi = self._swept_box(k)
@@ -313,7 +313,7 @@ def RigidBody(geometry_local, track, caster_factory, watertight=True):
     return RigidBodies([(geometry_local, track)], caster_factory, watertight)
 
 
-def _ray_meets_sphere(o, d, centre, radius, max_range):
+def ray_meets_sphere(o, d, centre, radius, max_range):
     """Rays (unit d, origins o: one (1, 3) or one per ray) that pass within ``radius``
     of ``centre`` before ``max_range``."""
     rel = centre - o

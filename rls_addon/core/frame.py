@@ -26,6 +26,35 @@ class ScanResult:
     seconds: float
     warnings: list = field(default_factory=list)
     stats: dict = field(default_factory=dict)
+    rays_cast: "RayRecord" = None  # with scan_frame(keep_rays=True)
+
+
+@dataclass
+class RayRecord:
+    """Every ray of a frame and what it hit first, for ground truth (visibility of
+    objects, the world position of each point). World coordinates.
+
+    origins   (1, 3) or (N, 3) ray origins (per ray for a moving sensor)
+    dirs      (N, 3) unit directions
+    times     (N,) firing times, seconds since the sweep start
+    object    (N,) int32 index into ``objects`` of the first surface hit (-1: nothing
+              within range); a glossy hit is the mirror, not its ghost
+    dist      (N,) float64 range to that hit (inf: nothing)
+    point_ray (P,) int64 the ray of each returned point
+    objects   the ObjectInfo table ``object`` indexes"""
+
+    origins: np.ndarray
+    dirs: np.ndarray
+    times: np.ndarray
+    object: np.ndarray
+    dist: np.ndarray
+    point_ray: np.ndarray
+    objects: list
+
+    def point_world(self, ranges):
+        """(P, 3) world position of the points of ranges ``ranges`` (per point)."""
+        o = self.origins if self.origins.shape[0] == 1 else self.origins[self.point_ray]
+        return o + self.dirs[self.point_ray] * np.asarray(ranges, np.float64)[:, None]
 
 
 def sensor_axes(sensor_to_world):
@@ -137,7 +166,7 @@ def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
 
 
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
-               frame=0, sensor="sensor", sensor_track=None, moving=()):
+               frame=0, sensor="sensor", sensor_track=None, moving=(), keep_rays=False):
     """Scan one frame.
 
     scene            PreparedScene covering the sensor, or a SceneGeometry (world
@@ -146,16 +175,18 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     sensor_to_world  4x4 pose of the sensor at the start of the sweep
     sensor_track     optional Track of the sensor over the sweep (a moving sensor)
     moving           RigidBody / TimedScene bodies (moving and deforming objects)
+    keep_rays        also return every ray and its first hit (``RayRecord``, for
+                     ground truth); costs a copy of the hit objects and ranges
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
     with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
         return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
-                           frame, sensor, sensor_track, moving)
+                           frame, sensor, sensor_track, moving, keep_rays)
 
 
 def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
-                sensor, sensor_track, moving):
+                sensor, sensor_track, moving, keep_rays=False):
     t0 = time.perf_counter()
     s = settings
     rmin, rmax = resolve_range(preset, s)
@@ -204,6 +235,11 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     reused = scene.reused > reused
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
+    first_hit = None
+    if keep_rays:  # before ghosts relabel the glossy rays
+        hit = (tri >= 0) & (dist <= rmax)
+        first_hit = (np.where(hit, ret.surface[:, 0], -1).astype(np.int32),
+                     np.where(hit, dist, np.inf))
     bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
         if s.ghosting and ret.valid.any() else None
 
@@ -259,4 +295,9 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     stats["moving_bodies"] = len(moving)
     stats["substeps_used"] = substeps_used
     stats["static_cast_reused"] = reused
-    return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats)
+    rays = None
+    if keep_rays:
+        rays = RayRecord(origins, dirs, pattern.times, first_hit[0], first_hit[1], idx,
+                         list(g.objects))
+    return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats,
+                      rays)

@@ -239,3 +239,51 @@ def effective_times(times, period, mode, substeps):
         raise SettingsError(f"sub-steps must be at least 1 here, got {substeps}")
     step = period / n
     return (np.minimum(np.floor(t / step), n - 1) + 0.5) * step
+
+
+KNOT_TOLERANCE_M = 5e-4  # pose knots: interpolation within half a millimetre
+
+
+def pose_knots(track, tolerance_m=KNOT_TOLERANCE_M, reach_m=1.0):
+    """Times and 4x4 poses of a moving sensor at enough knots over its sweep that
+    ``poses_at`` (linear translation, slerp rotation between knots) stays within
+    ``tolerance_m`` of the track, measured at the sensor and at ``reach_m`` along
+    each axis (a rotation error shows as a distance there). What the sidecar carries so
+    a sensor-frame cloud can be mapped to the world point by point."""
+    lo, hi = float(track.times[0]), float(track.times[-1])
+    probe = np.array([[0, 0, 0, 1], [reach_m, 0, 0, 1], [0, reach_m, 0, 1], [0, 0, reach_m, 1]],
+                     float).T
+    times = np.array([lo, hi]) if hi > lo else np.array([lo])
+    while len(times) < 4097:
+        mats = track.at(times)
+        if len(times) == 1:
+            return times, mats
+        mids = (times[1:] + times[:-1]) / 2
+        err = np.linalg.norm((poses_at(times, mats, mids) - track.at(mids)) @ probe, axis=1)
+        bad = err.max(axis=1) > tolerance_m
+        if not bad.any():
+            return times, mats
+        times = np.sort(np.concatenate([times, mids[bad]]))
+    return times, track.at(times)
+
+
+def poses_at(times, matrices, t):
+    """(N, 4, 4) poses at times ``t`` from knots (``times`` increasing, ``matrices``
+    (K, 4, 4) rigid): translation linear, rotation by slerp between neighbouring knots,
+    clamped to the knots' span. The interpolation the sidecar's ``sensor_poses``
+    state, in numpy (any quaternion library gives the same)."""
+    times = np.asarray(times, np.float64).reshape(-1)
+    m = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
+    t = np.asarray(t, np.float64).reshape(-1)
+    out = np.empty((len(t), 4, 4))
+    out[:] = np.eye(4)
+    if len(times) == 1:
+        out[:] = m[0]
+        return out
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    span = times[i + 1] - times[i]
+    a = np.clip((t - times[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+    q = quat_from_matrix(m[:, :3, :3])
+    out[:, :3, :3] = matrix_from_quat(slerp(q[i], q[i + 1], a))
+    out[:, :3, 3] = m[i, :3, 3] * (1 - a)[:, None] + m[i + 1, :3, 3] * a[:, None]
+    return out

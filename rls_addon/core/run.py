@@ -17,6 +17,8 @@ from typing import Protocol
 
 from .casting import caster_factory
 from .errors import SceneError
+from .instances import check_ids
+from .labels import label_id, label_name
 from .session import ScanSession
 
 
@@ -53,6 +55,9 @@ class Writer(Protocol):
     def existing(self, sensor: str, output, frame: int) -> int | None: ...
 
     def write(self, sensor: str, output, frame: int, points, info: dict): ...
+
+    def finish(self, run) -> None:
+        """After the last step of a run that was not cancelled (run-level files)."""
 
 
 class ScanRun:
@@ -95,6 +100,7 @@ class ScanRun:
         self.warnings = list(self.notices)
         self.cancelled = False
         self.last = None
+        self.id_map = {}  # instance id -> {object name: label id}, over the whole run
         self._frame_set = None
         self._scan_time = 0.0
         self.t0 = time.perf_counter()
@@ -143,7 +149,14 @@ class ScanRun:
             return False
         t = time.perf_counter()
         session = self.sessions[job.settings.backend]
-        result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame)
+        out = job.settings.output
+        classes = [label_id(c) for c in out.object_classes] if out.ground_truth else None
+        result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
+                                    object_classes=classes)
+        info["frame_rate_hz"] = self.source.fps
+        info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
+        for iid, o in info["labels"].items():
+            self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
         path = None
         if self.writer is not None:
             path = str(self.writer.write(job.name, out, frame, result.points, info))
@@ -167,8 +180,21 @@ class ScanRun:
         self.outputs.append(step)
         if self.index == len(self.plan) or self.plan[self.index][0] != frame:
             self.frames_done.append(frame)
+        if self.index == len(self.plan):
+            self._complete()
         if self.progress is not None:
             self.progress(step)
+
+    def instance_table(self):
+        """The run's objects by stable instance id (what every sidecar's ``labels``
+        lists for its own scan), for the writer to store once per run."""
+        return {str(i): {"object": name, "label": label, "label_name": label_name(label)}
+                for i, names in sorted(self.id_map.items()) for name, label in names.items()}
+
+    def _complete(self):
+        self.warnings += check_ids({i: set(n) for i, n in self.id_map.items()})
+        if self.writer is not None:
+            self.writer.finish(self)
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when

@@ -16,8 +16,11 @@ import numpy as np
 
 from .bodies import PreparedScene, RigidBodies, TimedScene
 from .frame import scan_frame
+from .ground_truth import object_boxes
 from .instances import object_table, static_key, world_geometry
-from .settings import resolve_range
+from .labels import DEFAULT_LABELS
+from .motion import pose_knots
+from .settings import resolve_range, scan_pattern
 from .sweep import SweepMotion, classify, substep_count
 
 MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
@@ -72,10 +75,11 @@ class ScanSession:
         self._anchors[name] = (centre.copy(), reach, rmax)
         return centre, reach
 
-    def scan(self, source, sensor, preset, settings, frame):
+    def scan(self, source, sensor, preset, settings, frame, object_classes=None):
         """Scan ``frame`` (the source is already at it) of sensor ``sensor`` with device
         ``preset`` and ``ScanSettings`` ``settings``. Returns (ScanResult, info dict
-        for the sidecar)."""
+        for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
+        objects of these classes go into the info (``ground_truth``)."""
         pose = source.sensor_pose(sensor)
         rmin, rmax = resolve_range(preset, settings)
         centre = pose[:3, 3]
@@ -108,10 +112,23 @@ class ScanSession:
         scene = self.prepared(
             lambda: world_geometry(instances, objects, materials, select=static_sel), anchor,
             reach, static_key(instances, objects, materials, static_sel))
-        result = scan_frame(scene, preset.pattern(frame), pose, preset, cast_settings,
-                            frame=frame, sensor=sensor, sensor_track=track, moving=moving)
-        return result, self._info(preset, settings, sensor, frame, pose, rmin, rmax, motion,
-                                  instances, substeps, n_used, objects, scene, result, read)
+        classes = set(object_classes or ())
+        boxes = bool(classes) and any(i.label in classes for i in instances)
+        result = scan_frame(scene, scan_pattern(preset, settings, frame), pose, preset,
+                            cast_settings,
+                            frame=frame, sensor=sensor, sensor_track=track, moving=moving,
+                            keep_rays=boxes)
+        info = self._info(preset, settings, sensor, frame, pose, rmin, rmax, motion, instances,
+                          substeps, n_used, objects, scene, result, read)
+        info.update(sensor_pose_record(pose, track, preset.period))
+        if object_classes is not None:
+            info["objects"] = [b.to_dict() for b in object_boxes(
+                instances, objects, motion.tracks if settings.motion != "snapshot" else {},
+                classes, result, _pose_function(pose, track), rmax,
+                _noise_sigma(preset, settings), preset.period)] if boxes else []
+            info["object_classes"] = sorted(classes)
+        result.rays_cast = None  # large; the boxes hold what was wanted from it
+        return result, info
 
     @staticmethod
     def _substep_counts(preset, settings, instances, motion):
@@ -178,6 +195,7 @@ class ScanSession:
                         "range_m": [rmin, rmax],
                         "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
                         "motion": settings.motion, "substeps": settings.substeps,
+                        "sweep_start_deg": settings.sweep_start_deg,
                         "substeps_used": n_used, "ghosting": settings.ghosting},
             "motion": summary,
             "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
@@ -191,3 +209,34 @@ class ScanSession:
             "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }
+
+
+def _noise_sigma(preset, settings):
+    if not settings.noise:
+        return 0.0
+    return preset.range.noise_sigma_m if settings.noise_sigma_m is None else settings.noise_sigma_m
+
+
+def _pose_function(pose, track):
+    """f(times) -> (N, 4, 4) sensor poses: the track's, or the still pose."""
+    if track is None:
+        return lambda t: np.broadcast_to(pose, (len(np.atleast_1d(t)), 4, 4))
+    return track.at
+
+
+def sensor_pose_record(pose, track, period):
+    """The sidecar's poses: at the sweep start and end, and for a moving sensor knots
+    that give its pose at any firing time within half a millimetre (``poses_at``:
+    linear translation, slerp rotation)."""
+    if track is None:
+        return {"sensor_pose_start": pose.tolist(), "sensor_pose_end": pose.tolist(),
+                "sensor_moves": False, "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
+    times, mats = pose_knots(track)
+    return {"sensor_pose_start": track.at([0.0])[0].tolist(),
+            "sensor_pose_end": track.at([period])[0].tolist(), "sensor_moves": True,
+            "sensor_poses": {"times_s": times.tolist(), "matrices": mats.tolist(),
+                             "interpolation": "between knots: translation linear, rotation "
+                                              "by quaternion slerp; within 0.5 mm of the "
+                                              "sensor's path"},
+            "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
+

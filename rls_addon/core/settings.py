@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from .choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from .errors import SettingsError
 from .io.fields import DEFAULT_FIELDS, resolve_fields
+from .labels import OBJECT_CLASSES, label_id, label_name
 
 DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
 DEFAULT_OUTPUT_DIR = "//lidar/"
@@ -41,6 +42,10 @@ class ScanSettings:
     substeps: int = 0
     motion_tolerance_m: float | None = None  # adaptive sub-step tolerance (None: preset)
     ghosting: bool = True  # ghost points from glossy surfaces
+    # Spinning devices: the azimuth (degrees, counter-clockwise from the sensor's +X)
+    # where each sweep starts and the last one ended; None: the head's forward (0).
+    # An object on this seam is scanned at the start and at the end of the sweep.
+    sweep_start_deg: float | None = None
 
     def __post_init__(self):
         FRAME_SPACES.check(self.frame_space)
@@ -58,6 +63,12 @@ class OutputSettings:
     format: str = "pcd_binary"           # see choices.FORMATS
     fields: tuple = DEFAULT_FIELDS  # x, y, z and every field but 'range'
     template: str = DEFAULT_TEMPLATE
+    # Ground truth in the sidecar: boxes of the objects of these classes (label names)
+    ground_truth: bool = True
+    object_classes: tuple = OBJECT_CLASSES
+    # Absolute time (s, e.g. a Unix time) of the scene's first frame: frame f starts
+    # at start_time_s + (f - first frame) / frame rate
+    start_time_s: float = 0.0
 
     def __post_init__(self):
         FORMATS.check(self.format)
@@ -66,6 +77,8 @@ class OutputSettings:
                 FIELDS.check(f)
         # x, y, z first and always; the rest in the files' own order
         object.__setattr__(self, "fields", resolve_fields(tuple(self.fields)))
+        object.__setattr__(self, "object_classes", tuple(label_name(label_id(c))
+                                                         for c in self.object_classes))
 
 
 @dataclass(frozen=True)
@@ -97,6 +110,18 @@ class LidarSettings:
                                                      if k in out_names})
         return dataclasses.replace(self, scan=scan, output=output,
                                    **{k: v for k, v in changes.items() if k in own})
+
+
+def scan_pattern(preset, settings, frame):
+    """The ``ScanPattern`` a scan casts: the preset's for ``frame``, its sweep started
+    where ``settings.sweep_start_deg`` says (spinning devices only)."""
+    pattern = preset.pattern(frame)
+    if settings.sweep_start_deg is None:
+        return pattern
+    if preset.family != "spinning":
+        raise SettingsError(f"'{preset.id}' is a {preset.family} device: a sweep start is "
+                            "only defined for spinning devices")
+    return pattern.started_at(settings.sweep_start_deg)
 
 
 def resolve_range(preset, settings):

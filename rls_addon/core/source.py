@@ -57,7 +57,9 @@ class Sweep(Protocol):
 class SceneSource(Protocol):
     """A scene the core can scan (see the module docstring)."""
 
-    name: str    # the scene's name (used in file names)
+    name: str           # the scene's name (used in file names)
+    fps: float          # frames per second of the scene's animation
+    frame_start: int    # the scene's first frame (time 0 of its timestamps)
 
     def current_frame(self) -> int: ...
 

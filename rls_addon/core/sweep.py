@@ -129,6 +129,7 @@ class SweepMotion:
     times: np.ndarray = None
     rigid: list = field(default_factory=list)      # [(instance index, Track)]
     deforming: list = field(default_factory=list)  # [(instance index, motion in m)]
+    tracks: dict = field(default_factory=dict)     # {instance index: Track of its matrix}
     sensor: Track = None                           # a moving sensor's track, or None
     samples: int = 1
 
@@ -167,10 +168,11 @@ def classify(sweep, period, instances, mobility, sensor):
         moved = bool(np.abs(m - m[0]).max() > 1e-12)
         deform = deformation(verts[k]) if k in verts else 0.0
         if deform > 1e-9:
-            travel = Track(times, m).max_displacement(box_corners(inst.vertices))
-            out.deforming.append((k, deform + travel))
+            out.tracks[k] = track = Track(times, m)
+            out.deforming.append((k, deform + track.max_displacement(box_corners(inst.vertices))))
         elif moved:
-            out.rigid.append((k, Track(times, m)))
+            out.tracks[k] = track = Track(times, m)
+            out.rigid.append((k, track))
     if sensor_mats is not None and np.abs(sensor_mats - sensor_mats[0]).max() > 1e-12:
         out.sensor = Track(times, sensor_mats)
     return out

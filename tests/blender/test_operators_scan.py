@@ -67,7 +67,7 @@ def test_scan_frame_writes_only_the_chosen_fields_and_colours_the_preview(scene,
                        frame_space="world", preview_color="ring")
     assert bpy.ops.rls.scan_frame() == {"FINISHED"}
     files = _files(tmp_path)
-    assert files == ["Scene_LiDAR_000001.json", "Scene_LiDAR_000001.ply"]
+    assert files == ["Scene_LiDAR_000001.json", "Scene_LiDAR_000001.ply", "Scene_instances.json"]
     rec = read_records(tmp_path / files[1])
     assert rec.dtype.names == ("x", "y", "z", "intensity", "label")
     assert set(np.unique(rec["label"])) == {1}
@@ -119,7 +119,8 @@ def test_scan_all_lidars(scene, tmp_path):
     bpy.context.view_layer.objects.active = None
     assert bpy.ops.rls.scan_all() == {"FINISHED"}
     assert _files(tmp_path) == ["Scene_LiDAR.001_000001.json", "Scene_LiDAR.001_000001.pcd",
-                                "Scene_LiDAR_000001.json", "Scene_LiDAR_000001.pcd"]
+                                "Scene_LiDAR_000001.json", "Scene_LiDAR_000001.pcd",
+                                "Scene_instances.json"]
     assert "LiDAR points" in bpy.data.objects and "LiDAR.001 points" in bpy.data.objects
 
 

@@ -31,7 +31,10 @@ def test_scan_frame_range_writes_clouds_sidecars_and_summary(demo_run, tmp_path)
     assert summary["frames"] == [1, 3] and summary["sensors"] == ["LiDAR"]
     names = sorted(p.name for p in out.iterdir())
     assert names == ["street_LiDAR_000001.json", "street_LiDAR_000001.ply",
-                     "street_LiDAR_000003.json", "street_LiDAR_000003.ply"]
+                     "street_LiDAR_000003.json", "street_LiDAR_000003.ply",
+                     "street_instances.json"]
+    instances = json.loads((out / "street_instances.json").read_text())["instances"]
+    assert {v["object"]: v["label_name"] for v in instances.values()}["Car 0"] == "vehicle"
     side = json.loads((out / "street_LiDAR_000001.json").read_text())
     assert side["device"]["id"] == "generic_uniform32" and side["frame"] == 1
     assert "[2/2]" in proc.stderr and "left" in proc.stderr  # per-frame progress with estimate

@@ -90,7 +90,8 @@ def test_scan_writes_what_the_output_panel_says_unless_a_flag_overrides(moving_b
     assert proc.returncode == 0, proc.stderr
     files = sorted(p.name for p in out.iterdir())
     assert files == ["moving_LiDAR_000001.json", "moving_LiDAR_000001.ply",
-                     "moving_LiDAR_000002.json", "moving_LiDAR_000002.ply"]
+                     "moving_LiDAR_000002.json", "moving_LiDAR_000002.ply",
+                     "moving_instances.json"]
     ply = PlyData.read(str(out / files[1]))  # plyfile, not our reader, judges the file
     props = [p.name for p in ply["vertex"].properties]
     assert props == ["x", "y", "z", "range", "intensity", "ring"]
@@ -99,7 +100,7 @@ def test_scan_writes_what_the_output_panel_says_unless_a_flag_overrides(moving_b
     proc = rls("scan", moving_blend, "--frames", "1-2", "--out", pcd, "--format", "pcd_binary",
                "--fields", "intensity,label")
     assert proc.returncode == 0, proc.stderr
-    assert sorted(p.suffix for p in pcd.iterdir()) == [".json", ".json", ".pcd", ".pcd"]
+    assert sorted(p.suffix for p in pcd.iterdir()) == [".json", ".json", ".json", ".pcd", ".pcd"]
     head = (pcd / "moving_LiDAR_000001.pcd").read_bytes()[:400].decode("ascii", "replace")
     assert "FIELDS x y z intensity label\n" in head
     # without --out, the LiDAR's own folder (saved in the file) is used

@@ -38,7 +38,7 @@ class FakeScene:
     fps      frames per second (frame f starts at (f - 1) / fps s)"""
 
     def __init__(self, boxes, sensors, motion=None, fps=10.0, name="fake"):
-        self.name, self.fps = name, fps
+        self.name, self.fps, self.frame_start = name, fps, 1
         self.boxes, self.sensors, self.motion = boxes, sensors, dict(motion or {})
         self.frame = 1
         self.calls = {"read": 0, "state": 0, "set_frame": 0}

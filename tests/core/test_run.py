@@ -36,8 +36,11 @@ def test_frames_by_sensors_write_clouds_and_sidecars(tmp_path):
     run = run_of(scene, [job("pole", tmp_path), job("mast", tmp_path)], [1, 2], tmp_path,
                  progress=steps.append).run()
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert names == sorted(f"fake_{s}_{f:06d}.{e}" for s in ("pole", "mast") for f in (1, 2)
-                           for e in ("pcd", "json"))
+    assert names == sorted([f"fake_{s}_{f:06d}.{e}" for s in ("pole", "mast") for f in (1, 2)
+                            for e in ("pcd", "json")] + ["fake_instances.json"])
+    table = json.loads((tmp_path / "fake_instances.json").read_text())
+    assert {v["object"] for v in table["instances"].values()} == {"ground", "wall", "car"}
+    assert table["label_names"]["11"] == "vehicle"
     assert [(s.frame, s.sensor, s.done, s.total) for s in steps] == [
         (1, "pole", 1, 4), (1, "mast", 2, 4), (2, "pole", 3, 4), (2, "mast", 4, 4)]
     assert steps[-1].eta_s == 0.0 and all(s.points > 500 for s in steps)

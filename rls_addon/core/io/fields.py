@@ -9,7 +9,7 @@ All on-disk types are little-endian.
 import numpy as np
 
 from ..choices import FIELDS, FORMATS as FORMAT_CHOICES
-from ..errors import OutputError, SettingsError
+from ..errors import OutputError
 from ..points import POINT_DTYPE
 
 FORMATS = FORMAT_CHOICES.ids

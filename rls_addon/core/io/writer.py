@@ -8,7 +8,8 @@ from ...version import VERSION
 from ..errors import RLSError
 from .atomic import writable_folder
 from .cloud import read_cloud, write_cloud
-from .paths import output_path
+from ..labels import DEFAULT_LABELS
+from .paths import output_path, sanitize_name
 from .sidecar import read_sidecar, sidecar_path, write_sidecar
 
 
@@ -52,6 +53,32 @@ class CloudWriter:
         except (RLSError, OSError, ValueError):
             return None
         return n if info.get("points") == n else None
+
+    def finish(self, run):
+        """Write the run's instance table once per output folder:
+        ``<scene>_instances.json`` (stable instance id -> object and label), merged
+        with the table of an earlier run into the same folder (resumed runs)."""
+        import json
+
+        from .atomic import atomic_write_bytes
+
+        table = run.instance_table()
+        folders = sorted({j.settings.output.directory for j in run.sensors})
+        for folder in folders:
+            path = os.path.join(folder, f"{sanitize_name(self.scene_name)}_instances.json")
+            merged = {}
+            if os.path.isfile(path):
+                try:
+                    with open(path, encoding="utf-8") as fh:
+                        merged = json.load(fh).get("instances", {})
+                except (OSError, ValueError):
+                    merged = {}
+            merged.update(table)
+            body = {"scene": self.scene_name, "instances": dict(sorted(merged.items(),
+                                                                        key=lambda kv: int(kv[0]))),
+                    "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
+            atomic_write_bytes(path, (json.dumps(body, indent=2) + "\n").encode("utf-8"),
+                               overwrite=True)
 
     def write(self, sensor, output, frame, points, info):
         """Write the cloud (only ``output.fields``) and its sidecar; returns the cloud's

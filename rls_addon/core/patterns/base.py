@@ -48,6 +48,25 @@ class ScanPattern:
         self.__dict__["_rotated"] = (rotation.copy(), out)
         return out
 
+    def started_at(self, azimuth_deg):
+        """A spinning pattern whose sweep starts at ``azimuth_deg`` (sensor frame,
+        counter-clockwise from +X) instead of its head's forward direction: every
+        direction turned about the sensor's z axis, times unchanged. The seam between
+        one sweep and the next (where an object is scanned at the start and the end of
+        the sweep, a sweep period apart) then lies there. Kept per angle, read-only."""
+        angle = float(azimuth_deg) % 360.0
+        if angle == 0.0:
+            return self
+        cache = self.__dict__.setdefault("_started", {})
+        got = cache.get(angle)
+        if got is None:
+            a = np.radians(angle)
+            c, s = np.cos(a), np.sin(a)
+            d = self.directions @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            d.flags.writeable = False
+            got = cache[angle] = ScanPattern(d, self.times, self.channels, self.period)
+        return got
+
     @cached_property
     def trace_order(self):
         """A permutation of the rays that keeps neighbours in direction next to each
