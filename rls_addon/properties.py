@@ -178,6 +178,14 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
     name_template: StringProperty(name="Names", default="{scene}_{sensor}_{frame:06d}",
                                   description="File name template: {scene}, {sensor}, {frame:06d}; "
                                               "slashes make sub-folders")
+    ground_truth: BoolProperty(
+        name="Ground Truth", default=True,
+        description="Write 3D boxes of the objects of the object classes into each sidecar "
+                    "(size, heading, velocity, points, visibility)")
+    object_classes: StringProperty(
+        name="Object Classes", default="vehicle,pedestrian,cyclist",
+        description="Labels whose objects get ground-truth boxes (names or ids, comma "
+                    "separated)")
     preview_color: EnumProperty(name="Color By", items=COLOR_ITEMS, default="intensity",
                                 description="Attribute the preview points are coloured by")
     label: EnumProperty(name="Semantic Label", items=LABEL_ITEMS, get=_get_label, set=_set_label,

@@ -223,6 +223,10 @@ class OBJECT_PT_rls_lidar_output(_LidarPanel, bpy.types.Panel):
         layout.prop(s, "frame_space")
         col = layout.column(heading="Fields", align=True)
         col.prop(s, "fields")
+        layout.prop(s, "ground_truth")
+        sub = layout.row()
+        sub.active = s.ground_truth
+        sub.prop(s, "object_classes")
 
 
 class OBJECT_PT_rls_lidar_preview(_LidarPanel, bpy.types.Panel):

@@ -5,6 +5,7 @@ import os
 import numpy as np
 
 from ..core.errors import OutputError, SceneError
+from ..core.labels import label_ids
 from ..core.run import SensorJob
 from ..core.settings import LidarSettings, OutputSettings, ScanSettings
 
@@ -57,7 +58,8 @@ def read_settings(obj):
     )
     output = OutputSettings(directory=s.output_dir, format=s.file_format,
                             fields=("x", "y", "z") + tuple(sorted(s.fields)),
-                            template=s.name_template)
+                            template=s.name_template, ground_truth=bool(s.ground_truth),
+                            object_classes=tuple(label_ids(s.object_classes)))
     return LidarSettings(preset=s.preset_id or DEFAULT_PRESET, scan=scan, output=output,
                          backend=s.backend)
 

@@ -6,6 +6,7 @@ import bpy
 from ..core import study as core_study
 from ..core.errors import RegionError, SceneError
 from ..core.instances import object_table, world_geometry
+from ..core.source import SceneRead
 from .extract import read_instances
 from .region import is_lob, lob_polygon_world
 from .scenes.build import is_mount, mount_position
@@ -64,6 +65,14 @@ class BlenderStudyScene:
         hidden = sorted(i.key for i in instances if i.label in hidden_labels)
         static = [i for i in instances if i.label not in hidden_labels]
         return world_geometry(static, object_table(static), materials), hidden
+
+    def traffic(self, frames, labels):
+        out = {}
+        for f in frames:
+            self.set_frame(f)
+            instances, materials, stats = read_instances(bpy.context.evaluated_depsgraph_get())
+            out[int(f)] = SceneRead([i for i in instances if i.label in labels], materials, stats)
+        return out
 
 
 def run_study(scene, cfg, progress=None):

@@ -89,7 +89,7 @@ def run_demo_study(out_dir, device):
     from ..blender.scenes import build_scene
     from ..blender.study import run_study
     from ..core.study import StudyConfig
-    from .study import write_report
+    from ..core.study_report import write_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if not hasattr(bpy.types.Object, "rls_lidar"):

@@ -19,16 +19,21 @@ from typing import Protocol
 
 import numpy as np
 
+from .bodies import RigidBodies
 from .casting import caster_factory
 from .errors import RegionError, SceneError, SettingsError
 from .frame import scan_frame
+from .instances import object_table, world_geometry
+from .labels import label_id
+from .motion import Track
 from .metrics import (DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED,
                       density_map, resolve_labels)
 from .placement import DEFAULT_EXHAUSTIVE_LIMIT, CandidateCounts, DiskLayout
-from .polygon import as_polygon
+from .polygon import as_polygon, points_in_polygon
 from .presets import get_preset
 from .session import ScanSession
 from .settings import ScanSettings, resolve_range
+from .visibility import THRESHOLDS, VisibilityCounts, ranks
 
 TRAFFIC_LABELS = ("vehicle", "pedestrian")
 
@@ -51,6 +56,10 @@ class StudyScene(Protocol):
     def static_geometry(self, hidden_labels: set) -> tuple:
         """(SceneGeometry of everything rendered but objects with these label ids,
         sorted names of the objects left out)."""
+
+    def traffic(self, frames: tuple, labels: set) -> dict:
+        """{frame: source.SceneRead} of the objects with these label ids at each frame
+        (their meshes in their own frames, their matrices at that frame)."""
 
 
 @dataclasses.dataclass
@@ -81,6 +90,11 @@ class StudyConfig:
     frame: int = None
     one_per_mount: bool = True
     exhaustive_limit: int = DEFAULT_EXHAUSTIVE_LIMIT
+    # Placements scored with the traffic in view (``visibility``): these frames of the
+    # scene's animated traffic, and the labels whose objects are scored
+    traffic_frames: tuple = ()
+    visibility_labels: tuple = ("vehicle",)
+    visibility_thresholds: tuple = THRESHOLDS
 
 
 @dataclasses.dataclass
@@ -129,6 +143,7 @@ class StudyResult:
     backend: str
     structure_builds: int
     notices: list
+    visibility: "TrafficVisibility" = None  # with cfg.traffic_frames
 
     def density(self, members):
         xy = np.concatenate([self.xy[i] for i in members]) if members else np.empty((0, 2))
@@ -168,16 +183,104 @@ def candidate_spots(scene, cfg, polygon):
     return spots
 
 
-def run_study(scene, cfg, progress=None, factory=caster_factory):
+@dataclasses.dataclass
+class CandidateScan:
+    """What one candidate's scans give the study."""
+
+    index: int
+    n_points: int            # kept points in the InfraLOB (traffic removed)
+    disk_counts: np.ndarray  # (D,) of them per disk
+    xy: np.ndarray           # (n, 2) the kept points
+    scan_points: int
+    rays: int
+    seconds: float
+    vehicle_points: np.ndarray = None  # (J,) points on each vehicle-frame (with traffic)
+
+
+class StudyScanner:
+    """Scans the candidates of one study: the static scene (traffic removed) prepared
+    once around the region, and with ``cfg.traffic_frames`` the traffic of each of
+    those frames built once as bodies that every candidate sees. ``scan(candidate)``
+    is independent of the other candidates (a run may split them over workers)."""
+
+    def __init__(self, scene, cfg, preset, polygon, layout, candidates, factory=caster_factory):
+        self.cfg, self.preset, self.polygon, self.layout = cfg, preset, polygon, layout
+        self.label_ids = resolve_labels(cfg.labels)
+        self.frame = scene.current_frame() if cfg.frame is None else int(cfg.frame)
+        scene.set_frame(self.frame)
+        hide = set() if cfg.keep_traffic else {label_id(n) for n in TRAFFIC_LABELS}
+        geometry, self.hidden = scene.static_geometry(hide)
+        self.backend_cls, notice = factory(cfg.backend)
+        self.notices = [notice] if notice else []
+        self.settings = ScanSettings(seed=cfg.scan_seed, frame_space="world", noise=cfg.noise,
+                                     dropout=cfg.dropout, motion="snapshot",
+                                     ghosting=cfg.ghosting)
+        _, rmax = resolve_range(preset, self.settings)
+        centre = np.r_[polygon.mean(axis=0), 0.0]
+        reach = max(np.linalg.norm(np.array(c.position) - centre) for c in candidates) + rmax + 1.0
+        self.session = ScanSession(self.backend_cls)
+        t = time.perf_counter()
+        self.prepared = self.session.prepared(geometry, centre, reach)
+        self.build_s = time.perf_counter() - t
+        self.traffic, self.vehicle_frames = [], []
+        if cfg.traffic_frames:
+            self._traffic(scene)
+            scene.set_frame(self.frame)
+
+    def _traffic(self, scene):
+        """Per traffic frame: the traffic as still bodies, and the vehicle-frames to score
+        (vehicles whose box centre is in the region)."""
+        vehicles = {label_id(n) for n in self.cfg.visibility_labels}
+        traffic_ids = {label_id(n) for n in TRAFFIC_LABELS} | vehicles
+        for f, read in scene.traffic(tuple(self.cfg.traffic_frames), traffic_ids).items():
+            insts = read.instances
+            objects = object_table(insts)
+            parts = [(world_geometry(insts, objects, read.materials, select={k}, local=True),
+                      Track.fixed(inst.matrix)) for k, inst in enumerate(insts)]
+            group = RigidBodies(parts, self.backend_cls) if parts else None
+            scored = []
+            for k, inst in enumerate(insts):
+                if inst.label not in vehicles or not len(inst.vertices):
+                    continue
+                centre = inst.matrix[:3, :3] @ ((inst.vertices.min(0) + inst.vertices.max(0)) / 2) \
+                    + inst.matrix[:3, 3]
+                if points_in_polygon(centre[None, :2], self.polygon)[0]:
+                    scored.append((len(self.vehicle_frames), objects[k].instance))
+                    self.vehicle_frames.append((int(f), inst.key))
+            self.traffic.append((int(f), group, scored))
+
+    def scan(self, cand):
+        """A ``CandidateScan`` of candidate ``cand``."""
+        t = time.perf_counter()
+        result = scan_frame(self.prepared, self.preset.pattern(self.frame), cand.pose,
+                            self.preset, self.settings, frame=self.frame, sensor=cand.name)
+        xy = self.layout.select([result.points], self.label_ids)
+        seen = None
+        if self.traffic:
+            seen = np.zeros(len(self.vehicle_frames), np.int64)
+            for f, group, scored in self.traffic:
+                res = scan_frame(self.prepared, self.preset.pattern(f), cand.pose, self.preset,
+                                 self.settings, frame=f, sensor=cand.name,
+                                 moving=[group] if group is not None else [])
+                pts = res.points[res.points["ghost"] == 0]
+                for j, iid in scored:
+                    seen[j] = int(np.count_nonzero(pts["instance"] == iid))
+        return CandidateScan(cand.index, len(xy), self.layout.counts(xy), xy,
+                             len(result.points), result.rays, time.perf_counter() - t, seen)
+
+
+def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
     """Scan every candidate of ``scene`` (a ``StudyScene``) and search placements;
     returns a ``StudyResult``.
 
-    ``progress(done, total, candidate, eta_seconds)`` is called after each scan."""
+    ``progress(done, total, candidate, eta_seconds)`` is called after each scan.
+    ``scan_all(scanner, candidates, on_scan)``: how the candidates are scanned (default:
+    one after another here; a sharded run hands them to workers); it calls
+    ``on_scan(CandidateScan)`` for each, in any order."""
     t0 = time.perf_counter()
     preset = get_preset(cfg.device)
     polygon = scene.region(cfg.lob)
     layout = DiskLayout.make(polygon, cfg.disks, cfg.radius, cfg.disk_seed, cfg.disk_placement)
-    label_ids = resolve_labels(cfg.labels)
     cands = make_candidates(candidate_spots(scene, cfg, polygon), cfg, polygon)
     spots = len({c.mount for c in cands}) if cfg.one_per_mount else len(cands)
     for k in cfg.k:
@@ -187,40 +290,29 @@ def run_study(scene, cfg, progress=None, factory=caster_factory):
             raise SceneError(f"k = {k} needs {k} distinct mounts; the candidates have {spots}"
                              + (" (--allow-shared-mounts lets a mount hold several)"
                                 if cfg.one_per_mount and k <= len(cands) else ""))
-    frame = scene.current_frame() if cfg.frame is None else int(cfg.frame)
-    scene.set_frame(frame)
-    from .labels import label_id
-
-    hide = set() if cfg.keep_traffic else {label_id(n) for n in TRAFFIC_LABELS}
-    geometry, hidden = scene.static_geometry(hide)
-    backend_cls, notice = factory(cfg.backend)
-    settings = ScanSettings(seed=cfg.scan_seed, frame_space="world", noise=cfg.noise,
-                            dropout=cfg.dropout, motion="snapshot", ghosting=cfg.ghosting)
-    _, rmax = resolve_range(preset, settings)
-    centre = np.r_[polygon.mean(axis=0), 0.0]
-    reach = max(np.linalg.norm(np.array(c.position) - centre) for c in cands) + rmax + 1.0
-    session = ScanSession(backend_cls)
-    t_build = time.perf_counter()
-    prepared = session.prepared(geometry, centre, reach)
+    scanner = StudyScanner(scene, cfg, preset, polygon, layout, cands, factory)
     t_scan = time.perf_counter()
-    pattern = preset.pattern(frame)
-    xy_all, counts = [], []
-    for i, c in enumerate(cands):
-        t = time.perf_counter()
-        result = scan_frame(prepared, pattern, c.pose, preset, settings, frame=frame,
-                            sensor=c.name)
-        xy = layout.select([result.points], label_ids)
-        xy_all.append(xy)
-        counts.append(layout.counts(xy))
-        c.n_points, c.scan_points, c.rays = len(xy), len(result.points), result.rays
-        c.seconds = time.perf_counter() - t
+    scans = [None] * len(cands)
+
+    def on_scan(got):
+        scans[got.index] = got
+        c = cands[got.index]
+        c.n_points, c.scan_points, c.rays, c.seconds = (got.n_points, got.scan_points,
+                                                        got.rays, got.seconds)
         if progress is not None:
+            done = sum(s is not None for s in scans)
             elapsed = time.perf_counter() - t_scan
-            progress(i + 1, len(cands), c, elapsed / (i + 1) * (len(cands) - i - 1))
+            progress(done, len(cands), c, elapsed / done * (len(cands) - done))
+
+    if scan_all is None:
+        for c in cands:
+            on_scan(scanner.scan(c))
+    else:
+        scan_all(scanner, cands, on_scan)
     t_search = time.perf_counter()
     groups = [c.mount for c in cands] if cfg.one_per_mount else None
-    cc = CandidateCounts([c.n_points for c in cands], np.array(counts), layout.area_m2, layout.p,
-                         groups)
+    cc = CandidateCounts([s.n_points for s in scans], np.array([s.disk_counts for s in scans]),
+                         layout.area_m2, layout.p, groups)
     for c, p in zip(cands, cc.evaluate([(c.index,) for c in cands])):
         c.infra_d, c.infra_nuc = p.infra_d, p.infra_nuc
     searches = {}
@@ -229,14 +321,45 @@ def run_study(scene, cfg, progress=None, factory=caster_factory):
             searches[k] = cc.search(k, exhaustive_limit=cfg.exhaustive_limit)
         except SettingsError as exc:
             raise SceneError(f"k = {k}: {exc}") from None
+    vis = None
+    if scanner.traffic:
+        vis = TrafficVisibility.of(scanner, cands, scans, groups, searches, cfg)
     t_end = time.perf_counter()
-    timing = {"total_s": t_end - t0, "build_s": t_scan - t_build, "scan_s": t_search - t_scan,
+    timing = {"total_s": t_end - t0, "build_s": scanner.build_s, "scan_s": t_search - t_scan,
               "search_s": t_end - t_search,
               "per_candidate_s": (t_search - t_scan) / max(len(cands), 1)}
-    return StudyResult(cfg, scene.name, frame,
+    return StudyResult(cfg, scene.name, scanner.frame,
                        {"id": preset.id, "name": preset.name, "source": preset.source},
-                       polygon, layout, cands, cc, searches, xy_all, timing, hidden,
-                       prepared.backend, session.builds, [notice] if notice else [])
+                       polygon, layout, cands, cc, searches, [s.xy for s in scans], timing,
+                       scanner.hidden, scanner.prepared.backend, scanner.session.builds,
+                       scanner.notices, vis)
+
+
+@dataclasses.dataclass
+class TrafficVisibility:
+    """The study's scores with the traffic in view (``visibility``)."""
+
+    frames: list
+    vehicle_frames: list          # [(frame, object key)]
+    counts: VisibilityCounts
+    candidates: list              # Visibility per candidate
+    rank_infra_d: np.ndarray      # per candidate: 1 = densest
+    rank_visibility: np.ndarray   # per candidate: 1 = best seen traffic
+    sets: dict                    # k -> {members tuple: Visibility} of the evaluated sets
+    best: dict                    # k -> Visibility of the best set by visibility
+
+    @classmethod
+    def of(cls, scanner, cands, scans, groups, searches, cfg):
+        counts = VisibilityCounts(np.array([s.vehicle_points for s in scans]),
+                                  [key for _, key in scanner.vehicle_frames], groups,
+                                  cfg.visibility_thresholds)
+        per = counts.evaluate([(c.index,) for c in cands])
+        sets = {k: {v.members: v for v in counts.evaluate([p.members for p in s.evaluated])}
+                for k, s in searches.items()}
+        best = {k: counts.best(k, cfg.exhaustive_limit) for k in searches}
+        return cls([f for f, _, _ in scanner.traffic], list(scanner.vehicle_frames), counts, per,
+                   ranks([c.infra_d for c in cands]),
+                   ranks([v.score + 1e-9 * v.mean_points for v in per]), sets, best)
 
 
 def orientation_matrix(yaw_rad, pitch_down_rad, roll_rad=0.0):

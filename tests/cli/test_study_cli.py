@@ -84,3 +84,54 @@ def test_study_errors_are_one_line(sample_blends, tmp_path, args, message):
 def test_study_missing_scene(tmp_path):
     proc = rls("study", tmp_path / "missing.blend", "--out", tmp_path / "o")
     assert "scene file not found" in one_line_error(proc)
+
+
+TRUCK = r"""
+import sys, bpy
+sys.path.insert(0, sys.argv[1])
+import rls_addon
+bpy.ops.wm.open_mainfile(filepath=sys.argv[2])
+if not hasattr(bpy.types.Object, "rls_lidar"):
+    rls_addon.register()
+from rls_addon.blender.scenes.build import box, collection, mount_position, standard_materials
+pole = bpy.data.objects["TL NE"]
+x, y, _ = mount_position(pole)
+# a 10 m x 3 m x 4.5 m truck parked on the kerb lane right in front of the pole
+truck = box(collection(bpy.context.scene, "Vehicles"), "Parked truck",
+            (x - 7.0, y - 4.0, 0.0), (x + 3.0, y - 1.0, 4.5), standard_materials()["paint"])
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[3])
+"""
+
+
+def test_study_with_traffic_sees_a_parked_truck_the_traffic_free_metrics_miss(sample_blends,
+                                                                              tmp_path):
+    blend = tmp_path / "t_junction_truck.blend"
+    proc = subprocess.run([sys.executable, "-c", TRUCK, str(ROOT), str(sample_blends["t_junction"]),
+                           str(blend)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    def study(scene, out):
+        proc = rls("study", scene, "--k", "1,2", "--mount", "TL NE", "--mount", "TL NW",
+                   "--mount", "TL SE", "--mount", "TL SW", "--pitch", "10",
+                   "--traffic", "20-40:5", "--out", out)
+        assert proc.returncode == 0, proc.stderr
+        return proc, {r["name"]: r for r in csv.DictReader(open(out / "candidates.csv"))}
+
+    _, clear = study(sample_blends["t_junction"], tmp_path / "clear")
+    out = tmp_path / "study"
+    proc, rows = study(blend, out)
+    ne = rows["TL NE"]
+    # the truck is traffic: left out of InfraD, so the pole keeps its InfraD and rank ...
+    report = json.loads((out / "study.json").read_text())
+    assert "Parked truck" in report["hidden_traffic"]
+    assert ne["infra_d"] == clear["TL NE"]["infra_d"]
+    assert ne["rank_infra_d"] == clear["TL NE"]["rank_infra_d"] == "1"
+    # ... but with the traffic in view it hides the cars from that pole
+    assert int(ne["rank_visibility"]) > int(ne["rank_infra_d"])
+    assert int(ne["rank_visibility"]) >= int(clear["TL NE"]["rank_visibility"]) + 2
+    assert float(ne["share_20"]) < float(clear["TL NE"]["share_20"])
+    assert float(ne["share_20"]) < max(float(r["share_20"]) for r in rows.values())
+    assert report["visibility"]["frames"] == [20, 25, 30, 35, 40]
+    assert any(d["candidate"] == "TL NE" for d in report["visibility"]["rank_disagreements"])
+    assert set(summary_of(proc)["best_by_visibility"]) == {"1", "2"}
+    pytest.importorskip("matplotlib")
+    assert (out / "visibility.png").read_bytes()[:4] == b"\x89PNG"

@@ -238,3 +238,88 @@ def test_study_errors_say_what_to_do():
         run_study(FakeStudyScene(), StudyConfig(k=(4,)), factory=factory)
     with pytest.raises(RegionError, match="no object named 'elsewhere'"):
         run_study(FakeStudyScene(), StudyConfig(lob="elsewhere"), factory=factory)
+
+
+class TrafficStudyScene(FakeStudyScene):
+    """FakeStudyScene with traffic: cars crossing the region over frames 1-4, and a
+    parked truck (a vehicle too) right in front of the low pole A."""
+
+    def __init__(self, truck=True):
+        super().__init__()
+        from rls_addon.core.instances import Instance
+
+        from .scenes import BOX_TRIS, box_vertices
+
+        self._Instance, self._box = Instance, (BOX_TRIS, box_vertices)
+        self.truck = truck
+
+    def mounts(self, names):
+        spots = [("pole A", (-12.0, -9.0, 2.5)), ("pole B", (12.0, -9.0, 6.0)),
+                 ("pole C", (0.0, 7.0, 6.0))]
+        return [s for s in spots if not names or s[0] in names]
+
+    def _object(self, name, lo, hi, label, at):
+        tris, verts = self._box
+        m = np.eye(4)
+        m[:3, 3] = at
+        return self._Instance(name, name, "", label, verts(lo, hi), tris, np.ones(12), m,
+                              np.array([1]))
+
+    def traffic(self, frames, labels):
+        from rls_addon.core.source import SceneRead
+
+        out = {}
+        for f in frames:
+            objs = [self._object(f"car {i}", (-2.25, -0.9, 0.0), (2.25, 0.9, 1.5), 11,
+                                 (-8.0 + 4.0 * f + 3.0 * i, -4.0 + 5.0 * i, 0.0)) for i in range(2)]
+            if self.truck:  # 10 x 3 x 4 m, a metre in front of pole A, across its view
+                objs.append(self._object("truck", (-5.0, -1.5, 0.0), (5.0, 1.5, 4.0), 11,
+                                         (-8.0, -6.0, 0.0)))
+            out[f] = SceneRead([o for o in objs if o.label in labels], self.materials)
+        return out
+
+
+def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
+    """A candidate a parked truck occludes ranks lower on visibility than on InfraD."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.study import StudyConfig, run_study
+
+    factory = lambda name: (NumpyCaster, None)  # noqa: E731
+    cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,
+                      dropout=False, traffic_frames=(1, 2, 3, 4))
+    res = run_study(TrafficStudyScene(), cfg, factory=factory)
+    vis = res.visibility
+    names = [c.name for c in res.candidates]
+    a = names.index("pole A")
+    assert res.hidden_traffic == ["van"]  # the truck is traffic: not in the static scene
+    assert len(vis.frames) == 4 and len(vis.vehicle_frames) >= 6
+    assert vis.rank_visibility[a] > vis.rank_infra_d[a]
+    assert vis.candidates[a].score < max(v.score for v in vis.candidates)
+    # without the truck, pole A sees the cars again
+    clear = run_study(TrafficStudyScene(truck=False), cfg, factory=factory).visibility
+    assert clear.candidates[a].score > vis.candidates[a].score
+    # a set's visibility is the union of its members' points on each vehicle
+    both = vis.counts.evaluate([(0, 1)])[0]
+    alone = vis.counts.evaluate([(0,), (1,)])
+    assert both.mean_points == pytest.approx(alone[0].mean_points + alone[1].mean_points)
+    assert both.never_seen <= min(v.never_seen for v in alone)
+    best2 = vis.best[2]
+    assert best2.score == max(v.score for v in vis.sets[2].values())
+
+
+def test_study_report_carries_visibility(tmp_path):
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.study import StudyConfig, run_study
+    from rls_addon.core.study_report import write_report
+
+    cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,
+                      dropout=False, traffic_frames=(1, 3))
+    res = run_study(TrafficStudyScene(), cfg, factory=lambda name: (NumpyCaster, None))
+    summary = write_report(res, tmp_path)
+    rows = (tmp_path / "candidates.csv").read_text().splitlines()
+    assert "share_20" in rows[0] and "rank_visibility" in rows[0]
+    report = __import__("json").loads((tmp_path / "study.json").read_text())
+    assert report["visibility"]["vehicle_frames"] == len(res.visibility.vehicle_frames)
+    assert set(summary["best_by_visibility"]) == {"1", "2"}
+    assert "share_20" in (tmp_path / "placements.csv").read_text().splitlines()[0]
+    assert (tmp_path / "visibility.png").read_bytes()[:4] == b"\x89PNG"

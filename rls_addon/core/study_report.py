@@ -1,0 +1,294 @@
+"""A placement study's report: tables, JSON and charts (``rls study`` writes them).
+
+  candidates.csv   one row per candidate: pose, points in the region, InfraD, InfraNUC
+                   (and with traffic: visibility shares, mean points, ranks)
+  placements.csv   every evaluated k-set: members, InfraD, InfraNUC, Pareto flag, best
+                   (and with traffic: visibility of the set)
+  study.json       settings, timing, candidates, per-k Pareto front and best set, the
+                   best sets' density maps; with traffic the best set by visibility
+  pareto.png       InfraD against InfraNUC for all candidates and sets, fronts marked
+  density_k<K>.png density map of the best set of each k, sensors marked
+  visibility.png   with traffic: InfraD, InfraNUC and visibility of each candidate
+                   and of the best sets, side by side
+
+Charts need matplotlib (Agg); without it the density maps are written with RLS's own
+PNG writer and the other charts are skipped (a notice says so).
+"""
+
+import csv
+import io
+import json
+import math
+import os
+
+from .visibility import RANK_BY
+
+
+def _fmt(v, nd=6):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    return round(v, nd) if isinstance(v, float) else v
+
+
+def _csv(rows, fields):
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({f: _fmt(r.get(f)) for f in fields})
+    return buf.getvalue().encode("utf-8")
+
+
+def placement_rows(result):
+    names = [c.name for c in result.candidates]
+    rows = []
+    for k, s in sorted(result.searches.items()):
+        front = {p.members for p in s.front}
+        for p in sorted(s.evaluated, key=lambda p: (-p.infra_d, p.infra_nuc)):
+            row = {"k": k, "sensors": " + ".join(names[i] for i in p.members),
+                   "members": " ".join(str(i) for i in p.members),
+                   "points_in_lob": p.n_points, "infra_d": p.infra_d,
+                   "infra_nuc": p.infra_nuc, "pareto": int(p.members in front),
+                   "best": int(p.members == s.best.members), "method": s.method}
+            if result.visibility is not None:
+                row.update(result.visibility.sets[k][p.members].to_dict())
+            rows.append(row)
+    return rows
+
+
+def report_dict(result):
+    names = [c.name for c in result.candidates]
+    cfg = result.config
+    out = {
+        "scene": result.scene, "frame": result.frame, "device": result.device,
+        "region": {"polygon_xy": result.polygon.tolist(), "area_m2": result.layout.area_m2,
+                   "labels": cfg.labels, "disks": cfg.disks, "radius_m": cfg.radius,
+                   "disk_seed": cfg.disk_seed, "disk_placement": cfg.disk_placement},
+        "settings": {"k": list(cfg.k), "pitch_deg": list(cfg.pitches), "yaw_deg": list(cfg.yaws),
+                     "yaw_mode": cfg.yaw_mode, "roll_deg": cfg.roll, "scan_seed": cfg.scan_seed,
+                     "noise": cfg.noise, "dropout": cfg.dropout,
+                     "one_sensor_per_mount": cfg.one_per_mount,
+                     "traffic_removed": not cfg.keep_traffic},
+        "hidden_traffic": result.hidden_traffic,
+        "backend": result.backend, "structure_builds": result.structure_builds,
+        "timing_s": {k: round(v, 4) for k, v in result.timing.items()},
+        "candidates": candidate_rows(result),
+        "placements": {},
+    }
+    vis = result.visibility
+    if vis is not None:
+        out["visibility"] = {
+            "frames": vis.frames, "vehicle_frames": len(vis.vehicle_frames),
+            "vehicles": len({key for _, key in vis.vehicle_frames}),
+            "labels": list(cfg.visibility_labels), "thresholds": list(cfg.visibility_thresholds),
+            "ranked_by": f"share of vehicle-frames with >= {RANK_BY} points",
+            "best": {str(k): dict(v.to_dict(), members=list(v.members),
+                                  sensors=[names[i] for i in v.members])
+                     for k, v in sorted(vis.best.items())},
+            "rank_disagreements": [
+                {"candidate": names[i], "rank_infra_d": int(vis.rank_infra_d[i]),
+                 "rank_visibility": int(vis.rank_visibility[i])}
+                for i in range(len(names)) if vis.rank_infra_d[i] != vis.rank_visibility[i]],
+        }
+    for k, s in sorted(result.searches.items()):
+        out["placements"][str(k)] = {
+            "method": s.method, "sets": s.sets_total, "evaluated": len(s.evaluated),
+            "pareto_front": [p.to_dict(names) for p in s.front],
+            "best": s.best.to_dict(names),
+            "best_density": result.density(s.best.members).to_dict(),
+        }
+    return out
+
+
+REPORT_FILES = ("candidates.csv", "placements.csv", "study.json", "pareto.png")
+VISIBILITY_FIELDS = ("share_5", "share_20", "share_50", "mean_points", "never_seen")
+
+
+def candidate_rows(result):
+    """One dict per candidate; with traffic its visibility and its ranks by InfraD and
+    by visibility (1 = best)."""
+    rows = [c.row() for c in result.candidates]
+    vis = result.visibility
+    if vis is not None:
+        for i, r in enumerate(rows):
+            r.update(vis.candidates[i].to_dict(), rank_infra_d=int(vis.rank_infra_d[i]),
+                     rank_visibility=int(vis.rank_visibility[i]))
+    return rows
+
+
+def write_report(result, out_dir, overwrite=False, notices=None):
+    """Write the report files into ``out_dir``; returns a summary dict. Notices (e.g.
+    matplotlib missing) are appended to ``notices`` when given."""
+    from .io import atomic_write_bytes
+
+    rows = candidate_rows(result)
+    files = {}
+    files["candidates.csv"] = _csv(rows, list(rows[0].keys()))
+    vis_fields = list(VISIBILITY_FIELDS) if result.visibility is not None else []
+    files["placements.csv"] = _csv(placement_rows(result),
+                                   ["k", "sensors", "members", "points_in_lob", "infra_d",
+                                    "infra_nuc", "pareto", "best", "method"] + vis_fields)
+    report = report_dict(result)
+    charts, notice = charts_png(result)
+    files.update(charts)
+    report["charts"] = sorted(charts)
+    if notice:
+        report["notice"] = notice
+        if notices is not None:
+            notices.append(notice)
+    files["study.json"] = (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8")
+    written = []
+    for name in sorted(files):
+        path = os.path.join(out_dir, name)
+        atomic_write_bytes(path, files[name], overwrite=overwrite)
+        written.append(os.path.abspath(path))
+    names = [c.name for c in result.candidates]
+    return {
+        "scene": result.scene, "device": result.device["id"],
+        "candidates": len(result.candidates),
+        "seconds": round(result.timing["total_s"], 3),
+        "per_candidate_s": round(result.timing["per_candidate_s"], 4),
+        "structure_builds": result.structure_builds,
+        "best": {str(k): {"sensors": [names[i] for i in s.best.members],
+                          "infra_d": round(s.best.infra_d, 4),
+                          "infra_nuc": round(s.best.infra_nuc, 4), "method": s.method}
+                 for k, s in sorted(result.searches.items())},
+        **({"best_by_visibility": {
+            str(k): dict(v.to_dict(), sensors=[names[i] for i in v.members])
+            for k, v in sorted(result.visibility.best.items())}}
+           if result.visibility is not None else {}),
+        "report": os.path.abspath(os.path.join(out_dir, "study.json")),
+        "files": written,
+    }
+
+
+def charts_png(result):
+    """{file name: PNG bytes}, and a notice when matplotlib is missing."""
+    try:
+        import matplotlib
+        matplotlib.use("Agg", force=True)
+        import matplotlib.pyplot as plt  # noqa: F401
+    except ImportError:
+        out = {f"density_k{k}.png": result.density(s.best.members).to_png()
+               for k, s in result.searches.items()}
+        return out, ("matplotlib is not installed: pareto.png skipped, density maps drawn "
+                     "without axes (pip install matplotlib)")
+    out = {"pareto.png": _pareto_png(result),
+           **{f"density_k{k}.png": _density_png(result, k, s)
+              for k, s in result.searches.items()}}
+    if result.visibility is not None:
+        out["visibility.png"] = _visibility_png(result)
+    return out, None
+
+
+def _visibility_png(result):
+    """Per candidate and per best set (by InfraD/NUC and by visibility): InfraD,
+    InfraNUC and the share of vehicle-frames seen by >= 20 points, in three panels with
+    one row each, so where the traffic-free metrics and visibility disagree shows."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    vis, names = result.visibility, [c.name for c in result.candidates]
+    rows = [(c.name, c.infra_d, c.infra_nuc, vis.candidates[i].score)
+            for i, c in enumerate(result.candidates)]
+    counts = result.counts
+    for k, s in sorted(result.searches.items()):
+        if k == 1:
+            continue
+        for tag, members in (("best InfraD/NUC", s.best.members), ("best visibility",
+                                                                    vis.best[k].members)):
+            p = counts.evaluate([members])[0]
+            v = vis.sets[k].get(tuple(members)) or vis.counts.evaluate([members])[0]
+            rows.append((f"k={k} {tag}: " + " + ".join(names[i] for i in members),
+                         p.infra_d, p.infra_nuc, v.score))
+    labels = [r[0] for r in rows]
+    y = np.arange(len(rows))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 0.42 * len(rows) + 1.8), sharey=True)
+    panels = (("InfraD (points / m², higher is denser)", 1, "tab:blue"),
+              ("InfraNUC (lower is more uniform)", 2, "tab:orange"),
+              (f"vehicle-frames seen by >= {RANK_BY} points (share)", 3, "tab:green"))
+    for ax, (title, col, colour) in zip(axes, panels):
+        vals = np.array([r[col] if r[col] is not None else np.nan for r in rows], float)
+        ax.barh(y, np.nan_to_num(vals), color=colour)
+        ax.set_xlabel(title)
+        ax.grid(axis="x", alpha=0.3)
+        for yi, v in zip(y, vals):
+            ax.text(v if np.isfinite(v) else 0, yi, f" {v:.3g}", va="center", fontsize=7)
+    axes[0].set_yticks(y)
+    axes[0].set_yticklabels(labels, fontsize=7)
+    axes[0].invert_yaxis()
+    fig.suptitle(f"{result.scene}: traffic-free metrics and visibility of the traffic over "
+                 f"{len(vis.frames)} frames ({len(vis.vehicle_frames)} vehicle-frames)")
+    fig.tight_layout()
+    return _fig_bytes(fig)
+
+
+def _fig_bytes(fig):
+    import matplotlib.pyplot as plt
+
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def _pareto_png(result):
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    colours = plt.get_cmap("tab10")
+    for j, (k, s) in enumerate(sorted(result.searches.items())):
+        d = np.array([p.infra_d for p in s.evaluated])
+        u = np.array([p.infra_nuc for p in s.evaluated])
+        ax.scatter(d, u, s=14, alpha=0.45, color=colours(j), label=f"k = {k} ({s.method})")
+        fd = [p.infra_d for p in s.front]
+        fu = [p.infra_nuc for p in s.front]
+        ax.plot(fd, fu, "-o", color=colours(j), markersize=6, markerfacecolor="none",
+                label=f"Pareto front, k = {k}")
+        ax.scatter([s.best.infra_d], [s.best.infra_nuc], marker="*", s=160, color=colours(j),
+                   edgecolor="black", zorder=5)
+    ax.set_xlabel("InfraD (points / m², higher is denser)")
+    ax.set_ylabel("InfraNUC (lower is more uniform)")
+    ax.set_title(f"{result.scene}: {result.device['name']}, {len(result.candidates)} candidates"
+                 " (★ best)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _fig_bytes(fig)
+
+
+def _density_png(result, k, search):
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    dm = result.density(search.best.members)
+    ny, nx = dm.values.shape
+    x0, y0 = dm.origin_xy
+    ext = [x0, x0 + nx * dm.cell_m, y0, y0 + ny * dm.cell_m]
+    fig, ax = plt.subplots(figsize=(7, 5.5))
+    im = ax.imshow(np.ma.masked_invalid(dm.values), origin="lower", extent=ext, cmap="viridis")
+    fig.colorbar(im, ax=ax, label="points / m²")
+    poly = np.vstack([result.polygon, result.polygon[:1]])
+    ax.plot(poly[:, 0], poly[:, 1], color="white", lw=1)
+    for i in search.best.members:
+        c = result.candidates[i]
+        x, y, _ = c.position
+        ax.plot([x], [y], marker="^", color="red", markersize=9, markeredgecolor="black")
+        a = math.radians(c.yaw_deg)
+        ax.annotate(f"{c.name}", (x, y), textcoords="offset points", xytext=(4, 4),
+                    fontsize=7, color="red")
+        if c.pitch_deg:
+            ax.arrow(x, y, 2 * math.cos(a), 2 * math.sin(a), color="red", head_width=0.5)
+    b = search.best
+    ax.set_title(f"{result.scene}, best k = {k}: InfraD {b.infra_d:.2f}, InfraNUC {b.infra_nuc:.3f}")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    lo = np.minimum(result.polygon.min(0), [min(result.candidates[i].position[0] for i in b.members),
+                                            min(result.candidates[i].position[1] for i in b.members)])
+    hi = np.maximum(result.polygon.max(0), [max(result.candidates[i].position[0] for i in b.members),
+                                            max(result.candidates[i].position[1] for i in b.members)])
+    ax.set_xlim(lo[0] - 1, hi[0] + 1)
+    ax.set_ylim(lo[1] - 1, hi[1] + 1)
+    fig.tight_layout()
+    return _fig_bytes(fig)
