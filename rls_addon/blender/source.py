@@ -44,6 +44,10 @@ class BlenderScene:
                              "renamed while scanning?)")
         return np.array(obj.evaluated_get(self.depsgraph()).matrix_world, dtype=np.float64)
 
+    def sensor_may_move(self, sensor):
+        obj = self.scene.objects.get(sensor)
+        return obj is not None and may_move(obj)
+
     def read(self, centre, max_range, exclude):
         instances, materials, stats = read_instances(
             self.depsgraph(), centre=centre, max_range=max_range, exclude=set(exclude),

@@ -3,9 +3,11 @@ can be kept between frames and sensors.
 
 - Static geometry is built into a ray-casting structure once and reused while it is
   unchanged (the same meshes, matrices, materials and labels; else its digest decides).
-- A lidar that moves gets its static scene prepared ``DRIVING_SLACK`` of its range
-  wider once it has moved, kept while it stays inside: a driving lidar's frames share
-  one built structure instead of one per frame.
+- A lidar that may move (is animated) gets its static scene prepared around grid
+  points ``DRIVING_SLACK`` of its range apart, that much wider: a driving lidar's
+  frames share one built structure per grid cell instead of one per frame. What is
+  prepared depends on the frame alone, never on the frames before: a run split over
+  workers writes the same bytes as a whole one.
 - Each group of rigidly moving objects keeps its own structure; deforming objects are
   rebuilt per sub-step.
 """
@@ -37,7 +39,6 @@ class ScanSession:
         self._prepared = {}
         self._bodies = {}
         self.builds = 0
-        self._anchors = {}  # sensor name -> (centre, reach, range) its scene is prepared for
 
     def _cached(self, store, key, make):
         item = store.get(key)
@@ -58,22 +59,19 @@ class ScanSession:
         return self._cached(self._prepared, key, lambda: PreparedScene(
             geometry() if callable(geometry) else geometry, centre, reach, self.caster_factory))
 
-    def _anchor(self, name, centre, rmax):
-        """(centre, reach) to prepare a sensor's static scene for: where it stands, with
-        its range, until it moves; then around where it moved to, reaching
-        ``DRIVING_SLACK`` of its range farther, kept while it stays inside (with room
-        for ``MOVER_MARGIN_M`` of travel within a sweep)."""
-        got = self._anchors.get(name)
-        moved = False
-        if got is not None and got[2] == rmax:
-            anchor, reach, _ = got
-            gap = float(np.linalg.norm(centre - anchor))
-            if gap == 0.0 or gap + rmax + MOVER_MARGIN_M <= reach:
-                return anchor, reach
-            moved = True
-        reach = rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M if moved else rmax
-        self._anchors[name] = (centre.copy(), reach, rmax)
-        return centre, reach
+    @staticmethod
+    def anchor(centre, rmax, may_move):
+        """(centre, reach) to prepare a sensor's static scene for, from where it is now
+        alone (no history, so a run split into pieces prepares what a whole run does):
+        a sensor that cannot move, where it stands with its range; one that may (it is
+        animated), around the point of a grid of ``DRIVING_SLACK`` of its range nearest
+        to it, reaching that much farther, so its frames share one built scene while it
+        drives through a cell."""
+        if not may_move:
+            return centre, rmax
+        cell = DRIVING_SLACK * rmax
+        anchor = np.round(np.asarray(centre, np.float64) / cell) * cell
+        return anchor, rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M
 
     def scan(self, source, sensor, preset, settings, frame, object_classes=None):
         """Scan ``frame`` (the source is already at it) of sensor ``sensor`` with device
@@ -83,7 +81,7 @@ class ScanSession:
         pose = source.sensor_pose(sensor)
         rmin, rmax = resolve_range(preset, settings)
         centre = pose[:3, 3]
-        anchor, reach = self._anchor(sensor, centre, rmax)
+        anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
         read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
         instances, materials = read.instances, read.materials
         objects = object_table(instances)

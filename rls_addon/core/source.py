@@ -68,6 +68,9 @@ class SceneSource(Protocol):
     def sensor_pose(self, sensor: str) -> np.ndarray:
         """The sensor's 4x4 world matrix at the current frame."""
 
+    def sensor_may_move(self, sensor: str) -> bool:
+        """Whether anything could move the sensor over time (it is animated)."""
+
     def read(self, centre: np.ndarray, max_range: float, exclude: set) -> SceneRead:
         """Instances within ``max_range`` of ``centre`` at the current frame, but the
         objects named in ``exclude`` (the sensor itself)."""

@@ -67,6 +67,9 @@ class FakeScene:
                         np.ones(12, np.int32), self._matrix(name, seconds),
                         np.array([1], np.int32), mesh_id=1 + sorted(self.boxes).index(name))
 
+    def sensor_may_move(self, sensor):
+        return sensor in getattr(self, "moving_sensors", ())
+
     def read(self, centre, max_range, exclude):
         self.calls["read"] += 1
         t = self.seconds(self.frame)
