@@ -316,6 +316,50 @@ class RLS_OT_scan_range(_ScanOperator, bpy.types.Operator):
         return list(range(a, b + 1, max(1, step)))
 
 
+def batch_command(context, all_lidars=True):
+    """The command line that scans this scene's frame range (as the Scan Frame Range
+    box says) outside the UI, over every core (``--workers auto``); needs the saved
+    .blend."""
+    import shlex
+
+    sc = context.scene
+    rs = sc.rls
+    a, b, step = ((sc.frame_start, sc.frame_end, sc.frame_step) if rs.use_scene_range
+                  else (rs.frame_start, rs.frame_end, rs.frame_step))
+    frames = f"{a}-{b}" + (f":{step}" if step > 1 else "")
+    parts = ["python", "-m", "rls_addon", "scan", bpy.data.filepath or "SCENE.blend",
+             "--frames", frames]
+    if not all_lidars:
+        obj = _active_lidar(context)
+        if obj is not None:
+            parts += ["--sensor", obj.name]
+    parts += ["--workers", "auto", "--resume"]
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+class RLS_OT_batch_command(bpy.types.Operator):
+    """Copy the command line that scans this frame range in a batch run over every core
+    (or a Dask cluster with --scheduler) to the clipboard; the UI itself scans in
+    Blender's own process"""
+
+    bl_idname = "rls.batch_command"
+    bl_label = "Copy Batch Command"
+    bl_options = {"REGISTER"}
+
+    all_lidars: BoolProperty(name="All LiDARs", default=True,
+                             description="Every LiDAR in the scene, not only the active one")
+
+    def execute(self, context):
+        text = batch_command(context, self.all_lidars)
+        context.window_manager.clipboard = text  # (no clipboard without a window)
+        LAST_RUN["batch_command"] = text
+        if not bpy.data.filepath:
+            self.report({"WARNING"}, "Save the .blend first: the batch run reads the scene "
+                                     "from its file")
+        self.report({"INFO"}, text)
+        return {"FINISHED"}
+
+
 # ---- previews and metrics ---------------------------------------------------------------------
 
 def _previews(context, everything):
@@ -650,6 +694,7 @@ CLASSES = (
     RLS_OT_scan_frame,
     RLS_OT_scan_all,
     RLS_OT_scan_range,
+    RLS_OT_batch_command,
     RLS_OT_preview_color,
     RLS_OT_compute_metrics,
     RLS_OT_preset_apply,

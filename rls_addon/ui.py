@@ -155,6 +155,7 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
         op.use_scene_range = rs.use_scene_range
         op.frame_start, op.frame_end, op.frame_step = rs.frame_start, rs.frame_end, rs.frame_step
         op.all_lidars = rs.range_all_lidars
+        box.operator("rls.batch_command", icon="CONSOLE").all_lidars = rs.range_all_lidars
 
 
 class OBJECT_PT_rls_lidar_range(_LidarPanel, bpy.types.Panel):

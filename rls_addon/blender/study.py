@@ -75,6 +75,6 @@ class BlenderStudyScene:
         return out
 
 
-def run_study(scene, cfg, progress=None):
-    """``core.study.run_study`` on a Blender scene."""
-    return core_study.run_study(BlenderStudyScene(scene), cfg, progress)
+def run_study(scene, cfg, progress=None, scan_all=None):
+    """``core.study.run_study`` on a Blender scene (``scan_all``: see there)."""
+    return core_study.run_study(BlenderStudyScene(scene), cfg, progress, scan_all=scan_all)

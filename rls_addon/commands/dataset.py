@@ -8,6 +8,7 @@ import sys
 from ..core.choices import BACKENDS, MOTION
 from ..core.datasets import LAYOUTS
 from ..core.errors import SceneError
+from .distribute import add_arguments as add_cluster_arguments
 from .scan import _print_step, open_scene, parse_frames
 
 
@@ -51,6 +52,7 @@ def add_parser(sub):
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="keep complete frames of an earlier run, scan the rest")
+    add_cluster_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -110,28 +112,19 @@ def dataset_run(args):
     jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
     writer = dataset_writer(args, scene, sensors, set(classes))
     frames = parse_frames(args.frames, scene.frame_current)
-    seams = {}
-
-    def progress(step):
-        _print_step(step)
-
-    def count_seams(job, frame, result, info):
-        n = sum(1 for b in info.get("objects", []) if b.get("split_by_sweep_seam"))
-        seams[job.name] = seams.get(job.name, 0) + n
-
-    run = ScanRun(BlenderScene(scene), jobs, frames, writer=writer, progress=progress,
-                  on_result=count_seams)
-    run.seams = seams
-    return run, writer
+    return ScanRun(BlenderScene(scene), jobs, frames, writer=writer, progress=_print_step), writer
 
 
 def run(args):
+    from .distribute import run_scan, scene_file
+
     job = None
     try:
         job, writer = dataset_run(args)
         for notice in job.notices:
             print(f"rls: notice: {notice}", file=sys.stderr)
-        job.run()
+        # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
+        run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt:
         where = f" after {job.index} of {job.total} scans" if job is not None else ""
         print(f"rls: interrupted{where}; finished files are complete, nothing partial was "
@@ -139,12 +132,6 @@ def run(args):
         return 130
     for notice in writer.notices:
         print(f"rls: notice: {notice}", file=sys.stderr)
-    for sensor, n in sorted(job.seams.items()):
-        if n:
-            print(f"rls: notice: {n} box(es) of {sensor} lie on its sweep's seam (scanned at "
-                  "the start and at the end of the sweep, a period apart, so their points "
-                  "form two clusters and the box holds the larger one); move the seam off "
-                  "the road with --sweep-start (e.g. 180: behind the sensor)", file=sys.stderr)
     summary = job.summary()
     summary.update(layout=args.layout, dataset=str(args.out))
     print(json.dumps(summary, indent=2))

@@ -9,6 +9,7 @@ import sys
 
 from ..core.choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from ..core.errors import SceneError
+from .distribute import add_arguments as add_cluster_arguments
 
 
 def add_parser(sub):
@@ -53,6 +54,7 @@ def add_parser(sub):
                    help="skip scans whose cloud and sidecar already exist and agree "
                         "(the cloud reads back and has the sidecar's point count); "
                         "rescan and replace the others")
+    add_cluster_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -146,12 +148,14 @@ def scan_run(args):
 
 
 def run(args):
+    from .distribute import run_scan, scene_file
+
     job = None
     try:
         job = scan_run(args)
         for notice in job.notices:
             print(f"rls: notice: {notice}", file=sys.stderr)
-        job.run()
+        run_scan(args, job, scene_file(args))
     except KeyboardInterrupt:
         where = f" after {job.index} of {job.total} scans" if job is not None else ""
         print(f"rls: interrupted{where}; finished files are complete, nothing partial was "

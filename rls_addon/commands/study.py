@@ -33,6 +33,7 @@ from ..core.metrics import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFA
 from ..core.placement import DEFAULT_EXHAUSTIVE_LIMIT
 from ..core.study import parse_values
 from ..core.study_report import REPORT_FILES, write_report
+from .distribute import add_arguments as add_cluster_arguments
 from .scan import check_output_dir, open_scene, parse_frames
 
 
@@ -80,6 +81,7 @@ def add_parser(sub):
     p.add_argument("--backend", choices=BACKENDS.ids, default="auto",
                    help="ray casting: Embree when available (auto), or Blender's BVHTree")
     p.add_argument("--overwrite", action="store_true", help="replace an existing report")
+    add_cluster_arguments(p)
     p.set_defaults(func=run)
 
 
@@ -122,7 +124,10 @@ def run(args):
         if clash:
             raise SceneError(f"{os.path.join(args.out, clash[0])} already exists; "
                              "pass --overwrite to replace the report")
-    result = run_study(scene, cfg, progress=_progress)
+    from .distribute import scene_file, study_scan_all
+
+    result = run_study(scene, cfg, progress=_progress,
+                       scan_all=study_scan_all(args, scene_file(args)))
     for note in result.notices:
         print(f"rls: notice: {note}", file=sys.stderr)
     notices = []

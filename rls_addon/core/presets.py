@@ -69,6 +69,13 @@ class DevicePreset:
     def period(self):
         return 1.0 / self.frequency_hz
 
+    def __getstate__(self):
+        """Pickled (sent to a worker) without its cached patterns."""
+        return {k: v for k, v in self.__dict__.items() if k != "_pattern_cache"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+
     def pattern(self, frame=0):
         """The ``ScanPattern`` of one frame (``frame`` matters for the non-repeating
         families: Risley prisms and MEMS mirrors keep moving between frames). Results

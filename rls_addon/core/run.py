@@ -11,6 +11,7 @@ results (previews) and cancelling. A run advances one (frame, sensor) step per
 command line can ``run()`` it straight through.
 """
 
+import os
 import time
 from dataclasses import dataclass, field
 from typing import Protocol
@@ -50,6 +51,9 @@ class Step:
 class Writer(Protocol):
     def path(self, sensor: str, output, frame: int): ...
 
+    def planned_files(self, sensor: str, output, frame: int) -> list:
+        """Every file a scan of (sensor, frame) writes (its path first)."""
+
     def check(self, sensor: str, output, frame: int) -> None: ...
 
     def existing(self, sensor: str, output, frame: int) -> int | None: ...
@@ -69,10 +73,19 @@ class ScanRun:
     cancelled  a function polled before every scan (after the frame is set, so a
                frame-change handler may ask to stop); True ends the run there
     factory    ``casting.caster_factory``-like: name -> (backend class, notice)
+    sessions   {backend name: ScanSession} to keep prepared scenes in over runs (a
+               worker's pieces of a sharded run)
+    piece      True for one piece of a sharded run: the run-level files are written by
+               whoever assembles the pieces (``absorb``), not here
+
+    A run can also be spread over workers (``commands.distribute``): ``pieces`` splits
+    its plan, each piece runs as a run of its own on a worker, and ``absorb`` takes
+    their steps back in plan order, so the summary and the run-level files are what a
+    whole run gives; seeds come from (seed, sensor, frame), so the clouds are too.
     """
 
     def __init__(self, source, sensors, frames, writer=None, progress=None, on_result=None,
-                 cancelled=None, factory=caster_factory):
+                 cancelled=None, factory=caster_factory, sessions=None, piece=False):
         if not sensors:
             raise SceneError(f"scene '{source.name}' has no LiDAR objects "
                              f"(add one with Add > LiDAR)")
@@ -85,7 +98,8 @@ class ScanRun:
         if writer is not None:  # fail before scanning anything
             for job in self.sensors:
                 writer.check(job.name, job.settings.output, self.frames[0])
-        self.sessions, self.notices = {}, []
+        self.sessions, self.notices = ({} if sessions is None else sessions), []
+        self.piece = piece
         for job in self.sensors:
             backend = job.settings.backend
             if backend not in self.sessions:
@@ -192,9 +206,63 @@ class ScanRun:
                 for i, names in sorted(self.id_map.items()) for name, label in names.items()}
 
     def _complete(self):
+        if self.piece:
+            return
         self.warnings += check_ids({i: set(n) for i, n in self.id_map.items()})
         if self.writer is not None:
             self.writer.finish(self)
+
+    # ---- a run spread over workers ------------------------------------------------------
+
+    def pieces(self, count, by_sensor=True):
+        """The plan split into at most ``count`` pieces of [(sensor names, frames)]:
+        per sensor, runs of consecutive frames (a worker keeps a still sensor's cast
+        and a sensor's prepared scene over its frames); with ``by_sensor=False`` runs
+        of frames with every sensor (layouts whose files need a whole frame)."""
+        from .cluster import shards
+
+        if not by_sensor:
+            return [([j.name for j in self.sensors], f) for f in shards(self.frames, count)]
+        per = max(1, -(-count // len(self.sensors)))
+        return [([j.name], f) for j in self.sensors for f in shards(self.frames, per)]
+
+    def absorb(self, steps, id_map, warnings=()):
+        """Take a piece's steps (run elsewhere) into this run, then, once every step of
+        the plan is in, order them as a whole run would and complete the run."""
+        for step in steps:
+            self.outputs.append(step)
+            self.points += step.points
+            if step.resumed:
+                self.resumed += 1
+            else:
+                self.scanned += 1
+                self._scan_time += step.seconds
+                if step.path:
+                    self.paths.append(step.path)
+        for iid, names in id_map.items():
+            self.id_map.setdefault(int(iid), {}).update(names)
+        self.warnings += [w for w in warnings if w not in self.warnings]
+        self.index = len(self.outputs)
+        if self.index == len(self.plan):
+            order = {(f, j.name): k for k, (f, j) in enumerate(self.plan)}
+            self.outputs.sort(key=lambda s: order[(s.frame, s.sensor)])
+            self.paths = [s.path for s in self.outputs if s.path and not s.resumed]
+            for k, s in enumerate(self.outputs):
+                s.done = k + 1
+            self.frames_done = list(self.frames)
+            self._complete()
+
+    def free_outputs(self):
+        """Without --overwrite or --resume, an existing file of this run is an error
+        before anything is scanned (pieces run again after a failed worker then keep
+        what they wrote the first time)."""
+        from .errors import OutputError
+
+        for frame, job in self.plan:
+            path = self.writer.path(job.name, job.settings.output, frame)
+            if os.path.exists(path):
+                raise OutputError(f"{path} already exists; pass --overwrite to replace it "
+                                  "or --resume to keep it")
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when

@@ -269,15 +269,17 @@ class StudyScanner:
                              len(result.points), result.rays, time.perf_counter() - t, seen)
 
 
-def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
-    """Scan every candidate of ``scene`` (a ``StudyScene``) and search placements;
-    returns a ``StudyResult``.
+@dataclasses.dataclass
+class StudyInputs:
+    preset: object
+    polygon: np.ndarray
+    layout: DiskLayout
+    candidates: list
 
-    ``progress(done, total, candidate, eta_seconds)`` is called after each scan.
-    ``scan_all(scanner, candidates, on_scan)``: how the candidates are scanned (default:
-    one after another here; a sharded run hands them to workers); it calls
-    ``on_scan(CandidateScan)`` for each, in any order."""
-    t0 = time.perf_counter()
+
+def study_inputs(scene, cfg):
+    """The device, the region, its disks and the candidates of a study (the same
+    wherever they are made from the same scene and settings), with the k checked."""
     preset = get_preset(cfg.device)
     polygon = scene.region(cfg.lob)
     layout = DiskLayout.make(polygon, cfg.disks, cfg.radius, cfg.disk_seed, cfg.disk_placement)
@@ -290,6 +292,20 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
             raise SceneError(f"k = {k} needs {k} distinct mounts; the candidates have {spots}"
                              + (" (--allow-shared-mounts lets a mount hold several)"
                                 if cfg.one_per_mount and k <= len(cands) else ""))
+    return StudyInputs(preset, polygon, layout, cands)
+
+
+def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
+    """Scan every candidate of ``scene`` (a ``StudyScene``) and search placements;
+    returns a ``StudyResult``.
+
+    ``progress(done, total, candidate, eta_seconds)`` is called after each scan.
+    ``scan_all(scanner, candidates, on_scan)``: how the candidates are scanned (default:
+    one after another here; a sharded run hands them to workers); it calls
+    ``on_scan(CandidateScan)`` for each, in any order."""
+    t0 = time.perf_counter()
+    inputs = study_inputs(scene, cfg)
+    preset, polygon, layout, cands = inputs.preset, inputs.polygon, inputs.layout, inputs.candidates
     scanner = StudyScanner(scene, cfg, preset, polygon, layout, cands, factory)
     t_scan = time.perf_counter()
     scans = [None] * len(cands)

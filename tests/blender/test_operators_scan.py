@@ -341,3 +341,20 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
     else:
         assert Op.modal(fake, ctx, timer) == {"FINISHED"}
         assert not LAST_RUN["cancelled"] and len(list(tmp_path.glob("*.pcd"))) == 1
+
+
+def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
+    from rls_addon.operators import batch_command
+
+    labelled_ground()
+    add_lidar_op(out=tmp_path)
+    scene.frame_start, scene.frame_end, scene.frame_step = 5, 40, 5
+    blend = tmp_path / "my scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    text = batch_command(bpy.context, all_lidars=False)
+    assert text == (f"python -m rls_addon scan '{blend}' --frames 5-40:5 --sensor LiDAR "
+                    "--workers auto --resume")
+    from rls_addon.operators import LAST_RUN
+
+    assert bpy.ops.rls.batch_command() == {"FINISHED"}
+    assert LAST_RUN["batch_command"].endswith("--workers auto --resume")

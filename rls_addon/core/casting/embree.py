@@ -81,6 +81,11 @@ def unavailable_reason():
 
 
 def default_threads():
+    """The CPUs this process may use, or ``RLS_EMBREE_THREADS`` when set (a worker of
+    a local cluster gets its share of the cores)."""
+    forced = os.environ.get("RLS_EMBREE_THREADS", "").strip()
+    if forced.isdigit() and int(forced) > 0:
+        return int(forced)
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not Linux

@@ -97,6 +97,16 @@ class Split:
                 "val_frames": list(self.val_frames) if self.val_frames else None}
 
 
+def seam_notice(notices, sensor, boxes):
+    """Add (once per sensor) the notice that boxes lie on the sweep's seam."""
+    if any(b.get("split_by_sweep_seam") for b in boxes) and not any(
+            n.startswith(f"boxes of {sensor} lie") for n in notices):
+        notices.append(f"boxes of {sensor} lie on its sweep's seam (scanned at the start "
+                       "and at the end of the sweep, a period apart, so their points form "
+                       "two clusters and each box holds the larger one); move the seam off "
+                       "the road with --sweep-start (e.g. 180: behind the sensor)")
+
+
 def ensure_dir(path):
     os.makedirs(path, exist_ok=True)
     return path

@@ -26,7 +26,7 @@ from ..errors import RLSError
 from ..io.atomic import atomic_write_bytes
 from ..io.paths import sanitize_name
 from .common import (Split, check_root, ensure_dir, frame_id, heading_in, level_frame,
-                     points_world, tilt_deg, write_json, write_text)
+                     points_world, seam_notice, tilt_deg, write_json, write_text)
 
 POINT_FORMATS = ("npy", "bin")
 
@@ -61,6 +61,11 @@ class KittiWriter:
 
     def path(self, sensor, output, frame):
         return self.sensor_root(sensor) / "points" / f"{frame_id(frame)}.{self.points_format}"
+
+    def planned_files(self, sensor, output, frame):
+        root = self.sensor_root(sensor)
+        return [self.path(sensor, output, frame), root / "labels" / f"{frame_id(frame)}.txt",
+                self._meta(sensor, frame)]
 
     def _meta(self, sensor, frame):
         return self.sensor_root(sensor) / "meta" / f"{frame_id(frame)}.json"
@@ -114,6 +119,7 @@ class KittiWriter:
         arr[:, :3] = xyz
         arr[:, 3] = points["intensity"] * self.scale
         lines, boxes = [], []
+        seam_notice(self.notices, sensor, info.get("objects", []))
         for b in info.get("objects", []):
             box = self._box(b, frame_to_world)
             boxes.append(dict(b, frame_box=box))

@@ -35,7 +35,7 @@ from ..instances import instance_id
 from ..io import pcd
 from ..io.atomic import atomic_write_bytes
 from ..io.paths import sanitize_name
-from .common import check_root, ensure_dir, frame_id, write_text
+from .common import check_root, ensure_dir, frame_id, seam_notice, write_text
 
 KMH = 3.6
 
@@ -96,6 +96,9 @@ class Opv2vWriter:
     def path(self, sensor, output, frame):
         return self._dir(sensor) / f"{frame_id(frame)}.pcd"
 
+    def planned_files(self, sensor, output, frame):
+        return [self.path(sensor, output, frame), self._yaml(sensor, frame)]
+
     def _yaml(self, sensor, frame):
         return self._dir(sensor) / f"{frame_id(frame)}.yaml"
 
@@ -132,6 +135,7 @@ class Opv2vWriter:
         atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"), overwrite=ow)
         start = np.asarray(info["sensor_pose_start"], np.float64)
         boxes = info.get("objects", [])
+        seam_notice(self.notices, sensor, boxes)
         carrier = self.carriers.get(sensor)
         ego = next((b for b in boxes if b["object"] == carrier), None)
         lidar_pose = carla_pose(start)

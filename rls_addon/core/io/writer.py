@@ -30,6 +30,11 @@ class CloudWriter:
         return output_path(output.directory, output.template, scene=self.scene_name,
                            sensor=sensor, frame=frame, fmt=output.format)
 
+    def planned_files(self, sensor, output, frame):
+        """Every file a scan of (sensor, frame) writes."""
+        path = self.path(sensor, output, frame)
+        return [path, sidecar_path(path)]
+
     def check(self, sensor, output, frame):
         """Fail now, before anything is scanned, when ``sensor``'s files cannot be
         written: the folder, the template and the format are checked."""

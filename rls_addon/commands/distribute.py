@@ -1,0 +1,151 @@
+"""``--workers`` and ``--scheduler``: ``rls scan``, ``rls dataset`` and ``rls study`` on
+every core of a machine or on a Dask cluster.
+
+A scan run is split into pieces (per sensor, runs of consecutive frames; per frame
+range with every sensor for layouts whose files need a whole frame), a study into
+blocks of candidates. Workers (``blender.worker``) open the .blend once and keep it;
+pieces come back in any order and the run takes them in plan order, so files, the
+summary and the study's tables are what one process writes (seeds come from
+(seed, sensor, frame)). A worker killed mid-piece loses nothing: Dask runs the piece
+again elsewhere, and it keeps the frames the first attempt finished.
+"""
+
+import glob
+import os
+import sys
+import time
+
+from ..core.cluster import (ClusterError, choose_workers, cluster_client, parse_workers,
+                            run_tasks, shards)
+from ..core.errors import SceneError
+
+PIECES_PER_WORKER = 4  # more pieces than workers: balance, and finer progress
+
+
+def add_arguments(p):
+    g = p.add_argument_group("scale out (Dask)")
+    g.add_argument("--workers", default="auto", metavar="N|auto",
+                   help="worker processes: 1 runs here; N starts a local Dask cluster of N; "
+                        "auto (default) runs here when the run is small, else one worker "
+                        "per core (capped by memory)")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="an existing Dask scheduler (tcp://host:8786): its workers need "
+                        "the bpy wheel, this package and the scene on a shared path")
+
+
+def scene_file(args):
+    """The .blend the workers open: the one named, else the one Blender has open."""
+    if args.blend:
+        return os.path.abspath(args.blend)
+    import bpy
+
+    if bpy.data.filepath:
+        return bpy.data.filepath
+    raise SceneError("workers open the scene from its file: save it, or name the .blend")
+
+
+def _local_cluster_possible():
+    """A local cluster starts Python processes of this interpreter that import the bpy
+    module: not from inside the Blender program (its Python has no bpy module)."""
+    try:
+        import bpy
+
+        return not bpy.app.binary_path or os.path.basename(sys.executable).startswith("python")
+    except ImportError:
+        return False
+
+
+def worker_count(args, scans, rays):
+    requested = parse_workers(args.workers)
+    local_ok = _local_cluster_possible()
+    if requested != "auto" and requested > 1 and not args.scheduler and not local_ok:
+        raise ClusterError("a local cluster needs the bpy module (python -m rls_addon ...); "
+                           "from the Blender program use --workers 1 or --scheduler ADDRESS")
+    return choose_workers(requested, scans, rays, args.scheduler, local_ok)
+
+
+def _eta(done, total, t0):
+    if not done:
+        return 0.0
+    return (time.perf_counter() - t0) / done * (total - done)
+
+
+def run_scan(args, run, blend, by_sensor=True):
+    """Run ``run`` (a ``core.run.ScanRun``) here or over workers, as ``--workers`` and
+    ``--scheduler`` say; returns it, complete."""
+    rays = sum(len(j.preset.pattern(run.frames[0])) for j in run.sensors) * len(run.frames)
+    workers = worker_count(args, run.total, rays)
+    if workers == 1:
+        return run.run()
+    writer = run.writer
+    if not (writer.overwrite or writer.resume):
+        run.free_outputs()
+    # A piece run again after its worker died keeps what the first attempt finished.
+    writer.resume = not writer.overwrite
+    t0 = time.perf_counter()
+    from ..blender.worker import scan_piece
+
+    jobs = {j.name: j for j in run.sensors}
+    notices = []
+    with cluster_client(workers, args.scheduler) as client:
+        size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
+        pieces = run.pieces(size * PIECES_PER_WORKER, by_sensor)
+        print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
+              + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
+              file=sys.stderr, flush=True)
+
+        def absorb(i, got):
+            run.absorb(got.steps, got.id_map, got.warnings)
+            notices.extend(n for n in got.notices if n not in notices)
+            names, frames = pieces[i]
+            pts = sum(s.points for s in got.steps)
+            print(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
+                  f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
+                  "left", file=sys.stderr, flush=True)
+
+        try:
+            run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer))
+                               for names, frames in pieces], absorb)
+        finally:
+            remove_temporaries(run)
+    if hasattr(writer, "notices"):
+        writer.notices[:] = notices + [n for n in writer.notices if n not in notices]
+    return run
+
+
+def remove_temporaries(run):
+    """Temporary files a killed worker left beside this run's outputs: a write in
+    progress is ``.<file name>.<random>.tmp`` next to the file (``io.atomic``)."""
+    for frame, job in run.plan:
+        for path in run.writer.planned_files(job.name, job.settings.output, frame):
+            pattern = os.path.join(glob.escape(os.path.dirname(os.path.abspath(path))),
+                                   "." + glob.escape(os.path.basename(path)) + ".*.tmp")
+            for tmp in glob.glob(pattern):
+                try:
+                    os.unlink(tmp)
+                except OSError:
+                    pass
+
+
+def study_scan_all(args, blend):
+    """A ``run_study(scan_all=...)`` that hands blocks of candidates to workers, or None
+    to scan here (``--workers`` / ``--scheduler``)."""
+    from ..blender.worker import study_piece
+
+    def scan_all(scanner, cands, on_scan):
+        rays = len(scanner.preset.pattern(scanner.frame)) * len(cands) \
+            * (1 + len(scanner.traffic))
+        workers = worker_count(args, len(cands) * (1 + len(scanner.traffic)), rays)
+        if workers == 1:
+            for c in cands:
+                on_scan(scanner.scan(c))
+            return
+        with cluster_client(workers, args.scheduler) as client:
+            size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
+            blocks = shards([c.index for c in cands], size * PIECES_PER_WORKER)
+            print(f"rls: {len(blocks)} candidate blocks on {size} Dask worker(s)",
+                  file=sys.stderr, flush=True)
+            run_tasks(client, [(study_piece, (blend, scanner.cfg, b)) for b in blocks],
+                      lambda i, scans: [on_scan(s) for s in scans])
+
+    return scan_all
