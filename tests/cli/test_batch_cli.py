@@ -51,15 +51,20 @@ def test_resume_skips_valid_outputs_and_redoes_broken_ones(demo_run, tmp_path):
     assert "already exists" in one_line_error(rls("scan", blend, "--frames", "1", "--out", out))
 
 
-def test_ctrl_c_stops_cleanly(demo_run, tmp_path):
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_ctrl_c_stops_cleanly(demo_run, tmp_path, workers):
+    """Ctrl-C in one process, and with a local cluster of two workers."""
     demo_out, _, _ = demo_run
     out = tmp_path / "scan"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     proc = subprocess.Popen([sys.executable, "-m", "rls_addon", "scan", str(demo_out / "street.blend"),
-                             "--frames", "1-400", "--out", str(out)], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--frames", "1-400", "--out", str(out), "--workers", workers],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
     try:
-        for _ in range(2):  # let two frames finish, then interrupt mid-run
+        if workers != "1":
+            assert proc.stderr.readline().startswith("rls: ")  # pieces handed out
+        for _ in range(2):  # let two frames (pieces) finish, then interrupt mid-run
             assert proc.stderr.readline().startswith("[")
         proc.send_signal(signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=120)
