@@ -4,7 +4,9 @@
 #     make test-core     the bpy-free core (Blender's modules blocked), with fakes
 #     make test-blender  the bpy module: operators, extraction, the installed extension
 #     make test-cli      python -m rls_addon in subprocesses, as users run it
-#   make build   build and validate dist/rls_addon-<version>.zip with Blender's tooling
+#   make build   build and validate one zip per platform with Blender's tooling:
+#                dist/rls_addon-<version>-{linux_x64,windows_x64,macos_arm64,macos_x64}.zip
+#                (docs/platforms.md); the compiled loop is cross-compiled with Zig
 #   make bench   benchmarks (about 3 minutes): docs/benchmarks.md and docs/bench_*.png
 
 PYTHON ?= python3.11
@@ -12,8 +14,10 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 RUNTIME_STAMP := $(VENV)/.runtime-installed
 TEST_STAMP    := $(VENV)/.test-installed
+BUILD_STAMP   := $(VENV)/.build-installed
 VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
-ZIP     := dist/rls_addon-$(VERSION).zip
+# The zip Linux x64 users (and the tests) install; the others are built beside it.
+ZIP     := dist/rls_addon-$(VERSION)-linux_x64.zip
 
 .PHONY: venv demo test test-core test-blender test-cli build system-deps clean bench native
 
@@ -32,6 +36,13 @@ $(TEST_STAMP): $(RUNTIME_STAMP) requirements-test.txt
 	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-test.txt -c requirements.txt
 	@touch $@
 
+# The build's own tools: Zig's C compiler (the ziglang wheel) cross-compiles the loop.
+# Without it the build still writes every zip and says which have no compiled loop.
+$(BUILD_STAMP): $(RUNTIME_STAMP) requirements-build.txt
+	@$(PY) -m pip install --quiet --disable-pip-version-check -r requirements-build.txt -c requirements.txt \
+	  && touch $@ \
+	  || echo "make: warning: could not install requirements-build.txt (ziglang): the zips of other platforms get no compiled loop" >&2
+
 # PCL's command-line tools judge our PCD files in the tests (Debian package pcl-tools).
 system-deps:
 	@command -v pcl_pcd2ply >/dev/null 2>&1 || { \
@@ -42,11 +53,12 @@ system-deps:
 	    echo "make: error: PCL's command-line tools are missing: run 'sudo apt-get install pcl-tools'" >&2; exit 1; \
 	  fi; }
 
-# The optional C loop over Embree packets (needs gcc; without it Embree runs slower).
+# The optional C loop over Embree packets for this machine, in place (needs gcc;
+# without it Embree runs slower). make build cross-compiles it for every zip.
 native: $(RUNTIME_STAMP)
 	$(PY) tools/build_native.py
 
-build: native
+build: native $(BUILD_STAMP)
 	$(PY) tools/build_extension.py --out dist
 
 demo: native

@@ -10,6 +10,7 @@ from .blender import preset_catalog
 from .blender.extract import GEOMETRY_TYPES
 from .blender.region import is_lob
 from .blender.sensor import is_lidar, lidar_objects
+from .core.casting import backend_status
 from .core.presets import FAMILIES
 
 FAMILY_ICONS = {"spinning": "LIGHTPROBE_SPHERE", "mems": "LIGHTPROBE_PLANE",
@@ -207,6 +208,7 @@ class OBJECT_PT_rls_lidar_motion(_LidarPanel, bpy.types.Panel):
         sub.prop(s, "sweep_start", text="")
         layout.prop(s, "ghosting")
         layout.prop(s, "backend")
+        layout.label(text=backend_status(s.backend)[1], icon="INFO")  # cached per choice
 
 
 class OBJECT_PT_rls_lidar_output(_LidarPanel, bpy.types.Panel):

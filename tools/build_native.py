@@ -1,35 +1,202 @@
-"""Compile RLS's optional native helpers (a C loop over Embree packets) in place.
+"""Compile RLS's optional native helper (a C loop over Embree packets), for this
+machine in place, or for the platforms the extension zips are built for.
 
-    python tools/build_native.py
+    python tools/build_native.py                      this machine, in place (gcc/cc)
+    python tools/build_native.py --platforms all      every zip platform, into build/native
+    python tools/build_native.py --platforms linux-x64,windows-x64
 
-Needs a C compiler (gcc/cc). Without one, or on failure, it says so and exits 0: the
-extension then casts Embree packets from Python (slower with several threads).
+In place: ``rls_addon/core/casting/native/_rls_embree_loop.so`` (``.dylib`` on macOS,
+``.dll`` on Windows), what the tests and ``python -m rls_addon`` use here. Needs a C
+compiler (gcc/cc); without one, or on failure, it says so and exits 0: the extension
+then casts Embree packets from Python (slower with several threads).
+
+For the zips: ``build/native/<platform>/`` (Blender's platform names), cross-compiled
+from this Linux machine with Zig's C compiler (``python -m ziglang cc``, the ``ziglang``
+wheel pinned in requirements-build.txt): Linux against glibc 2.28 (Blender's own
+minimum; gcc here would need this machine's newer glibc), Windows through MinGW-w64
+(KERNEL32 and the Universal CRT only), macOS 11.0 and later. A platform that cannot be
+built is reported, never fatal: its zip then has no compiled loop and Embree runs from
+Python there. A build is redone only when the sources or the command change
+(``build.json`` beside each build records both).
+
+Every build uses ``-ffp-contract=off`` (no fused multiply-add on any target, so float64
+refinement gives the same bits everywhere) and ``-fvisibility=hidden`` (only the
+``RLS_EXPORT`` entry points are exported).
 """
 
+import argparse
+import hashlib
+import json
+import os
+import platform as _platform
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-SRC = ROOT / "rls_addon" / "core" / "casting" / "native" / "embree_loop.c"
-OUT = ROOT / "rls_addon" / "core" / "casting" / "native" / "_rls_embree_loop.so"
+NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
+SRC = NATIVE / "embree_loop.c"
+HEADERS = [NATIVE / "rls_threads.h"]
+BUILD = ROOT / "build" / "native"
+ZIG_CACHE = ROOT / "build" / "zig-cache"
+
+# Blender platform -> (Zig target, sys.platform of that system: names the file).
+TARGETS = {
+    "linux-x64": ("x86_64-linux-gnu.2.28", "linux"),
+    "windows-x64": ("x86_64-windows-gnu", "win32"),
+    "macos-arm64": ("aarch64-macos.11.0", "darwin"),
+    "macos-x64": ("x86_64-macos.11.0", "darwin"),
+}
+FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
+         "-Wall", "-Werror=implicit-function-declaration"]
+EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi")
 
 
-def main():
+def library_name(sys_platform):
+    """The loop's file name on ``sys_platform`` (the loader's own rule)."""
+    sys.path.insert(0, str(ROOT))
+    try:
+        from rls_addon.core.casting.embree import native_library_name
+    finally:
+        sys.path.remove(str(ROOT))
+    return native_library_name(sys_platform)
+
+
+def host_platform():
+    """This machine as a Blender platform name (e.g. linux-x64), as blender_ext.py names it."""
+    system = {"darwin": "macos"}.get(sys.platform, "windows" if sys.platform == "win32"
+                                     else _platform.system().lower())
+    machine = _platform.machine().lower()
+    machine = {"x86_64": "x64", "amd64": "x64", "aarch64": "arm64"}.get(machine, machine)
+    return f"{system}-{machine}"
+
+
+def _sources_digest():
+    h = hashlib.sha256()
+    for path in [SRC, *HEADERS]:
+        h.update(path.name.encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()
+
+
+def _loads(path):
+    """True when the loader would use the build at ``path`` (not stale, e.g. a build
+    newer than a checkout's sources but older than their interface)."""
+    sys.path.insert(0, str(ROOT))
+    try:
+        from rls_addon.core.casting.embree import load_native
+
+        load_native(str(path))
+        return True
+    except OSError:
+        return False
+    finally:
+        sys.path.remove(str(ROOT))
+
+
+def build_host():
+    """Compile the loop for this machine into the package (gcc or cc). Returns a line
+    saying what happened; never raises on a compiler's failure."""
+    out = NATIVE / library_name(sys.platform)
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
-        print("build_native: no C compiler found; the Python packet loop will be used")
-        return 0
-    if OUT.exists() and OUT.stat().st_mtime >= SRC.stat().st_mtime:
-        return 0
-    cmd = [cc, "-O2", "-shared", "-fPIC", "-pthread", "-o", str(OUT), str(SRC), "-lm"]
+        return "build_native: no C compiler found; the Python packet loop will be used"
+    newest = max(p.stat().st_mtime for p in [SRC, *HEADERS])
+    if out.exists() and out.stat().st_mtime >= newest and _loads(out):
+        return ""
+    cmd = [cc, *FLAGS, "-pthread", "-o", str(out), str(SRC), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
-        print("build_native: compiling failed; the Python packet loop will be used\n"
-              + proc.stderr, file=sys.stderr)
+        return ("build_native: compiling failed; the Python packet loop will be used\n"
+                + proc.stderr)
+    return f"build_native: {out.relative_to(ROOT)}"
+
+
+def zig_command():
+    """The Zig C compiler from the ``ziglang`` wheel, or None (with the reason)."""
+    try:
+        proc = subprocess.run([sys.executable, "-m", "ziglang", "version"],
+                              capture_output=True, text=True, timeout=120)
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        return None, f"Zig could not run ({exc})"
+    if proc.returncode != 0:
+        return None, ("the ziglang wheel is not installed (pip install -r "
+                      "requirements-build.txt; make build does)")
+    return [sys.executable, "-m", "ziglang", "cc"], proc.stdout.strip()
+
+
+def build_platform(name, zig=None, out_root=BUILD):
+    """Cross-compile the loop for Blender platform ``name`` into ``out_root/name``.
+
+    Returns (path or None, note): the library, or None and why it was not built."""
+    if name not in TARGETS:
+        return None, f"no target known for platform {name!r}"
+    target, sys_platform = TARGETS[name]
+    if zig is None:
+        zig = zig_command()
+    cc, version = zig
+    out_dir = out_root / name
+    out = out_dir / library_name(sys_platform)
+    if cc is None:
+        if name != host_platform():
+            return None, version
+        # This machine's own compiler still serves its own platform's zip, built
+        # against this machine's C library (which may be newer than users' systems).
+        msg = build_host()
+        host = NATIVE / library_name(sys.platform)
+        if not host.exists() or "failed" in msg:
+            return None, f"{version}; {msg or 'no host build'}"
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "build.json").unlink(missing_ok=True)
+        shutil.copy2(host, out)
+        return out, f"{version}: built with this machine's C compiler instead"
+    cmd = [*cc, "-target", target, *FLAGS, "-s", "-o", out.name, str(SRC)]
+    record = {"command": cmd[2:], "zig": version, "sources": _sources_digest()}
+    stamp = out_dir / "build.json"
+    if out.exists() and stamp.exists():
+        try:
+            if json.loads(stamp.read_text()) == record:
+                return out, "up to date"
+        except ValueError:
+            pass
+    out_dir.mkdir(parents=True, exist_ok=True)
+    env = dict(os.environ, ZIG_GLOBAL_CACHE_DIR=str(ZIG_CACHE),
+               ZIG_LOCAL_CACHE_DIR=str(ZIG_CACHE))
+    # In a scratch directory: the Windows link also writes an import library and a
+    # PDB next to its output, which the zip must not carry.
+    with tempfile.TemporaryDirectory(prefix=f"rls-native-{name}-") as tmp:
+        try:
+            proc = subprocess.run(cmd, cwd=tmp, env=env, capture_output=True, text=True,
+                                  timeout=900)
+        except subprocess.TimeoutExpired:
+            return None, f"zig cc -target {target} did not finish in 15 minutes"
+        built = Path(tmp) / out.name
+        if proc.returncode != 0 or not built.exists():
+            err = (proc.stderr or proc.stdout).strip().splitlines()
+            return None, f"zig cc -target {target} failed: " + " | ".join(err[-6:])
+        shutil.copy2(built, out)
+    stamp.write_text(json.dumps(record, indent=1) + "\n")
+    return out, f"built with zig cc -target {target}"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--platforms", default="",
+                    help="comma-separated Blender platforms (or 'all') to cross-compile "
+                         "into build/native; default: this machine, in place")
+    args = ap.parse_args(argv)
+    if not args.platforms:
+        msg = build_host()
+        if msg:
+            print(msg, file=sys.stderr if "failed" in msg else sys.stdout)
         return 0
-    print(f"build_native: {OUT.relative_to(ROOT)}")
+    names = list(TARGETS) if args.platforms == "all" else args.platforms.split(",")
+    zig = zig_command()
+    for name in names:
+        path, note = build_platform(name.strip(), zig)
+        where = path.relative_to(ROOT) if path else "not built"
+        print(f"build_native: {name}: {where} ({note})")
     return 0
 
 

@@ -57,10 +57,11 @@ MOTION = Choices("motion mode", [
 ])
 
 BACKENDS = Choices("ray-casting backend", [
-    ("auto", "Automatic", "Embree (bundled, all cores) when available, else Blender's BVHTree"),
+    ("auto", "Automatic", "Embree (bundled: embreex with the compiled loop on all cores, or "
+                          "pyemblite on macOS) when available, else Blender's BVHTree"),
     ("bvhtree", "BVHTree", "Blender's BVHTree: always available, one core"),
-    ("embree", "Embree", "Intel Embree from the bundled embreex wheel (falls back to BVHTree "
-                         "with a notice where it is missing)"),
+    ("embree", "Embree", "Intel Embree from the bundled embreex or pyemblite wheel (falls back "
+                         "to BVHTree with a notice where neither is)"),
 ])
 
 FORMATS = Choices("cloud format", [

@@ -74,6 +74,10 @@ def test_caster_factory_names_and_fallback_notice(monkeypatch):
     monkeypatch.setattr(embree_caster, "available", lambda: False)
     monkeypatch.setattr(embree_caster, "unavailable_reason",
                         lambda: "ModuleNotFoundError: No module named 'embreex'")
+    # Nor pyemblite (the macOS zips' Embree) or Open3D: BVHTree
+    # (tests/core/test_backends_without_embreex.py).
+    monkeypatch.setattr(backends.emblite, "available", lambda: False)
+    monkeypatch.setattr(backends.open3d_caster, "available", lambda: False)
     factory, notice = backends.caster_factory("embree")
     assert factory is BVHCaster
     assert "Embree is not available" in notice and "BVHTree" in notice and "embreex" in notice

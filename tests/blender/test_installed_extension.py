@@ -67,7 +67,8 @@ if site:
     c = factory(np.array([[-1.0, -1, 0], [3, -1, 0], [-1, 3, 0]]), np.array([[0, 1, 2]]))
     dist, tri = c.cast(np.array([[0.0, 0, 2]]), np.array([[0.0, 0, -1], [0, 0, 1]]), 10.0)
     embree.update(notice=notice, name=c.name, mode=getattr(c, 'mode', None), describe=c.describe(),
-                  dist=[float(x) for x in dist], tri=[int(x) for x in tri])
+                  dist=[float(x) for x in dist], tri=[int(x) for x in tri],
+                  status=list(backends.backend_status('auto')))
 print(json.dumps({'modules': mods, 'preview_points': len(preview.data.vertices),
                   'package': type(lidar.rls_lidar).__module__, 'embree': embree}))
 """
@@ -75,7 +76,8 @@ print(json.dumps({'modules': mods, 'preview_points': len(preview.data.vertices),
 
 def test_install_zip_and_scan_through_installed_operator(tmp_path):
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
-    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}.zip"
+    # make build writes one zip per platform; this machine's is the Linux x64 one.
+    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}-linux_x64.zip"
     if not zip_path.exists():
         pytest.fail(f"{zip_path} is missing: run 'make build' (make test does)")
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))
@@ -104,4 +106,7 @@ def test_install_zip_and_scan_through_installed_operator(tmp_path):
     assert embree["notice"] is None and embree["name"] == "embree", embree
     assert embree["mode"] == "packets", embree
     assert "C loop" in embree["describe"], embree  # the compiled loop shipped in the zip
+    # What the LiDAR panel says under its backend choice (ui.py).
+    assert embree["status"][0] == "embree", embree
+    assert embree["status"][1].startswith("Embree with the compiled loop"), embree
     assert abs(embree["dist"][0] - 2.0) < 1e-5 and embree["tri"] == [0, -1], embree

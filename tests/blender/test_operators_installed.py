@@ -56,7 +56,8 @@ print(json.dumps({'fov': fov, 'preset': lidar.rls_lidar.preset,
 
 def test_installed_extension_ui_operators(tmp_path):
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
-    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}.zip"
+    # make build writes one zip per platform; this machine's is the Linux x64 one.
+    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}-linux_x64.zip"
     if not zip_path.exists():
         pytest.fail(f"{zip_path} is missing: run 'make build' (make test does)")
     env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path / "user"))

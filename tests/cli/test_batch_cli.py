@@ -109,9 +109,10 @@ def test_entry_script_runs_the_cli_from_the_source_tree(tmp_path):
 
 def test_entry_script_prefers_the_installed_extension(tmp_path):
     manifest = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
-    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}.zip"
+    # make build writes one zip per platform; this machine's is the Linux x64 one.
+    zip_path = ROOT / "dist" / f"rls_addon-{manifest['version']}-linux_x64.zip"
     if not zip_path.exists():
-        pytest.skip(f"{zip_path} is missing: run 'make build' (make test does)")
+        pytest.fail(f"{zip_path} is missing: run 'make build' (make test does)")
     script = (
         "import bpy, runpy, sys\n"
         f"assert bpy.ops.extensions.package_install_files(filepath={str(zip_path)!r}, "

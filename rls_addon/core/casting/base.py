@@ -24,8 +24,10 @@ cast of a still sensor's rays and gives it back.
 
 The backends: ``numpy_caster.NumpyCaster`` (brute force, exact, for tests and tiny
 scenes), ``bvhtree.BVHCaster`` (Blender's BVHTree), ``embree.EmbreeCaster`` (Intel
-Embree with the compiled loop in ``native/``); ``casting.caster_factory`` picks one
-by name.
+Embree with the compiled loop in ``native/``), ``emblite.EmbliteCaster`` (Embree 4 from
+the pyemblite wheel, for macOS), ``open3d_caster.Open3DCaster`` (Open3D's
+RaycastingScene, where a user has it); ``casting.caster_factory`` picks one by name and
+``casting.backend_status`` says which and why.
 """
 
 from typing import Callable, Protocol

@@ -12,8 +12,10 @@ float32; the engine recomputes every range exactly in float64 afterwards
 Two ways to drive Embree, chosen automatically (``mode="auto"``):
 
 ``packets``  Calls ``rtcIntersect16`` of the Embree library that the ``embreex`` wheel
-             bundles. With the compiled loop (``native/`` beside this file, built by
-             ``tools/build_native.py`` and shipped in the Linux zip) one ``ctypes`` call
+             bundles. With the compiled loop (``native/_rls_embree_loop.so``, ``.dll``
+             or ``.dylib`` beside this file: ``native_library_name``; built by
+             ``tools/build_native.py`` for each platform's zip, and refused when its
+             interface version is not ``NATIVE_ABI``) one ``ctypes`` call
              casts every ray on its own threads without the GIL; without it, 16-ray
              packets laid out by numpy go through ``ctypes`` from a thread pool (the
              GIL changes hands every packet, which scales poorly). The packet layout is
@@ -28,6 +30,7 @@ import glob
 from collections import deque
 from itertools import repeat
 import os
+import sys
 import threading
 
 import numpy as np
@@ -155,30 +158,79 @@ def _bind(lib):
         fn.restype, fn.argtypes = res, args
 
 
-_NATIVE = None  # ctypes handle on native/_rls_embree_loop.so (next to this file), or False
+_NATIVE = None  # (launch, finish) of the compiled loop next to this file, or False
+_NATIVE_ERROR = ""
+# The interface version the loop must report (RLS_EMBREE_ABI in native/embree_loop.c).
+NATIVE_ABI = 2
+
+
+def native_library_name(platform=None):
+    """File name of the compiled loop for ``platform`` (``sys.platform`` style; default:
+    this one): ``_rls_embree_loop`` + .dll on Windows, .dylib on macOS, else .so.
+    ``tools/build_native.py`` names its builds with this function."""
+    plat = sys.platform if platform is None else platform
+    if plat.startswith(("win", "cygwin")):
+        ext = ".dll"
+    elif plat == "darwin":
+        ext = ".dylib"
+    else:
+        ext = ".so"
+    return "_rls_embree_loop" + ext
+
+
+def native_library_path():
+    """Where this platform's compiled loop is looked for: ``native/`` beside this file."""
+    return os.path.join(os.path.dirname(os.path.abspath(__file__)), "native",
+                        native_library_name())
+
+
+def load_native(path):
+    """(launch, finish) of the compiled loop at ``path``, bound for ctypes; OSError
+    when it cannot be loaded or is stale: a build without ``rls_embree_abi`` (older
+    than the arguments ``_launch`` passes) or reporting another version than
+    ``NATIVE_ABI``. Never calls into a build it has not checked."""
+    lib = ctypes.CDLL(path)
+    try:
+        abi = lib.rls_embree_abi
+        start, finish = lib.rls_embree_launch, lib.rls_embree_finish
+    except AttributeError as exc:
+        raise OSError(f"stale build of the compiled loop ({exc}); rebuild it with "
+                      "tools/build_native.py") from None
+    abi.restype, abi.argtypes = ctypes.c_int, []
+    got = abi()
+    if got != NATIVE_ABI:
+        raise OSError(f"stale build of the compiled loop (interface {got}, this RLS "
+                      f"needs {NATIVE_ABI}); rebuild it with tools/build_native.py")
+    vp = ctypes.c_void_p
+    args = [vp, vp, vp, ctypes.c_int, vp, vp, ctypes.c_int64, ctypes.c_float,
+            vp, vp, vp, vp, vp, ctypes.c_int, vp, vp, vp, vp, ctypes.c_int]
+    start.restype, start.argtypes = ctypes.c_void_p, args
+    finish.restype, finish.argtypes = None, [ctypes.c_void_p]
+    return start, finish
 
 
 def _native_loop():
     """The compiled packet loop (tools/build_native.py), or None when it is not built
-    for this platform: then packets are cast from Python on a thread pool."""
-    global _NATIVE
+    for this platform, or is stale: then packets are cast from Python on a thread
+    pool (the reason in ``native_loop_error``)."""
+    global _NATIVE, _NATIVE_ERROR
     with _LOCK:
         if _NATIVE is None:
-            path = os.path.join(os.path.dirname(os.path.abspath(__file__)),
-                                "native", "_rls_embree_loop.so")
-            try:
-                lib = ctypes.CDLL(path)
-                vp = ctypes.c_void_p
-                args = [vp, vp, vp, ctypes.c_int, vp, vp, ctypes.c_int64, ctypes.c_float,
-                        vp, vp, vp, vp, vp, ctypes.c_int, vp, vp, vp, vp, ctypes.c_int]
-                # A stale build without these names: Python packets instead.
-                start, finish = lib.rls_embree_launch, lib.rls_embree_finish
-                start.restype, start.argtypes = ctypes.c_void_p, args
-                finish.restype, finish.argtypes = None, [ctypes.c_void_p]
-                _NATIVE = (start, finish)
-            except (OSError, AttributeError):
-                _NATIVE = False
+            path = native_library_path()
+            if not os.path.exists(path):
+                _NATIVE, _NATIVE_ERROR = False, (f"no compiled loop for this platform "
+                                                 f"({os.path.basename(path)} is missing)")
+            else:
+                try:
+                    _NATIVE = load_native(path)
+                except OSError as exc:
+                    _NATIVE, _NATIVE_ERROR = False, str(exc)
         return _NATIVE or None
+
+
+def native_loop_error():
+    """Why the compiled loop is not used ('' when it is, or has not been looked for)."""
+    return _NATIVE_ERROR
 
 
 def _aligned(words, dtype=np.float32):

@@ -24,12 +24,24 @@
  * (offsets in 4-byte words) is the one rls_addon/core/casting/embree.py checks with a
  * probe packet before using either path.
  *
- * Built by tools/build_native.py (gcc -O2 -shared -fPIC -pthread). */
+ * Built by tools/build_native.py for every platform the extension ships on (zig cc
+ * cross-compiles: Linux, Windows, macOS; gcc or cc for this machine alone), with
+ * -ffp-contract=off so that no target fuses a multiply and an add: every platform
+ * refines to the same float64 bits. Threads come from rls_threads.h (Win32 or
+ * POSIX), the shared ray counter is a C11 atomic; GCC or Clang (the aligned and
+ * prefetch attributes). */
 #include <math.h>
-#include <pthread.h>
+#include <stdatomic.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "rls_threads.h"
+
+/* What rls_embree_abi returns: the loader (embree.py, _native_loop) refuses a build
+ * that answers anything else, or lacks the function (a build older than the
+ * arguments it passes). Bump it whenever an exported signature or meaning changes. */
+#define RLS_EMBREE_ABI 2
 
 #define K 16
 #define ORG 0
@@ -70,7 +82,7 @@ typedef struct {
     int64_t *tri;
     double *normal;       /* 3 per ray, or NULL */
     int64_t n;            /* rays */
-    int64_t *next;        /* shared: the first ray no worker has taken yet */
+    _Atomic int64_t *next;  /* shared: the first ray no worker has taken yet */
 } job_t;
 
 /* Workers take rays in blocks of this many from a shared counter (not in fixed
@@ -204,23 +216,26 @@ static void cast_range(job_t *j, int64_t lo, int64_t hi) {
     }
 }
 
-static void *work(void *arg) {
-    job_t *j = (job_t *)arg;
+static void work(job_t *j) {
     for (;;) {
-        int64_t lo = __atomic_fetch_add(j->next, BLOCK, __ATOMIC_RELAXED);
+        int64_t lo = atomic_fetch_add_explicit(j->next, BLOCK, memory_order_relaxed);
         if (lo >= j->n) break;
         cast_range(j, lo, lo + BLOCK < j->n ? lo + BLOCK : j->n);
     }
-    return NULL;
+}
+
+RLS_THREAD_ENTRY(worker, arg) {
+    work((job_t *)arg);
+    RLS_THREAD_RETURN;
 }
 
 #define MAX_THREADS 64
 
 typedef struct {
     job_t job;     /* one job: the threads share its ray counter (see BLOCK) */
-    int64_t next;
+    _Atomic int64_t next;
     int workers;
-    pthread_t ids[MAX_THREADS];
+    rls_thread ids[MAX_THREADS];
 } batch_t;
 
 /* Starts casting N rays with `threads` threads, counting the caller's: threads - 1
@@ -229,7 +244,7 @@ typedef struct {
  * between the two calls overlaps the cast without taking a core from it, and
  * threads = 1 casts in the caller alone, at rls_embree_finish. A worker that cannot be
  * started leaves its share to the others. NULL when out of memory (nothing was cast). */
-void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ray,
+RLS_EXPORT void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ray,
                         const double *dir, const int64_t *order, int64_t n, float tfar,
                         const float *time, int32_t *inst, const double *steps,
                         const int64_t *info, const double *const *planes_of, int n_inst,
@@ -239,20 +254,26 @@ void *rls_embree_launch(void *fn, void *scene, const double *org, int org_per_ra
     if (!b) return NULL;
     b->job = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar, time, inst,
                      steps, info, planes_of, n_inst, plane, dist, tri, normal, n, &b->next};
+    atomic_init(&b->next, 0);
     int64_t blocks = (n + BLOCK - 1) / BLOCK;
     int want = threads - 1;
     if (want > MAX_THREADS) want = MAX_THREADS;
     if (want > blocks - 1) want = (int)(blocks - 1);  /* the caller takes one block */
     for (int t = 0; t < want; t++)
-        if (pthread_create(&b->ids[b->workers], NULL, work, &b->job) == 0) b->workers++;
+        if (rls_thread_start(&b->ids[b->workers], worker, &b->job)) b->workers++;
     return b;
 }
 
 /* Casts what the workers have not taken yet, waits for them, and frees the batch. */
-void rls_embree_finish(void *batch) {
+RLS_EXPORT void rls_embree_finish(void *batch) {
     batch_t *b = (batch_t *)batch;
     if (!b) return;
     work(&b->job);
-    for (int t = 0; t < b->workers; t++) pthread_join(b->ids[t], NULL);
+    for (int t = 0; t < b->workers; t++) rls_thread_join(b->ids[t]);
     free(b);
+}
+
+/* The interface version of this build (RLS_EMBREE_ABI). */
+RLS_EXPORT int rls_embree_abi(void) {
+    return RLS_EMBREE_ABI;
 }
