@@ -43,14 +43,23 @@ $(BUILD_STAMP): $(RUNTIME_STAMP) requirements-build.txt
 	  && touch $@ \
 	  || echo "make: warning: could not install requirements-build.txt (ziglang): the zips of other platforms get no compiled loop" >&2
 
-# PCL's command-line tools judge our PCD files in the tests (Debian package pcl-tools).
+# Debian packages the tests use, as command:package. PCL's command-line tools judge our
+# PCD files (pcl-tools); g++, pkg-config and PCL's headers (libpcl-dev: about 1 GB and a
+# minute to install) build a reader of each LiDAR driver's typed point
+# (tests/core/native); CloudCompare reads our PLY files headless (cloudcompare).
+SYSTEM_PACKAGES := pcl_pcd2ply:pcl-tools g++:g++ pkg-config:pkgconf CloudCompare:cloudcompare
 system-deps:
-	@command -v pcl_pcd2ply >/dev/null 2>&1 || { \
+	@missing=""; \
+	for pair in $(SYSTEM_PACKAGES); do \
+	  command -v $${pair%%:*} >/dev/null 2>&1 || missing="$$missing $${pair#*:}"; \
+	done; \
+	ls /usr/include/pcl-*/pcl/io/pcd_io.h >/dev/null 2>&1 || missing="$$missing libpcl-dev"; \
+	[ -z "$$missing" ] || { \
 	  if [ "$$(id -u)" = 0 ]; then \
-	    echo "make: installing Debian package pcl-tools (PCL command-line tools)"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends pcl-tools >/dev/null; \
+	    echo "make: installing Debian packages:$$missing"; \
+	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
 	  else \
-	    echo "make: error: PCL's command-line tools are missing: run 'sudo apt-get install pcl-tools'" >&2; exit 1; \
+	    echo "make: error: Debian packages the tests need are missing: run 'sudo apt-get install$$missing'" >&2; exit 1; \
 	  fi; }
 
 # The optional C loop over Embree packets for this machine, in place (needs gcc;

@@ -17,6 +17,7 @@ from .blender.sensor import DEFAULT_PRESET
 from .core.choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from .core.errors import RLSError
 from .core.io import DEFAULT_FIELDS
+from .core.io.point_types import POINT_TYPE_CHOICES
 from .core.labels import DEFAULT_LABELS, label_id
 
 COLOR_ITEMS = [(a, a.title(), f"Colour preview points by {a}") for a in COLOR_ATTRIBUTES]
@@ -175,6 +176,13 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
     fields: EnumProperty(name="Fields", items=FIELDS.items(), options={"ENUM_FLAG"},
                          default={f for f in DEFAULT_FIELDS if f not in ("x", "y", "z")},
                          description="Point fields to write (x, y, z are always written)")
+    point_type: EnumProperty(name="Point Type", items=POINT_TYPE_CHOICES.items(), default="rls",
+                             description="Fields, names, types and units of the written points: "
+                                         "RLS's own (the Fields below) or those a vendor's ROS "
+                                         "driver publishes (PCD, PLY and ROS 2 bags)")
+    crs: StringProperty(name="CRS", default="",
+                        description="LAS: the coordinate reference system of the scene's world "
+                                    "frame, as 'EPSG:<code>' (empty: none written)")
     name_template: StringProperty(name="Names", default="{scene}_{sensor}_{frame:06d}",
                                   description="File name template: {scene}, {sensor}, {frame:06d}; "
                                               "slashes make sub-folders")

@@ -224,8 +224,13 @@ class OBJECT_PT_rls_lidar_output(_LidarPanel, bpy.types.Panel):
         layout.prop(s, "file_format")
         layout.prop(s, "name_template")
         layout.prop(s, "frame_space")
+        layout.prop(s, "point_type")
         col = layout.column(heading="Fields", align=True)
+        col.active = s.point_type == "rls"  # a vendor's point type has its own fields
         col.prop(s, "fields")
+        row = layout.row()
+        row.active = s.file_format == "las"
+        row.prop(s, "crs")
         layout.prop(s, "ground_truth")
         sub = layout.row()
         sub.active = s.ground_truth

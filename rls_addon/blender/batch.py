@@ -8,7 +8,7 @@ progress (Esc in the modal operators; scripts and tests may call it, e.g. from a
 frame-change handler).
 """
 
-from ..core.io.writer import CloudWriter
+from ..core.io.writer import make_writer
 from ..core.run import ScanRun
 from .preview import show_points
 from .sensor import absolute_output, lidar_props, read_settings, sensor_job
@@ -45,9 +45,11 @@ def make_run(context, sensors, frames, write=True, preview=True, overwrite=True)
                         color_by=lidar_props(obj).preview_color)
 
     _cancel["requested"] = False
-    return ScanRun(BlenderScene(scene, context), jobs, frames,
-                   writer=CloudWriter(scene.name, overwrite=overwrite) if write else None,
-                   on_result=show if preview else None, cancelled=cancel_requested)
+    source = BlenderScene(scene, context)
+    writer = make_writer(jobs, scene.name, source.fps, source.frame_start,
+                         overwrite=overwrite) if write else None
+    return ScanRun(source, jobs, frames, writer=writer, on_result=show if preview else None,
+                   cancelled=cancel_requested)
 
 
 def end_run(run):

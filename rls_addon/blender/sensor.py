@@ -59,7 +59,8 @@ def read_settings(obj):
     output = OutputSettings(directory=s.output_dir, format=s.file_format,
                             fields=("x", "y", "z") + tuple(sorted(s.fields)),
                             template=s.name_template, ground_truth=bool(s.ground_truth),
-                            object_classes=tuple(label_ids(s.object_classes)))
+                            object_classes=tuple(label_ids(s.object_classes)),
+                            point_type=s.point_type, crs=s.crs.strip() or None)
     return LidarSettings(preset=s.preset_id or DEFAULT_PRESET, scan=scan, output=output,
                          backend=s.backend)
 

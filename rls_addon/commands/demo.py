@@ -26,7 +26,7 @@ def run(args):
     from ..blender.sample_scene import build_street
     from ..blender.sensor import read_settings, sensor_job
     from ..blender.source import BlenderScene
-    from ..core.io.writer import CloudWriter
+    from ..core.io.writer import make_writer, picture_path
     from ..core.presets import get_preset
     from ..core.run import ScanRun
 
@@ -52,8 +52,11 @@ def run(args):
     t0 = time.perf_counter()
     # The same run as 'rls scan' and the UI's operators, into --out.
     job = sensor_job(lidar, read_settings(lidar).override(directory=os.path.abspath(args.out)))
-    run = ScanRun(BlenderScene(scene), [job], [1],
-                  writer=CloudWriter(scene.name, overwrite=True)).run()
+    source = BlenderScene(scene)
+    preview = _has_matplotlib()
+    writer = make_writer([job], scene.name, source.fps, source.frame_start, overwrite=True,
+                         preview=preview)
+    run = ScanRun(source, [job], [1], writer=writer).run()
     result, _ = run.last
     path = run.paths[0]
     seconds = time.perf_counter() - t0
@@ -61,12 +64,15 @@ def run(args):
         bpy.ops.wm.save_as_mainfile(filepath=blend)
     summary = {"device": preset.name, "points": len(result.points), "rays": result.rays,
                "triangles": result.triangles, "seconds": round(seconds, 3),
-               "point_cloud": str(os.path.abspath(path)), "scene": blend}
+               "point_cloud": str(os.path.abspath(path)), "scene": blend,
+               "picture": str(os.path.abspath(picture_path(path))) if preview else None}
     if not args.no_study:
         summary["study"] = run_demo_study(args.out, preset.id)
     print(json.dumps(summary, indent=2))
     print(f"Scanned {summary['points']} points ({preset.name}, {result.rays} rays) in "
           f"{seconds:.2f} s.\nPoint cloud: {summary['point_cloud']}\nScene: {blend}")
+    print(f"Picture of the cloud: {summary['picture']}" if preview else
+          "No picture of the cloud: matplotlib is not installed (pip install matplotlib)")
     if "study" in summary:
         st = summary["study"]
         best = st["best"][str(max(DEMO_K))]
@@ -78,6 +84,14 @@ def run(args):
 
 
 DEMO_K = (1, 2, 3)
+
+
+def _has_matplotlib():
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def run_demo_study(out_dir, device):

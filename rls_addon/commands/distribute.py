@@ -75,6 +75,11 @@ def run_scan(args, run, blend, by_sensor=True):
     ``--scheduler`` say; returns it, complete."""
     rays = sum(len(j.preset.pattern(run.frames[0])) for j in run.sensors) * len(run.frames)
     workers = worker_count(args, run.total, rays)
+    if workers != 1 and not run.writer.shardable:
+        if args.scheduler or parse_workers(args.workers) != "auto":
+            print("rls: notice: a ROS 2 bag is written by one process: running here",
+                  file=sys.stderr)
+        workers = 1
     if workers == 1:
         return run.run()
     writer = run.writer
@@ -114,9 +119,16 @@ def run_scan(args, run, blend, by_sensor=True):
 
 
 def remove_temporaries(run):
-    """Temporary files a killed worker left beside this run's outputs: a write in
-    progress is ``.<file name>.<random>.tmp`` next to the file (``io.atomic``)."""
+    """What killed workers left beside this run's outputs: temporary files of a write in
+    progress (``.<file name>.<random>.tmp`` next to the file, ``io.atomic``) and the
+    files of a scan whose last file was never written (a cloud without its sidecar);
+    a later --resume scans those again."""
     for frame, job in run.plan:
+        for path in run.writer.incomplete(job.name, job.settings.output, frame):
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
         for path in run.writer.planned_files(job.name, job.settings.output, frame):
             pattern = os.path.join(glob.escape(os.path.dirname(os.path.abspath(path))),
                                    "." + glob.escape(os.path.basename(path)) + ".*.tmp")

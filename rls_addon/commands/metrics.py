@@ -14,7 +14,6 @@ taken as world-frame. Prints the result as JSON.
 import json
 import sys
 
-import numpy as np
 
 from ..core.errors import InputError, OutputError, RegionError
 from ..core.metrics import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, infra_lob_metrics
@@ -72,36 +71,11 @@ def polygon_from_blend(spec):
 def world_points(path):
     """Read one cloud and bring it to the world frame using its sidecar."""
     from ..core.io import read_cloud, read_sidecar
-    from ..core.points import transform_points
+    from ..core.points import points_to_world
 
     pts = read_cloud(path)
     info = read_sidecar(path)
-    if not info:
-        return pts
-    space = info.get("frame_space")
-    if space is None and isinstance(info.get("frame"), str):
-        space = info["frame"]
-    if space in (None, "world"):
-        return pts
-    if space != "sensor":
-        raise InputError(f"sidecar of {path}: unknown coordinate frame {space!r} (expected sensor or world)")
-    knots = info.get("sensor_poses")
-    if knots:
-        from ..core.motion import poses_at
-
-        try:
-            poses = poses_at(knots["times_s"], knots["matrices"], pts["time"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise InputError(f"sidecar of {path}: unreadable sensor_poses ({exc})") from None
-        xyz = np.stack([pts["x"], pts["y"], pts["z"]], 1)
-        w = np.einsum("nij,nj->ni", poses[:, :3, :3], xyz) + poses[:, :3, 3]
-        out = pts.copy()
-        out["x"], out["y"], out["z"] = w[:, 0], w[:, 1], w[:, 2]
-        return out
-    m = np.asarray(info.get("sensor_to_world"), dtype=np.float64) if info.get("sensor_to_world") is not None else None
-    if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
-        raise InputError(f"sidecar of {path} says the points are in the sensor frame but has no valid 4x4 sensor_to_world")
-    return transform_points(pts, m)
+    return points_to_world(pts, info, path) if info else pts
 
 
 def run(args):

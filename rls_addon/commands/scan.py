@@ -8,6 +8,7 @@ import json
 import sys
 
 from ..core.choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
+from ..core.io.point_types import POINT_TYPES
 from ..core.errors import SceneError
 from .distribute import add_arguments as add_cluster_arguments
 
@@ -46,6 +47,20 @@ def add_parser(sub):
                         "(default: each LiDAR's)")
     p.add_argument("--ghosting", choices=("on", "off"), default=None,
                    help="ghost points from glossy surfaces (default: each LiDAR's setting)")
+    p.add_argument("--point-type", choices=POINT_TYPES, default=None,
+                   help="PCD, PLY and bags: the fields of a LiDAR driver's ROS point "
+                        "(velodyne, ouster, hesai, autoware) or RLS's own (rls, default: "
+                        "each LiDAR's); see docs/formats.md")
+    p.add_argument("--start-time", type=float, default=None, metavar="SECONDS",
+                   help="absolute time of the scene's first frame (e.g. Unix seconds) for "
+                        "bag stamps, LAS GPS times, Hesai timestamps and sidecars (default 0)")
+    p.add_argument("--crs", default=None, metavar="EPSG:CODE",
+                   help="LAS: the coordinate reference system of the world frame")
+    p.add_argument("--las-offset", default=None, metavar="X,Y,Z",
+                   help="LAS: world offset in metres (default: per file, whole km)")
+    p.add_argument("--preview-png", action="store_true",
+                   help="also write a picture of each cloud (bird's-eye and perspective "
+                        "views by label, intensity) beside it (needs matplotlib)")
     p.add_argument("--sweep-start", type=float, default=None, metavar="DEG",
                    help="spinning devices: azimuth where each sweep starts (degrees, "
                         "counter-clockwise from the LiDAR's +X; 180 = behind it)")
@@ -68,8 +83,22 @@ def overrides(args):
     return {"seed": args.seed, "frame_space": args.frame_space, "motion": args.motion,
             "substeps": args.substeps, "backend": args.backend, "format": args.format,
             "fields": fields, "template": args.template, "directory": args.out,
-            "sweep_start_deg": args.sweep_start,
+            "sweep_start_deg": args.sweep_start, "point_type": args.point_type,
+            "start_time_s": args.start_time, "crs": args.crs,
+            "las_offset": _offset(args.las_offset),
             "ghosting": None if args.ghosting is None else args.ghosting == "on"}
+
+
+def _offset(text):
+    if text is None:
+        return None
+    try:
+        vals = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        vals = ()
+    if len(vals) != 3:
+        raise SceneError(f"--las-offset: expected X,Y,Z in metres, got '{text}'")
+    return vals
 
 
 def parse_frames(text, current):
@@ -128,7 +157,7 @@ def scan_run(args):
     from ..blender.sensor import absolute_output, find_lidar, lidar_objects, read_settings, \
         sensor_job
     from ..blender.source import BlenderScene
-    from ..core.io.writer import CloudWriter
+    from ..core.io.writer import make_writer
     from ..core.run import ScanRun
 
     scene = open_scene(args.blend)
@@ -136,6 +165,8 @@ def scan_run(args):
     if not sensors:
         raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > LiDAR)")
     changes = overrides(args)
+    if changes["format"] == "mcap" and changes["frame_space"] is None:
+        changes["frame_space"] = "sensor"  # bags hold sensor-frame clouds
     jobs = []
     for obj in sensors:
         settings = read_settings(obj).override(**changes)
@@ -143,8 +174,10 @@ def scan_run(args):
             settings = absolute_output(settings)
         jobs.append(sensor_job(obj, settings))
     frames = parse_frames(args.frames, scene.frame_current)
-    writer = CloudWriter(scene.name, overwrite=args.overwrite, resume=args.resume)
-    return ScanRun(BlenderScene(scene), jobs, frames, writer=writer, progress=_print_step)
+    source = BlenderScene(scene)
+    writer = make_writer(jobs, scene.name, source.fps, source.frame_start,
+                         overwrite=args.overwrite, resume=args.resume, preview=args.preview_png)
+    return ScanRun(source, jobs, frames, writer=writer, progress=_print_step)
 
 
 def run(args):

@@ -47,3 +47,41 @@ def transform_points(points, matrix):
     p = xyz(points) @ m[:3, :3].T + m[:3, 3]
     out["x"], out["y"], out["z"] = p[:, 0], p[:, 1], p[:, 2]
     return out
+
+
+def points_to_world(points, info, where="the cloud"):
+    """A copy of ``points`` in the world frame, as its sidecar ``info`` says they are:
+    world-frame points as they are; sensor-frame points through ``sensor_to_world``, or
+    for a sensor that moved during its sweep through its pose at each point's own time
+    (the sidecar's ``sensor_poses`` knots). ``InputError`` naming ``where`` when the
+    sidecar cannot say."""
+    from .errors import InputError
+    from .motion import poses_at
+
+    space = info.get("frame_space")
+    if space is None and isinstance(info.get("frame"), str):
+        space = info["frame"]
+    if space in (None, "world"):
+        return points
+    if space != "sensor":
+        raise InputError(f"sidecar of {where}: unknown coordinate frame {space!r} "
+                         "(expected sensor or world)")
+    knots = info.get("sensor_poses")
+    out = points.copy()
+    local = xyz(points)
+    if knots:
+        try:
+            poses = poses_at(knots["times_s"], knots["matrices"], points["time"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"sidecar of {where}: unreadable sensor_poses ({exc})") from None
+        w = np.einsum("nij,nj->ni", poses[:, :3, :3], local) + poses[:, :3, 3]
+    else:
+        m = info.get("sensor_to_world")
+        m = np.asarray(m, dtype=np.float64) if m is not None else None
+        if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
+            raise InputError(f"sidecar of {where} says the points are in the sensor frame but "
+                             "has no valid 4x4 sensor_to_world")
+        w = local @ m[:3, :3].T + m[:3, 3]
+    out["x"], out["y"], out["z"] = w[:, 0], w[:, 1], w[:, 2]
+    return out
+

@@ -49,10 +49,15 @@ class Step:
 
 
 class Writer(Protocol):
+    shardable: bool  # pieces of a run may write on several workers
+
     def path(self, sensor: str, output, frame: int): ...
 
     def planned_files(self, sensor: str, output, frame: int) -> list:
         """Every file a scan of (sensor, frame) writes (its path first)."""
+
+    def incomplete(self, sensor: str, output, frame: int) -> list:
+        """Files a write of (sensor, frame) cut short by a killed process left behind."""
 
     def check(self, sensor: str, output, frame: int) -> None: ...
 
@@ -62,6 +67,9 @@ class Writer(Protocol):
 
     def finish(self, run) -> None:
         """After the last step of a run that was not cancelled (run-level files)."""
+
+    def abort(self) -> None:
+        """The run ended early: drop what only a complete run may leave."""
 
 
 class ScanRun:
@@ -280,7 +288,11 @@ class ScanRun:
         return self
 
     def finish(self):
-        """Put the scene back at the frame it was at when the run began."""
+        """Put the scene back at the frame it was at when the run began; a run that
+        ends before its last step (cancelled, interrupted, failed) drops what only a
+        complete run may leave (a bag)."""
+        if self.index < len(self.plan) and self.writer is not None and not self.piece:
+            self.writer.abort()
         if self.source.current_frame() != self.original_frame:
             self.source.set_frame(self.original_frame)
 

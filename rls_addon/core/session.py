@@ -184,6 +184,7 @@ class ScanSession:
                    "sensor_moves": motion.sensor is not None}
         return {
             "device": {"id": preset.id, "name": preset.name, "source": preset.source},
+            **_channels(preset),
             "sensor": sensor,
             "frame": frame,
             "frame_space": settings.frame_space,
@@ -207,6 +208,16 @@ class ScanSession:
             "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }
+
+
+def _channels(preset):
+    """A spinning device's channel-table elevations (degrees, by ring), for readers
+    that number rings by elevation (io.point_types)."""
+    if preset.family != "spinning":
+        return {}
+    from .presets import spinning_elevations_offsets
+
+    return {"channel_elevations_deg": [float(e) for e in spinning_elevations_offsets(preset)[0]]}
 
 
 def _noise_sigma(preset, settings):

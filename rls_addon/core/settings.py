@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from .choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from .errors import SettingsError
 from .io.fields import DEFAULT_FIELDS, resolve_fields
+from .io.point_types import POINT_TYPE_CHOICES
 from .labels import OBJECT_CLASSES, label_id, label_name
 
 DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
@@ -69,9 +70,19 @@ class OutputSettings:
     # Absolute time (s, e.g. a Unix time) of the scene's first frame: frame f starts
     # at start_time_s + (f - first frame) / frame rate
     start_time_s: float = 0.0
+    # PCD, PLY and bags: the fields of a vendor ROS driver's point (io.point_types) or
+    # RLS's own ("rls": ``fields`` choose among them)
+    point_type: str = "rls"
+    # LAS: world offset (m, x y z; None: per file, its minimum floored to whole km) and
+    # the world frame's CRS ('EPSG:<code>' or None)
+    las_offset: tuple | None = None
+    crs: str | None = None
 
     def __post_init__(self):
         FORMATS.check(self.format)
+        POINT_TYPE_CHOICES.check(self.point_type)
+        if self.las_offset is not None and len(tuple(self.las_offset)) != 3:
+            raise SettingsError(f"a LAS offset is x, y, z in metres, got {self.las_offset!r}")
         for f in self.fields:
             if f not in ("x", "y", "z"):
                 FIELDS.check(f)

@@ -10,6 +10,18 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 
+# The start of the scripts that build test scenes in a subprocess (argv[1]: the
+# repository): Blender's factory settings, empty, with RLS registered.
+SCENE_SCRIPT_HEAD = r"""
+import sys, math, bpy
+sys.path.insert(0, sys.argv[1])
+import rls_addon
+rls_addon.register()
+bpy.ops.wm.read_factory_settings(use_empty=True)
+if not hasattr(bpy.types.Object, "rls_lidar"):
+    rls_addon.register()
+"""
+
 
 def rls(*args, cwd=None, timeout=600):
     """Run ``python -m rls_addon ARGS``; return the CompletedProcess (text mode)."""

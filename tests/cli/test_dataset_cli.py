@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from .conftest import ROOT, rls
+from .conftest import ROOT, SCENE_SCRIPT_HEAD, rls
 
 FRAMES = (26, 29)
 FPS = 10.0
@@ -18,14 +18,7 @@ FPS = 10.0
 CARS = {"Car west": ((50, 1.75), (-50, 1.75)), "Car east": ((-50, -5.25), (50, -5.25)),
         "Car north": ((1.75, -50), (1.75, 50)), "Car south": ((-5.25, 50), (-5.25, -50))}
 
-BUILD = r"""
-import sys, math, bpy
-sys.path.insert(0, sys.argv[1])
-import rls_addon
-rls_addon.register()
-bpy.ops.wm.read_factory_settings(use_empty=True)
-if not hasattr(bpy.types.Object, "rls_lidar"):
-    rls_addon.register()
+BUILD = SCENE_SCRIPT_HEAD + r"""
 from rls_addon.blender.scenes import build_scene
 from rls_addon.blender.scenes.build import mount_position
 build_scene("intersection", bpy.context.scene)

@@ -14,18 +14,11 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import ROOT, rls
+from .conftest import ROOT, SCENE_SCRIPT_HEAD, rls
 
 distributed = pytest.importorskip("distributed")
 
-BUILD = r"""
-import sys, math, bpy
-sys.path.insert(0, sys.argv[1])
-import rls_addon
-rls_addon.register()
-bpy.ops.wm.read_factory_settings(use_empty=True)
-if not hasattr(bpy.types.Object, "rls_lidar"):
-    rls_addon.register()
+BUILD = SCENE_SCRIPT_HEAD + r"""
 from rls_addon.blender.scenes import build_scene
 from rls_addon.blender.scenes.build import mount_position
 build_scene("intersection", bpy.context.scene)

@@ -8,19 +8,12 @@ import sys
 
 import pytest
 
-from .conftest import ROOT, one_line_error, rls
+from .conftest import ROOT, SCENE_SCRIPT_HEAD, one_line_error, rls
 
 SPEED = 5.55   # m/s of the moving box
 FPS = 25
 
-BUILD = r"""
-import sys, bpy
-sys.path.insert(0, sys.argv[1])
-import rls_addon
-rls_addon.register()
-bpy.ops.wm.read_factory_settings(use_empty=True)
-if not hasattr(bpy.types.Object, "rls_lidar"):
-    rls_addon.register()
+BUILD = SCENE_SCRIPT_HEAD + r"""
 scene = bpy.context.scene
 scene.name = "moving"
 scene.render.fps, scene.render.fps_base = FPS, 1.0
@@ -151,3 +144,33 @@ def test_presets_import_refuses_a_builtin_id(tmp_path):
     assert "'velodyne_vlp16' is a built-in preset id" in one_line_error(proc)
     assert not (tmp_path / "user").exists() or not list((tmp_path / "user").iterdir())
     json.dumps({})
+
+
+PANEL_POINT_TYPE = r"""
+import sys, bpy
+sys.path.insert(0, sys.argv[1])
+import rls_addon
+bpy.ops.wm.open_mainfile(filepath=sys.argv[2])
+if not hasattr(bpy.types.Object, "rls_lidar"):
+    rls_addon.register()
+s = bpy.data.objects["LiDAR"].rls_lidar
+s.point_type, s.file_format, s.crs = "velodyne", "pcd_ascii", "EPSG:25832"
+from rls_addon.blender.sensor import read_settings
+out = read_settings(bpy.data.objects["LiDAR"]).output
+assert (out.point_type, out.format, out.crs) == ("velodyne", "pcd_ascii", "EPSG:25832"), out
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[3])
+"""
+
+
+def test_output_panel_point_type_is_what_scan_writes_unless_a_flag_overrides(moving_blend, tmp_path):
+    blend = tmp_path / "velodyne.blend"
+    proc = subprocess.run([sys.executable, "-c", PANEL_POINT_TYPE, str(ROOT), str(moving_blend),
+                           str(blend)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    for args, fields in (((), "x y z intensity ring time"),  # the panel's Velodyne point
+                         (("--point-type", "rls"), "x y z range intensity ring")):  # a flag wins
+        out = tmp_path / (args[-1] if args else "panel")
+        proc = rls("scan", blend, "--frames", "1", "--out", out, *args)
+        assert proc.returncode == 0, proc.stderr
+        head = (out / "moving_LiDAR_000001.pcd").read_text(errors="replace")[:300]
+        assert f"FIELDS {fields}\n" in head, head

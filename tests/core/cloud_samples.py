@@ -15,7 +15,7 @@ def sample_cloud(n, seed=0):
     p["ring"] = np.arange(n) % 64
     p["time"] = np.sort(rng.uniform(0.0, 0.1, n))
     p["label"] = np.repeat(rng.integers(0, 17, n // 50 + 1), 50)[:n]
-    p["instance"] = rng.integers(0, 2**32 - 1, n, dtype=np.uint32)
+    p["instance"] = rng.integers(0, 2**31, n, dtype=np.uint32)  # stable ids are 31-bit
     p["ghost"] = rng.random(n) < 0.05
     return p
 

@@ -73,8 +73,9 @@ def test_plyfile_reads_every_property_with_its_type(tmp_path, fmt, n):
     vertex = plyfile.PlyData.read(str(path))["vertex"]
     assert vertex.count == n
     types = {p.name: p.val_dtype for p in vertex.properties}
+    # PLY keeps label and instance as int32, which every tested reader keeps (fields.py)
     assert types == {"x": "f4", "y": "f4", "z": "f4", "intensity": "f4", "ring": "u2",
-                     "time": "f8", "label": "u4", "instance": "u4", "ghost": "u1"}
+                     "time": "f8", "label": "i4", "instance": "i4", "ghost": "u1"}
     for field in DEFAULT_FIELDS:
         np.testing.assert_array_equal(vertex[field], stored(pts, field), err_msg=field)
 

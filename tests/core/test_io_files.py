@@ -144,8 +144,10 @@ def test_writing_onto_a_directory_is_refused(tmp_path):
 def test_unknown_format_and_field_are_settings_errors_naming_the_choices(tmp_path):
     from rls_addon.core.errors import SettingsError
 
-    with pytest.raises(SettingsError, match="unknown cloud format 'las'; choose one of "
-                                            "pcd_binary, .*ply_ascii"):
+    with pytest.raises(SettingsError, match="unknown cloud format 'e57'; choose one of "
+                                            "pcd_binary, .*ply_ascii, las, mcap"):
+        write_cloud(tmp_path / "c.e57", sample_cloud(1), "e57")
+    with pytest.raises(SettingsError, match="written by the scan run's writers"):
         write_cloud(tmp_path / "c.las", sample_cloud(1), "las")
     with pytest.raises(SettingsError, match="unknown point field"):
         write_cloud(tmp_path / "c.pcd", sample_cloud(1), fields=["x", "colour"])

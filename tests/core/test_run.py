@@ -192,8 +192,11 @@ def test_settings_choices_are_checked_with_the_valid_values_named():
         ScanSettings(motion="fast")
     with pytest.raises(SettingsError, match="unknown ray-casting backend 'optix'"):
         LidarSettings(backend="optix")
-    with pytest.raises(SettingsError, match="unknown cloud format 'las'"):
-        OutputSettings(format="las")
+    with pytest.raises(SettingsError, match="unknown cloud format 'e57'"):
+        OutputSettings(format="e57")
+    with pytest.raises(SettingsError, match="unknown point type 'kitti'; choose one of rls, "
+                                            "velodyne, ouster, hesai, autoware"):
+        OutputSettings(point_type="kitti")
     with pytest.raises(SettingsError, match="unknown coordinate frame"):
         ScanSettings(frame_space="camera")
     with pytest.raises(SettingsError, match="sub-steps"):

@@ -30,6 +30,7 @@ RaycastingScene, where a user has it); ``casting.caster_factory`` picks one by n
 ``casting.backend_status`` says which and why.
 """
 
+import threading
 from typing import Callable, Protocol
 
 import numpy as np
@@ -145,3 +146,30 @@ def cast_exact(caster, origins, directions, max_dist, planes, order=None):
     return dist, tri, normals
 
 
+
+
+class OptionalLibrary:
+    """A backend's optional library, imported on first use, once, by any thread:
+    ``get()`` gives what ``load()`` returned or the exception it raised (an ImportError,
+    a broken binary wheel's OSError...), so the core imports without the library."""
+
+    def __init__(self, load):
+        self._load, self._lock, self._got = load, threading.Lock(), None
+
+    def get(self):
+        with self._lock:
+            if self._got is None:
+                try:
+                    self._got = (self._load(),)
+                except Exception as exc:  # noqa: BLE001 (said by unavailable_reason)
+                    self._got = (exc,)
+            return self._got[0]
+
+    def available(self):
+        """True when the library imports."""
+        return not isinstance(self.get(), Exception)
+
+    def unavailable_reason(self):
+        """Why ``available()`` is False ('' when it is True)."""
+        got = self.get()
+        return f"{type(got).__name__}: {got}" if isinstance(got, Exception) else ""

@@ -14,40 +14,23 @@ float32; the engine recomputes every range exactly in float64 afterwards
 ``pyemblite`` is imported when first needed, so the core imports without it.
 """
 
-import threading
-
 import numpy as np
 
 from ..errors import CastingError
-from .base import CasterBase
+from .base import CasterBase, OptionalLibrary
 
-_STATE = {}
-_LOCK = threading.Lock()
+def _load():
+    """(rtcore_scene, TriangleMesh) of pyemblite."""
+    from pyemblite import rtcore_scene
+    from pyemblite.mesh_construction import TriangleMesh
 
-
-def _import():
-    """(rtcore_scene, TriangleMesh) of pyemblite, or the exception importing raised."""
-    with _LOCK:
-        if "modules" not in _STATE:
-            try:
-                from pyemblite import rtcore_scene
-                from pyemblite.mesh_construction import TriangleMesh
-
-                _STATE["modules"] = (rtcore_scene, TriangleMesh)
-            except Exception as exc:  # ImportError, a broken binary wheel (OSError), ...
-                _STATE["modules"] = exc
-        return _STATE["modules"]
+    return rtcore_scene, TriangleMesh
 
 
-def available():
-    """True when ``pyemblite`` can be imported."""
-    return not isinstance(_import(), Exception)
-
-
-def unavailable_reason():
-    """Why ``available()`` is False ('' when it is True)."""
-    got = _import()
-    return f"{type(got).__name__}: {got}" if isinstance(got, Exception) else ""
+_LIBRARY = OptionalLibrary(_load)
+_import = _LIBRARY.get
+available = _LIBRARY.available            # True when pyemblite can be imported
+unavailable_reason = _LIBRARY.unavailable_reason
 
 
 class EmbliteCaster(CasterBase):

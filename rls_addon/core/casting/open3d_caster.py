@@ -1,7 +1,7 @@
 """Ray casting on Open3D's ``RaycastingScene`` (``open3d.t.geometry``), which wraps
-Intel Embree 3 and casts on all cores: the backend of the macOS arm64 zip, where PyPI
-has no Embree wheel (docs/platforms.md: measured on Linux, the same package, it casts
-a Pandar64 frame as fast as the Embree backend, 25x faster than BVHTree).
+Intel Embree 3 and casts on all cores: used where a user has Open3D and neither Embree
+wheel (docs/platforms.md: measured on Linux it casts a Pandar64 frame 25x faster than
+BVHTree; the macOS zips bundle pyemblite instead, for the weight of Open3D's wheels).
 
     caster = Open3DCaster(vertices (V,3) float64, triangles (T,3) int)
     dist, tri = caster.cast(origins (1,3) or (N,3), directions (N,3) unit, max_dist)
@@ -14,41 +14,26 @@ afterwards (``casting.refine_hits``), so Open3D only decides which triangle is h
 imports without it.
 """
 
-import threading
-
 import numpy as np
 
 from ..errors import CastingError
-from .base import CasterBase
+from .base import CasterBase, OptionalLibrary
 
 _INVALID = np.uint32(0xFFFFFFFF)  # RaycastingScene.INVALID_ID
-_STATE = {}
-_LOCK = threading.Lock()
 
 
-def _import():
-    """The ``open3d`` module, or the exception that importing it raised (once)."""
-    with _LOCK:
-        if "module" not in _STATE:
-            try:
-                import open3d
+def _load():
+    """The ``open3d`` module, with the API this backend needs."""
+    import open3d
 
-                open3d.t.geometry.RaycastingScene  # noqa: B018 (the API this backend needs)
-                _STATE["module"] = open3d
-            except Exception as exc:  # ImportError, a broken binary wheel (OSError), ...
-                _STATE["module"] = exc
-        return _STATE["module"]
+    open3d.t.geometry.RaycastingScene  # noqa: B018 (fails early on an old Open3D)
+    return open3d
 
 
-def available():
-    """True when Open3D and its ``RaycastingScene`` can be imported."""
-    return not isinstance(_import(), Exception)
-
-
-def unavailable_reason():
-    """Why ``available()`` is False ('' when it is True)."""
-    got = _import()
-    return f"{type(got).__name__}: {got}" if isinstance(got, Exception) else ""
+_LIBRARY = OptionalLibrary(_load)
+_import = _LIBRARY.get
+available = _LIBRARY.available  # True when Open3D and its RaycastingScene import
+unavailable_reason = _LIBRARY.unavailable_reason
 
 
 class Open3DCaster(CasterBase):

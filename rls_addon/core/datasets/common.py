@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import OutputError, SettingsError
 from ..io.atomic import atomic_write_bytes, writable_folder
-from ..motion import poses_at
+from ..points import points_to_world, xyz
 
 
 def frame_id(frame):
@@ -36,14 +36,8 @@ def check_root(root):
 
 def points_world(points, info):
     """(N, 3) world positions of sensor-frame points, each through the sensor's pose at
-    its own firing time (the sidecar's knots for a moving sensor)."""
-    xyz = np.stack([points["x"], points["y"], points["z"]], 1).astype(np.float64)
-    knots = info.get("sensor_poses")
-    if knots:
-        poses = poses_at(knots["times_s"], knots["matrices"], points["time"])
-        return np.einsum("nij,nj->ni", poses[:, :3, :3], xyz) + poses[:, :3, 3]
-    m = np.asarray(info["sensor_to_world"], np.float64)
-    return xyz @ m[:3, :3].T + m[:3, 3]
+    its own firing time (``points.points_to_world``)."""
+    return xyz(points_to_world(points, info))
 
 
 def level_frame(sensor_to_world):

@@ -45,6 +45,8 @@ class KittiWriter:
     min_points       boxes with fewer points are kept out of the label files (they stay
                      in meta/ with their visibility)"""
 
+    shardable = True
+
     def __init__(self, root, scene_name, intensity_scale=1.0, points_format="npy", level=False,
                  min_points=1, split=None, overwrite=False, resume=False):
         if points_format not in POINT_FORMATS:
@@ -61,6 +63,12 @@ class KittiWriter:
 
     def path(self, sensor, output, frame):
         return self.sensor_root(sensor) / "points" / f"{frame_id(frame)}.{self.points_format}"
+
+    def incomplete(self, sensor, output, frame):
+        """Points and labels of a frame whose meta (written last) is missing."""
+        if self._meta(sensor, frame).exists():
+            return []
+        return [p for p in self.planned_files(sensor, output, frame)[:2] if p.exists()]
 
     def planned_files(self, sensor, output, frame):
         root = self.sensor_root(sensor)
@@ -159,6 +167,9 @@ class KittiWriter:
             heading = b["sensor"]["heading_rad"]
         return {"xyz": [float(v) for v in centre], "lwh": [float(v) for v in b["size_lwh_m"]],
                 "heading": float(heading)}
+
+    def abort(self):
+        """Frames already written are complete (a later --resume keeps them)."""
 
     def finish(self, run):
         """Splits and the dataset description, per sensor root, over every frame there

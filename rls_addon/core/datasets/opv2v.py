@@ -81,6 +81,8 @@ class Opv2vWriter:
     agents    {sensor name: agent id}; ``agents_for`` makes it
     carriers  {sensor name: key of the vehicle it rides on} (vehicle agents only)"""
 
+    shardable = True  # in pieces of whole frames
+
     def __init__(self, root, scene_name, agents, carriers=None, overwrite=False, resume=False):
         self.root = Path(root)
         self.scene_name = scene_name
@@ -95,6 +97,11 @@ class Opv2vWriter:
 
     def path(self, sensor, output, frame):
         return self._dir(sensor) / f"{frame_id(frame)}.pcd"
+
+    def incomplete(self, sensor, output, frame):
+        """A point file whose frame's YAML was never written."""
+        cloud = self.path(sensor, output, frame)
+        return [cloud] if cloud.exists() and not self._yaml(sensor, frame).exists() else []
 
     def planned_files(self, sensor, output, frame):
         return [self.path(sensor, output, frame), self._yaml(sensor, frame)]
@@ -171,6 +178,10 @@ class Opv2vWriter:
                                   sort_keys=False)
             write_text(self._yaml(sensor, frame), text, True)
         del self._pending[frame]
+
+    def abort(self):
+        """Frames whose YAML files are written are complete; a frame cut short keeps its
+        point files without YAML, which OpenCOOD does not list (--resume redoes it)."""
 
     def finish(self, run):
         """A description of the scenario beside its agent folders."""

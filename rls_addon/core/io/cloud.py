@@ -2,7 +2,7 @@
 
 import pathlib
 
-from ..errors import InputError
+from ..errors import InputError, SettingsError
 from . import pcd, ply
 from .atomic import atomic_write_bytes
 from .fields import FORMAT_EXT, check_format, pack, resolve_fields, unpack
@@ -18,8 +18,16 @@ _ENCODING = {
 
 def encode_cloud(points, fmt="pcd_binary", fields=None, time_dtype="float64"):
     """The bytes of a cloud file (no file system access)."""
+    return encode_records(pack(points, resolve_fields(fields), time_dtype), fmt)
+
+
+def encode_records(records, fmt):
+    """The bytes of a PCD or PLY file of packed records (any fields, e.g. a driver's
+    point type)."""
     check_format(fmt)
-    records = pack(points, resolve_fields(fields), time_dtype)
+    if fmt not in _ENCODING:
+        raise SettingsError(f"{fmt} files are written by the scan run's writers "
+                            "(io.writer), not encode_records")
     module, encoding = _ENCODING[fmt]
     return module.encode(records, encoding)
 

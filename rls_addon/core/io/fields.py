@@ -3,7 +3,8 @@
 Files store what point-cloud tools expect, not our in-memory ``POINT_DTYPE``:
 x, y, z, intensity as float32, ring uint16, time float64 (float32 on request),
 label and instance uint32, ghost uint8; ``range`` is optional (float32).
-All on-disk types are little-endian.
+PLY stores label and instance as int32 (``ply_records``). All on-disk types are
+little-endian.
 """
 
 import numpy as np
@@ -12,13 +13,17 @@ from ..choices import FIELDS, FORMATS as FORMAT_CHOICES
 from ..errors import OutputError
 from ..points import POINT_DTYPE
 
-FORMATS = FORMAT_CHOICES.ids
+# The formats a cloud encodes to by itself (``cloud.encode_cloud``); LAS and bags are
+# written by the scan run's writers (``writer``). Every format: ``choices.FORMATS``.
+FORMATS = tuple(f for f in FORMAT_CHOICES.ids if f.startswith(("pcd", "ply")))
 FORMAT_EXT = {
     "pcd_ascii": ".pcd",
     "pcd_binary": ".pcd",
     "pcd_binary_compressed": ".pcd",
     "ply_ascii": ".ply",
     "ply_binary": ".ply",
+    "las": ".las",
+    "mcap": "",  # a bag directory of the run (io.bag_writer)
 }
 
 DEFAULT_FIELDS = ("x", "y", "z", "intensity", "ring", "time", "label", "instance", "ghost")
@@ -38,6 +43,13 @@ FILE_TYPES = {
 }
 TIME_DTYPES = ("float64", "float32")
 assert set(FILE_TYPES) == set(REQUIRED_FIELDS) | set(FIELDS.ids)  # one list of fields
+
+# PLY: the property types every tested reader keeps (tests/core/test_ply_readers.py;
+# docs/formats.md). Open3D 0.20's tensor reader keeps only uchar/uint8, uint16, int/int32,
+# float/float32 and double/float64 (it skips char, short, ushort, uint, uint32, ...), so
+# 32-bit unsigned columns (label, instance) are stored as int32, and uint16 is spelled
+# "uint16" (ply.py). PCD keeps FILE_TYPES.
+_INT32_MAX = np.iinfo(np.int32).max
 
 
 def check_format(fmt):
@@ -76,6 +88,26 @@ def pack(points, fields, time_dtype="float64"):
     out = np.empty(len(points), dtype=dt)
     for f in fields:
         out[f] = points[f]
+    return out
+
+
+def ply_records(records):
+    """``records`` with the on-disk types of PLY: uint32 columns as int32.
+
+    A uint32 column whose values all fit in int32 (every label and instance RLS makes:
+    label ids are table ids, instance ids 31-bit hashes) is stored as int32, which every
+    tested reader keeps; a column holding a value of 2**31 or more stays uint32 (exact,
+    but Open3D's tensor reader skips it) rather than being wrapped. Other columns are
+    unchanged. Returns ``records`` itself when nothing changes."""
+    names = records.dtype.names or ()
+    wide = [f for f in names if records.dtype[f] == np.dtype("<u4")
+            and (len(records) == 0 or int(records[f].max()) <= _INT32_MAX)]
+    if not wide:
+        return records
+    dt = np.dtype([(f, "<i4" if f in wide else records.dtype[f]) for f in names])
+    out = np.empty(len(records), dtype=dt)
+    for f in names:
+        out[f] = records[f]
     return out
 
 

@@ -4,10 +4,14 @@ import numpy as np
 
 from ..errors import InputError
 
+from .fields import ply_records
 from .text import ascii_rows, parse_rows
 
 ENCODINGS = ("ascii", "binary_little_endian")
-_NAME = {"f4": "float", "f8": "double", "u1": "uchar", "u2": "ushort", "u4": "uint",
+# Property type names. 16-bit unsigned is spelled "uint16": Open3D 0.20's tensor reader
+# skips "ushort" but keeps "uint16" (tests/core/test_ply_readers.py); plyfile, PCL and
+# rply-based readers know both spellings.
+_NAME = {"f4": "float", "f8": "double", "u1": "uchar", "u2": "uint16", "u4": "uint",
          "i1": "char", "i2": "short", "i4": "int"}
 _TYPE = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
@@ -28,8 +32,11 @@ def header(records, encoding):
 
 
 def encode(records, encoding):
+    """Complete PLY file contents for a packed little-endian structured array; uint32
+    columns whose values fit are stored as int32 (``fields.ply_records``)."""
     if encoding not in ENCODINGS:
         raise InputError(f"unknown PLY encoding {encoding!r}")
+    records = ply_records(records)
     head = header(records, encoding)
     if encoding == "ascii":
         return head + ascii_rows(records)
