@@ -687,19 +687,26 @@ def chart_scaling(tri_rows, ray_rows, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    names = [("embree", "Embree (RLS, all cores)"), ("embree_1t", "Embree (RLS, 1 thread)"),
-             ("bvhtree", "BVHTree (RLS caster)"), ("bare ray_cast loop", "bare BVHTree loop"),
-             ("open3d", "Open3D (all cores)"), ("open3d_1t", "Open3D (1 thread)")]
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
-    for key, label in names:
+    # colour by backend, line style and marker by variant: curves that coincide (Embree
+    # and Open3D) stay visible, one dashed or dotted over the other
+    names = [("embree", "Embree (RLS, all cores)", "C0", "o", "-"),
+             ("embree_1t", "Embree (RLS, 1 thread)", "C0", "s", "--"),
+             ("bvhtree", "BVHTree (RLS caster)", "C2", "D", "-"),
+             ("bare ray_cast loop", "bare BVHTree loop", "C3", "v", "--"),
+             ("open3d", "Open3D (all cores)", "C1", "^", ":"),
+             ("open3d_1t", "Open3D (1 thread)", "C1", "x", "-.")]
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 5.4), layout="constrained")
+    for key, label, colour, marker, ls in names:
+        style = {"color": colour, "marker": marker, "ls": ls, "label": label, "markersize": 6,
+                 "markerfacecolor": "none" if ls != "-" else colour}
         xs = [r["triangles"] for r in tri_rows if key in r["cast_s"]]
         ys = [r["cast_s"][key] * 1000 for r in tri_rows if key in r["cast_s"]]
         if xs:
-            ax1.loglog(xs, ys, "o-", label=label)
+            ax1.loglog(xs, ys, **style)
         xs = [r["rays"] for r in ray_rows if key in r["cast_s"]]
         ys = [r["rays"] / r["cast_s"][key] / 1e6 for r in ray_rows if key in r["cast_s"]]
         if xs:
-            ax2.semilogx(xs, ys, "o-", label=label)
+            ax2.semilogx(xs, ys, **style)
     ax1.set_xlabel("triangles")
     ax1.set_ylabel("time for one Pandar64 frame (ms)")
     ax1.set_title("Cast time against scene size")
@@ -708,8 +715,13 @@ def chart_scaling(tri_rows, ray_rows, path):
     ax2.set_title("Throughput against rays")
     for ax in (ax1, ax2):
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    # one legend for both panels, below them: none of the curves is covered
+    legend = {}
+    for ax in (ax1, ax2):
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            legend.setdefault(lab, h)
+    fig.legend(list(legend.values()), list(legend), loc="outside lower center", ncol=3,
+               fontsize=8, frameon=False)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 

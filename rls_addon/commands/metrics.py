@@ -12,6 +12,7 @@ taken as world-frame. Prints the result as JSON.
 """
 
 import json
+import os
 import sys
 
 
@@ -33,7 +34,10 @@ def add_parser(sub):
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"disk placement seed (default {DEFAULT_SEED})")
     p.add_argument("--disk-placement", choices=("inside", "centre"), default="inside",
                    help="'inside': whole disks in the region (default); 'centre': only centres")
-    p.add_argument("--density-png", metavar="OUT.png", help="also write the density map as a PNG")
+    p.add_argument("--density-png", metavar="OUT.png",
+                   help="also write the density map as a PNG chart: points per m^2 per cell, "
+                        "axes in world metres, colour bar, InfraD/InfraNUC in the title "
+                        "(without matplotlib: the bare map)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing PNG")
     p.add_argument("clouds", nargs="+", metavar="CLOUD", help="PCD or PLY files")
     p.set_defaults(func=run)
@@ -78,6 +82,40 @@ def world_points(path):
     return points_to_world(pts, info, path) if info else pts
 
 
+def cloud_names(paths):
+    """A short name per cloud: its sidecar's sensor (device, frame) or the file's stem."""
+    from ..core.io import read_sidecar
+
+    names = []
+    for path in paths:
+        try:
+            info = read_sidecar(path) or {}
+        except (InputError, OSError, ValueError):
+            info = {}
+        name = str(info.get("sensor") or os.path.splitext(os.path.basename(str(path)))[0])
+        device = info.get("device", {}).get("name") if isinstance(info.get("device"), dict) else None
+        frame = info.get("frame") if isinstance(info.get("frame"), int) else None
+        more = ", ".join(x for x in (device, None if frame is None else f"frame {frame}") if x)
+        names.append(f"{name} ({more})" if more else name)
+    return list(dict.fromkeys(names))
+
+
+def chart_title(args, result):
+    """The density chart's title: the region, the clouds, InfraD and InfraNUC."""
+    from ..core.charts import density_title
+
+    if args.lob_polygon:
+        region = f"region {os.path.basename(str(args.lob_polygon))}"
+    else:
+        path, _, name = args.lob.rpartition(":")
+        region = f"region {name} in {os.path.basename(path)}"
+    names = cloud_names(args.clouds)
+    clouds = " + ".join(names) if len(names) <= 3 else f"{len(names)} clouds: {names[0]}, {names[1]}, ..."
+    detail = (f"{result.n_points:,} {'/'.join(result.labels)} points in {result.area_m2:.0f} m², "
+              f"{result.disks} disks of r {result.radius_m:g} m")
+    return density_title(f"{clouds}, {region}", result.infra_d, result.infra_nuc, detail)
+
+
 def run(args):
     poly = polygon_from_json(args.lob_polygon) if args.lob_polygon else polygon_from_blend(args.lob)
     clouds = [world_points(p) for p in args.clouds]
@@ -86,11 +124,16 @@ def run(args):
     out = result.to_dict()
     out["clouds"] = [str(p) for p in args.clouds]
     if args.density_png:
+        from ..core.charts import density_png
         from ..core.io import atomic_write_bytes
 
         if not args.density_png.lower().endswith(".png"):
             raise OutputError(f"--density-png must name a .png file, got {args.density_png}")
-        atomic_write_bytes(args.density_png, result.density.to_png(), overwrite=args.overwrite)
+        png, notice = density_png(result.density, chart_title(args, result),
+                                  polygon=result.polygon_xy)
+        if notice:
+            print(f"rls: notice: {notice}", file=sys.stderr)
+        atomic_write_bytes(args.density_png, png, overwrite=args.overwrite)
         out["density_png"] = args.density_png
     json.dump(out, sys.stdout, indent=2, allow_nan=False)
     sys.stdout.write("\n")

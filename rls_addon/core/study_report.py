@@ -7,12 +7,15 @@
   study.json       settings, timing, candidates, per-k Pareto front and best set, the
                    best sets' density maps; with traffic the best set by visibility
   pareto.png       InfraD against InfraNUC for all candidates and sets, fronts marked
-  density_k<K>.png density map of the best set of each k, sensors marked
+  density_k<K>.png density map (points / m² per cell, world x/y in metres) of the best
+                   set of each k, sensors and region outline marked, cells outside the
+                   region grey; every k on one colour scale (0 to the densest cell of any)
   visibility.png   with traffic: InfraD, InfraNUC and visibility of each candidate
                    and of the best sets, side by side
 
 Charts need matplotlib (Agg); without it the density maps are written with RLS's own
-PNG writer and the other charts are skipped (a notice says so).
+PNG writer (no axes or scale, each map scaled to its own maximum) and the other charts
+are skipped (a notice says so). The density charts are drawn by ``core/charts.py``.
 """
 
 import csv
@@ -21,6 +24,7 @@ import json
 import math
 import os
 
+from . import charts
 from .visibility import RANK_BY
 
 
@@ -162,20 +166,24 @@ def write_report(result, out_dir, overwrite=False, notices=None):
     }
 
 
+def density_maps(result):
+    """{k: DensityMap of the best set of k}, and the (vmin, vmax) colour scale all of
+    them are drawn with (0 to the densest cell of any), so colours compare across k."""
+    maps = {k: result.density(s.best.members) for k, s in sorted(result.searches.items())}
+    return maps, charts.density_scale(maps.values())
+
+
 def charts_png(result):
     """{file name: PNG bytes}, and a notice when matplotlib is missing."""
-    try:
-        import matplotlib
-        matplotlib.use("Agg", force=True)
-        import matplotlib.pyplot as plt  # noqa: F401
-    except ImportError:
-        out = {f"density_k{k}.png": result.density(s.best.members).to_png()
-               for k, s in result.searches.items()}
-        return out, ("matplotlib is not installed: pareto.png skipped, density maps drawn "
-                     "without axes (pip install matplotlib)")
+    maps, scale = density_maps(result)
+    if charts.pyplot() is None:
+        out = {f"density_k{k}.png": dm.to_png() for k, dm in maps.items()}
+        return out, (f"{charts.MATPLOTLIB_MISSING}: pareto.png skipped, density maps drawn "
+                     "without axes or scale, each scaled to its own maximum (pip install "
+                     "matplotlib)")
     out = {"pareto.png": _pareto_png(result),
-           **{f"density_k{k}.png": _density_png(result, k, s)
-              for k, s in result.searches.items()}}
+           **{f"density_k{k}.png": charts.figure_png(density_figure(result, k, maps[k], scale))
+              for k in maps}}
     if result.visibility is not None:
         out["visibility.png"] = _visibility_png(result)
     return out, None
@@ -224,12 +232,7 @@ def _visibility_png(result):
 
 
 def _fig_bytes(fig):
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100, metadata={"Software": None})
-    plt.close(fig)
-    return buf.getvalue()
+    return charts.figure_png(fig)
 
 
 def _pareto_png(result):
@@ -258,37 +261,19 @@ def _pareto_png(result):
     return _fig_bytes(fig)
 
 
-def _density_png(result, k, search):
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    dm = result.density(search.best.members)
-    ny, nx = dm.values.shape
-    x0, y0 = dm.origin_xy
-    ext = [x0, x0 + nx * dm.cell_m, y0, y0 + ny * dm.cell_m]
-    fig, ax = plt.subplots(figsize=(7, 5.5))
-    im = ax.imshow(np.ma.masked_invalid(dm.values), origin="lower", extent=ext, cmap="viridis")
-    fig.colorbar(im, ax=ax, label="points / m²")
-    poly = np.vstack([result.polygon, result.polygon[:1]])
-    ax.plot(poly[:, 0], poly[:, 1], color="white", lw=1)
-    for i in search.best.members:
-        c = result.candidates[i]
-        x, y, _ = c.position
-        ax.plot([x], [y], marker="^", color="red", markersize=9, markeredgecolor="black")
-        a = math.radians(c.yaw_deg)
-        ax.annotate(f"{c.name}", (x, y), textcoords="offset points", xytext=(4, 4),
-                    fontsize=7, color="red")
-        if c.pitch_deg:
-            ax.arrow(x, y, 2 * math.cos(a), 2 * math.sin(a), color="red", head_width=0.5)
+def density_figure(result, k, dm, scale):
+    """The density chart of the best set of k (``dm``), on the study's shared ``scale``."""
+    search = result.searches[k]
     b = search.best
-    ax.set_title(f"{result.scene}, best k = {k}: InfraD {b.infra_d:.2f}, InfraNUC {b.infra_nuc:.3f}")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    lo = np.minimum(result.polygon.min(0), [min(result.candidates[i].position[0] for i in b.members),
-                                            min(result.candidates[i].position[1] for i in b.members)])
-    hi = np.maximum(result.polygon.max(0), [max(result.candidates[i].position[0] for i in b.members),
-                                            max(result.candidates[i].position[1] for i in b.members)])
-    ax.set_xlim(lo[0] - 1, hi[0] + 1)
-    ax.set_ylim(lo[1] - 1, hi[1] + 1)
-    fig.tight_layout()
-    return _fig_bytes(fig)
+    names = [c.name for c in result.candidates]
+    sensors = [(c.name, c.position[0], c.position[1], c.yaw_deg if c.pitch_deg else None)
+               for c in (result.candidates[i] for i in b.members)]
+    ks = ", ".join(str(j) for j in sorted(result.searches))
+    note = (f"one scale for k = {ks}: {scale[0]:g} to {scale[1]:.3g}" if len(result.searches) > 1
+            else f"scale {scale[0]:g} to {scale[1]:.3g}")
+    title = charts.density_title(
+        f"{result.scene}, {result.device['name']}: best set of k = {k}: "
+        + " + ".join(names[i] for i in b.members),
+        b.infra_d, b.infra_nuc, f"{b.n_points:,} points in the region, {search.method} search")
+    return charts.density_figure(dm, title, polygon=result.polygon, sensors=sensors,
+                                 scale=scale, scale_note=note)

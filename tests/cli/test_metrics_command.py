@@ -1,6 +1,10 @@
 """``rls metrics`` end to end: polygon file or .blend region, sidecar frames, errors."""
 
 import json
+import os
+import struct
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -9,7 +13,7 @@ from rls_addon.core.io import write_cloud, write_sidecar
 from rls_addon.core.png import decode_png_rgba
 from rls_addon.core.points import empty_points, transform_points
 
-from .conftest import one_line_error, rls
+from .conftest import ROOT, one_line_error, rls
 
 RECT = [[0, 0], [20, 0], [20, 30], [0, 30]]
 
@@ -37,7 +41,50 @@ def test_metrics_with_polygon_file_and_png(tmp_path, polygon_file):
     out = json.loads(proc.stdout)
     assert out["infra_d"] == 4.0 and out["n_points"] == 2400 and out["disks"] == 500
     assert out["density"]["shape"] == [15, 10]
-    assert decode_png_rgba(png.read_bytes()).shape[2] == 4
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and "notice" not in proc.stderr
+    # a chart (7.5 in at 100 dpi: axes, colour bar, title), not the 15 x 10 cell image
+    assert struct.unpack(">II", data[16:24])[0] == 750
+
+
+def test_density_png_without_matplotlib_is_the_bare_map_and_one_notice(tmp_path, polygon_file):
+    blocked = tmp_path / "blocked" / "matplotlib"
+    blocked.mkdir(parents=True)
+    (blocked / "__init__.py").write_text("raise ImportError('matplotlib blocked for this test')\n")
+    cloud = write_cloud(tmp_path / "c.pcd", grid(), "pcd_binary_compressed")
+    png = tmp_path / "density.png"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(blocked.parent), str(ROOT)]))
+    proc = subprocess.run([sys.executable, "-m", "rls_addon", "metrics", "--lob-polygon",
+                           str(polygon_file), "--disks", "500", "--cell", "2", "--density-png",
+                           str(png), str(cloud)], cwd=ROOT, env=env, capture_output=True,
+                          text=True, timeout=600, check=False)
+    assert proc.returncode == 0, proc.stderr
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("rls: notice: matplotlib is not installed")
+    assert json.loads(proc.stdout)["infra_d"] == 4.0
+    img = decode_png_rgba(png.read_bytes())  # RLS's own writer: 34 pixels per 2 m cell
+    assert img.shape == (15 * 34, 10 * 34, 4)
+
+
+def test_density_chart_title_names_region_sensor_and_metrics(tmp_path, polygon_file):
+    from argparse import Namespace
+
+    from rls_addon.commands.metrics import chart_title
+    from rls_addon.core.metrics import infra_lob_metrics
+
+    cloud = write_cloud(tmp_path / "c.pcd", grid(), "pcd_binary_compressed")
+    write_sidecar(cloud, {"sensor": "Pole Lidar", "frame": 7, "frame_space": "world",
+                          "device": {"id": "x", "name": "Hesai Pandar64"}})
+    other = write_cloud(tmp_path / "plain.pcd", grid(), "pcd_binary_compressed")
+    res = infra_lob_metrics([grid()], RECT, disks=100)
+    title = chart_title(Namespace(lob_polygon=str(polygon_file), lob=None,
+                                  clouds=[str(cloud), str(other)]), res)
+    assert "Pole Lidar (Hesai Pandar64, frame 7) + plain" in title
+    assert "region lob.json" in title and "InfraD 4.00 points / m²" in title
+    assert f"InfraNUC {res.infra_nuc:.3f}" in title
+    title = chart_title(Namespace(lob_polygon=None, lob="/x/street.blend:InfraLOB",
+                                  clouds=[str(other)]), res)
+    assert "region InfraLOB in street.blend" in title
 
 
 def test_sensor_frame_clouds_are_moved_to_world_by_their_sidecar(tmp_path, polygon_file):
