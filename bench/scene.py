@@ -206,6 +206,42 @@ def _street(detail, seed):
                          np.concatenate(mats), objects, list(MATERIALS))
 
 
+def open_sky_geometry(seed=11):
+    """A small open-sky scene: a 200 m ground plane (a 100 x 100 grid), a sphere of
+    radius 3 m and 50 boxes up to 4 m tall scattered within 60 m. From a sensor 5 m up
+    (``OPEN_SKY_POSE``) about half the rays of a spinning device go to the sky and miss,
+    the case where a frame costs most beyond its cast (issue 18)."""
+    rng = np.random.default_rng(seed)
+    parts, objects = [], []
+
+    def add(name, label, material, vt):
+        v, t = vt
+        objects.append(ObjectInfo(name, NAME_TO_ID[label], len(objects) + 1))
+        parts.append((v, t, np.full(len(t), len(objects) - 1), np.full(len(t), MAT[material])))
+
+    add("Ground", "road", "asphalt", grid((-100, -100, 0), (200, 0, 0), (0, 200, 0), 100, 100))
+    add("Sphere", "static", "paint", uv_sphere(16, 32, (3.0, 3.0, 3.0), (12.0, 6.0, 3.0)))
+    for i in range(50):
+        r, a = rng.uniform(8, 60), rng.uniform(0, 2 * np.pi)
+        c = np.array([r * np.cos(a), r * np.sin(a)])
+        half = rng.uniform(0.4, 2.0, 2)
+        h = rng.uniform(0.5, 4.0)
+        add(f"Box {i}", "building", "concrete",
+            box((*(c - half), 0.0), (*(c + half), h), 2))
+    verts, tris, objs, mats, off = [], [], [], [], 0
+    for v, t, o, m in parts:
+        verts.append(v)
+        tris.append(t + off)
+        objs.append(o)
+        mats.append(m)
+        off += len(v)
+    return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(objs),
+                         np.concatenate(mats), objects, list(MATERIALS))
+
+
+OPEN_SKY_POSE = np.array([[1.0, 0, 0, 0.0], [0, 1, 0, 0.0], [0, 0, 1, 5.0], [0, 0, 0, 1]])
+"""The open-sky scene's sensor: 5 m above the middle of the ground plane."""
+
 SENSOR_POSE = np.array([[1.0, 0, 0, 0.0], [0, 1, 0, 0.0], [0, 0, 1, 2.0], [0, 0, 0, 1]])
 """A car-roof mount in the middle of the street, 2 m up, looking along +X."""
 

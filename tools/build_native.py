@@ -37,7 +37,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
-SRC = NATIVE / "embree_loop.c"
+# One library: the Embree loop and the per-hit stage of a frame (points.c).
+SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c"]
 HEADERS = [NATIVE / "rls_threads.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
@@ -51,7 +52,8 @@ TARGETS = {
 }
 FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
          "-Wall", "-Werror=implicit-function-declaration"]
-EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi")
+EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
+           "rls_points_count", "rls_points_write", "rls_points_abi")
 
 
 def library_name(sys_platform):
@@ -75,7 +77,7 @@ def host_platform():
 
 def _sources_digest():
     h = hashlib.sha256()
-    for path in [SRC, *HEADERS]:
+    for path in [*SOURCES, *HEADERS]:
         h.update(path.name.encode() + b"\0" + path.read_bytes())
     return h.hexdigest()
 
@@ -102,10 +104,10 @@ def build_host():
     cc = shutil.which("gcc") or shutil.which("cc")
     if cc is None:
         return "build_native: no C compiler found; the Python packet loop will be used"
-    newest = max(p.stat().st_mtime for p in [SRC, *HEADERS])
+    newest = max(p.stat().st_mtime for p in [*SOURCES, *HEADERS])
     if out.exists() and out.stat().st_mtime >= newest and _loads(out):
         return ""
-    cmd = [cc, *FLAGS, "-pthread", "-o", str(out), str(SRC), "-lm"]
+    cmd = [cc, *FLAGS, "-pthread", "-o", str(out), *map(str, SOURCES), "-lm"]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
         return ("build_native: compiling failed; the Python packet loop will be used\n"
@@ -151,7 +153,7 @@ def build_platform(name, zig=None, out_root=BUILD):
         (out_dir / "build.json").unlink(missing_ok=True)
         shutil.copy2(host, out)
         return out, f"{version}: built with this machine's C compiler instead"
-    cmd = [*cc, "-target", target, *FLAGS, "-s", "-o", out.name, str(SRC)]
+    cmd = [*cc, "-target", target, *FLAGS, "-s", "-o", out.name, *map(str, SOURCES)]
     record = {"command": cmd[2:], "zig": version, "sources": _sources_digest()}
     stamp = out_dir / "build.json"
     if out.exists() and stamp.exists():

@@ -48,6 +48,14 @@ def range_noise(rng, n, sigma):
     return out[:n]
 
 
+def dropout_draws(rng, n, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
+    """The uniforms ``dropout_keep`` draws, drawn up front: (general (n,) or None, low
+    (n,) or None), in the same order from ``rng``."""
+    general = rng.random(n) if general_rate > 0 else None
+    low = rng.random(n) if intensity_limit > 0 and intensity_zero > 0 else None
+    return general, low
+
+
 def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
     """CARLA's dropout: drop a random ``general_rate`` share of points; then a point with
     intensity I <= limit survives with probability (zero / limit) * I + (1 - zero).

@@ -9,10 +9,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import blas, effects, ghost
+from .assemble import Draws, Effects, Hits, Rays, _dot, assemble
 from .bodies import PreparedScene
 from .errors import SceneError
 from .motion import effective_times, polar
-from .points import POINT_DTYPE
 from .settings import resolve_range
 from .sweep import adaptive_substeps
 from .world import World
@@ -166,7 +166,8 @@ def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
 
 
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
-               frame=0, sensor="sensor", sensor_track=None, moving=(), keep_rays=False):
+               frame=0, sensor="sensor", sensor_track=None, moving=(), keep_rays=False,
+               fields=None):
     """Scan one frame.
 
     scene            PreparedScene covering the sensor, or a SceneGeometry (world
@@ -177,16 +178,19 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     moving           RigidBody / TimedScene bodies (moving and deforming objects)
     keep_rays        also return every ray and its first hit (``RayRecord``, for
                      ground truth); costs a copy of the hit objects and ranges
+    fields           the ``POINT_DTYPE`` fields to assemble (None: all); a study that
+                     only counts points asks for x, y and label, and the other
+                     columns are never gathered (the points are the same)
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
     with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
         return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
-                           frame, sensor, sensor_track, moving, keep_rays)
+                           frame, sensor, sensor_track, moving, keep_rays, fields)
 
 
 def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
-                sensor, sensor_track, moving, keep_rays=False):
+                sensor, sensor_track, moving, keep_rays=False, fields=None):
     t0 = time.perf_counter()
     s = settings
     rmin, rmax = resolve_range(preset, s)
@@ -243,55 +247,32 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
         if s.ghosting and ret.valid.any() else None
 
-    # Per ray from here on (misses carry harmless values and are dropped at the end);
-    # ghost rows are redone once their reflected beams are back.
+    # Every random number of the effects is drawn per ray, not per hit, so a ray's
+    # draws never depend on which other rays returned (ghosting or moving objects
+    # change only their own rays); drawn while the reflected beams are cast.
     g = world.geometry
+    draws = Draws(noise=effects.range_noise(rng, n, sigma) if s.noise else None)
+    if s.dropout:
+        draws.general, draws.low = effects.dropout_draws(rng, n, preset.dropout.general_rate,
+                                                         preset.dropout.intensity_limit,
+                                                         preset.dropout.intensity_zero)
     refl = g.material_field("reflectivity").astype(np.float64)
-    dot = np.einsum("ij,ij->i", dirs, ret.normals)  # > 0: the back of a face
-    inten = effects.intensity(refl[ret.surface[:, 1]], np.abs(dot),
-                              np.where(ret.valid, ret.dist, 0.0) if atten else None, atten)
-    # Noise and dropout are drawn per ray, not per hit, so a ray's draws never depend on
-    # which other rays returned (ghosting or moving objects change only their own rays).
-    noise = effects.range_noise(rng, n, sigma) if s.noise else None
     stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
+    rows, ghost_dot, ghost_int = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
     if bounces is not None:
         rows, last_leg, mirror = bounces.finish(ret)
         stats = bounces.stats
         if len(rows):
-            dot[rows] = np.einsum("ij,ij->i", last_leg, ret.normals.take(rows, axis=0))
-            inten[rows] = mirror * effects.intensity(refl[ret.surface[rows, 1]],
-                                                     np.abs(dot[rows]), ret.dist[rows], atten)
-    d = ret.dist if noise is None else ret.dist + noise
-    keep = ret.valid
-    if s.dropout:
-        keep &= effects.dropout_keep(rng, inten, preset.dropout.general_rate,
-                                     preset.dropout.intensity_limit,
-                                     preset.dropout.intensity_zero)
-    keep &= d > 0
-    idx = np.nonzero(keep)[0]
-    obj = ret.surface[:, 0]
-    d = d[idx]
-    o_idx = obj[idx]
-    instance = g.object_field("instance")[o_idx]
-    warnings += _inside_warnings(world, o_idx, dot[idx] > 0)
-
-    pts = np.empty(len(idx), dtype=POINT_DTYPE)
-    if s.frame_space == "world":
-        cols = dirs.T
-        for k, f in enumerate("xyz"):
-            np.multiply(cols[k][idx], d, out=pts[f])
-            pts[f] += origins[0, k] if origins.shape[0] == 1 else origins[idx, k]
-    else:
-        cols = pattern.columns
-        for k, f in enumerate("xyz"):
-            np.multiply(cols[k].take(idx), d, out=pts[f])
-    pts["range"] = d
-    pts["intensity"] = inten.take(idx)
-    pts["ring"] = pattern.channels.take(idx)
-    pts["time"] = pattern.times.take(idx)
-    pts["label"] = g.object_field("label")[o_idx]
-    pts["instance"] = instance
-    pts["ghost"] = 0 if ret.ghost is None else ret.ghost.take(idx)
+            ghost_dot = _dot(last_leg, ret.normals.take(rows, axis=0))
+            ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]],
+                                                   np.abs(ghost_dot), ret.dist[rows], atten)
+    hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
+                ghost_int, refl, g.object_field("label"), g.object_field("instance"))
+    rays = Rays(dirs, origins, pattern.columns, pattern.channels, pattern.times)
+    fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
+                 preset.dropout.intensity_zero, atten)
+    pts, idx, back = assemble(hits, rays, draws, fx, s.frame_space, fields)
+    warnings += _inside_warnings(world, ret.surface[idx, 0], back)
     stats["moving_bodies"] = len(moving)
     stats["substeps_used"] = substeps_used
     stats["static_cast_reused"] = reused

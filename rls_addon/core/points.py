@@ -30,6 +30,17 @@ POINT_DTYPE = np.dtype(
 )
 
 
+def point_dtype(fields=None):
+    """``POINT_DTYPE`` with only ``fields`` (None: all), in its order; unknown names are
+    refused."""
+    if fields is None:
+        return POINT_DTYPE
+    unknown = set(fields) - set(POINT_DTYPE.names)
+    if unknown:
+        raise ValueError(f"unknown point fields {sorted(unknown)}; known: {POINT_DTYPE.names}")
+    return np.dtype([(f, POINT_DTYPE[f]) for f in POINT_DTYPE.names if f in set(fields)])
+
+
 def empty_points(n=0):
     """Return a zeroed point array of length ``n``."""
     return np.zeros(int(n), dtype=POINT_DTYPE)

@@ -74,3 +74,30 @@ def test_no_ray_escapes_a_closed_mesh(kind, backend):
     assert misses == 0, f"{misses} of {total} rays escaped ({backend} alone: {raw_misses})"
     assert worst <= 1e-4  # the refined range is the distance to the aimed-at point
     print(f"{backend} {kind}: {raw_misses} of {total} escaped the backend alone")
+
+
+@pytest.mark.parametrize("backend", ["embree", "embree_fast"])
+@pytest.mark.parametrize("kind", ["icosphere", "grid_cube"])
+def test_compiled_recheck_matches_the_numpy_reference(kind, backend):
+    """The re-check in the compiled loop's threads wins back the same rays, with the
+    same bits, as WatertightCaster._recheck in numpy (both from inside and outside)."""
+    if not embree_caster.available() or embree_caster._native_loop() is None:
+        pytest.fail("embreex and the compiled loop are needed (make test builds them)")
+    v, f = closed_mesh(kind)
+    planes = triangle_planes(v, f)
+    targets = edge_and_vertex_targets(v, f)
+    caster = WatertightCaster(FACTORIES[backend], v, f)
+    rng = np.random.default_rng(11)
+    for o in np.concatenate([np.zeros((1, 3)), rng.uniform(-3, 3, (4, 3)),
+                             rng.uniform(8, 12, (3, 3))]):  # the last ones outside
+        d = targets - o
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        got = []
+        for compiled in (True, False):
+            caster.compiled, caster.retried = compiled, 0
+            got.append((cast_exact(caster, o[None], d, 100.0, planes), caster.retried))
+        caster.compiled = True
+        (a, ra), (b, rb) = got
+        assert ra == rb
+        for x, y in zip(a, b):
+            assert x.tobytes() == y.tobytes()

@@ -118,9 +118,11 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None
         else planes[th]
     n, off = pl[:, :3], pl[:, 3]
     o = np.asarray(origins, np.float64).reshape(-1, 3)
+    o = o if o.shape[0] == 1 else o[hit]
     d = directions[hit]
-    denom = np.einsum("ij,ij->i", n, d)
-    no = (n @ o[0]) if o.shape[0] == 1 else np.einsum("ij,ij->i", n, o[hit])
+    # Summed in the compiled loop's order (native/embree_loop.c), for the same bits.
+    denom = n[:, 0] * d[:, 0] + n[:, 1] * d[:, 1] + n[:, 2] * d[:, 2]
+    no = n[:, 0] * o[:, 0] + n[:, 1] * o[:, 1] + n[:, 2] * o[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         exact = (off - no) / denom
     # Keep the backend's value where the plane is nearly parallel to the ray (grazing),

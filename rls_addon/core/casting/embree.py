@@ -161,7 +161,7 @@ def _bind(lib):
 _NATIVE = None  # (launch, finish) of the compiled loop next to this file, or False
 _NATIVE_ERROR = ""
 # The interface version the loop must report (RLS_EMBREE_ABI in native/embree_loop.c).
-NATIVE_ABI = 2
+NATIVE_ABI = 3
 
 
 def native_library_name(platform=None):
@@ -203,7 +203,7 @@ def load_native(path):
                       f"needs {NATIVE_ABI}); rebuild it with tools/build_native.py")
     vp = ctypes.c_void_p
     args = [vp, vp, vp, ctypes.c_int, vp, vp, ctypes.c_int64, ctypes.c_float,
-            vp, vp, vp, vp, vp, ctypes.c_int, vp, vp, vp, vp, ctypes.c_int]
+            vp, vp, vp, vp, vp, ctypes.c_int, vp, vp, vp, vp, ctypes.c_int, vp]
     start.restype, start.argtypes = ctypes.c_void_p, args
     finish.restype, finish.argtypes = None, [ctypes.c_void_p]
     return start, finish
@@ -406,8 +406,20 @@ class _MotionScene(_SceneBase):
             pass
 
 
+class Recheck(ctypes.Structure):
+    """``recheck_t`` of native/embree_loop.c: the watertight re-check of misses done in
+    the loop's threads (``watertight.WatertightCaster`` fills it; ``retried`` comes
+    back)."""
+
+    _fields_ = [("hull", ctypes.c_void_p), ("boxes", ctypes.c_void_p),
+                ("has", ctypes.c_void_p), ("max_dist", ctypes.c_double),
+                ("vertices", ctypes.c_void_p), ("triangles", ctypes.c_void_p),
+                ("tol", ctypes.c_double), ("nudge", ctypes.c_double),
+                ("axis", ctypes.c_double * 3), ("retried", ctypes.c_int64)]
+
+
 def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=None,
-            times=None, instances=None, threads=1, keep=None):
+            times=None, instances=None, threads=1, keep=None, recheck=None):
     """Start a cast of ``scene`` (a ``_Scene`` or ``_MotionScene``) on the compiled
     loop's threads: a ``_Batch`` giving (dist, tri, normals[, instance]), or None
     when the loop is not available. ``planes`` (``triangle_count`` rows) refine hits
@@ -455,10 +467,11 @@ def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=
                   ptr(info), None if planes_of is None else ctypes.addressof(planes_of),
                   0 if info is None else len(info), ptr(pl),
                   dist.ctypes.data, tri.ctypes.data, ptr(normals),
-                  threads)
+                  threads, None if recheck is None else ctypes.addressof(recheck))
     if not batch:
         return None
-    return _Batch(finish, batch, (keep, scene, o, d, pl, order, tm, instances), outputs)
+    return _Batch(finish, batch, (keep, scene, o, d, pl, order, tm, instances, recheck),
+                  outputs)
 
 
 class _Batch:
@@ -588,6 +601,22 @@ class EmbreeCaster(CasterBase):
         a function that waits and gives its result. Python (and the GIL) is free
         meanwhile. None when the loop is not available."""
         return self._start_native(origins, directions, max_dist, planes, order)
+
+    def native_scene(self):
+        """This build's Embree scene handle for the compiled loop, or None when casts
+        do not go through the loop (other modes, no loop built)."""
+        if self.mode != "packets" or not self.use_native or _native_loop() is None:
+            return None
+        return self._scene.handle
+
+    def start_rechecked(self, origins, directions, max_dist, planes, order, recheck, keep):
+        """``start_refined`` with the watertight re-check of misses (a ``Recheck``)
+        done in the loop's threads; ``keep``: what must outlive the cast."""
+        if self.native_scene() is None:
+            return None
+        return _launch(self._scene, self.triangle_count, origins, directions, max_dist,
+                       planes, order, threads=self.threads, keep=(self, keep),
+                       recheck=recheck)
 
     def _start_native(self, origins, directions, max_dist, planes, order=None):
         if self.mode != "packets" or not self.use_native:

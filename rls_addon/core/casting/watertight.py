@@ -10,7 +10,7 @@ from .base import CasterBase, cast_exact, refine_hits
 _NUDGE_AXES = np.array([[0.7548776662, 0.5698402910, 0.3247179572],
                         [-0.2306, 0.8715, -0.4330],
                         [0.5773, -0.2113, 0.7887]])
-_NUDGE_SCALES = (64.0,)  # in units of 1e-6 x (scene extent)
+_NUDGE_SCALES = (64.0,)  # in units of 1e-6 x (scene extent); the compiled loop nudges once
 
 
 def box_triangles(lo, hi):
@@ -41,23 +41,41 @@ def cluster_boxes(vertices, triangles, groups, cell):
             np.maximum.reduceat(tmax[order], starts, axis=0))
 
 
+def _dot(a, b):
+    """Row-wise dot products of (N, 3) arrays, summed in the order the compiled loop
+    sums them (native/embree_loop.c: dot3), so both give the same bits."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def _cross(a, b):
+    """Row-wise cross products (embree_loop.c: cross3)."""
+    a, b = np.broadcast_arrays(a, b)
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+                     a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+def _unit(v):
+    """Rows scaled to unit length (embree_loop.c: unit3)."""
+    return v / np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])[:, None]
+
+
 def outside_distance(vertices, triangles, tri, origins, directions):
     """How far (metres) each ray's crossing of its triangle's plane lies outside that
     triangle (0 inside; inf for rays parallel to the plane or crossing it behind the
-    origin). float64."""
+    origin). float64, operation by operation as the compiled loop computes it."""
     t = triangles[tri]
     a, b, c = vertices[t[:, 0]], vertices[t[:, 1]], vertices[t[:, 2]]
-    n = np.cross(b - a, c - a)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    denom = np.einsum("ij,ij->i", n, directions)
+    origins = np.broadcast_to(origins, directions.shape)
+    n = _unit(_cross(b - a, c - a))
+    denom = _dot(n, directions)
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = np.einsum("ij,ij->i", n, a - origins) / denom
+        s = _dot(n, a - origins) / denom
         x = origins + directions * s[:, None]
         out = np.zeros(len(tri))
         for p, q in ((a, b), (b, c), (c, a)):
-            m = np.cross(n, q - p)
-            m /= np.linalg.norm(m, axis=1, keepdims=True)
-            out = np.maximum(out, -np.einsum("ij,ij->i", x - p, m))
+            m = _unit(_cross(n, q - p))
+            out = np.maximum(out, -_dot(x - p, m))
     return np.where(np.isfinite(out) & (s > 0), out, np.inf)
 
 
@@ -91,7 +109,8 @@ class WatertightCaster(CasterBase):
         self.box_lo, self.box_hi = lo - pad, hi + pad
         hv, ht = box_triangles(self.box_lo, self.box_hi)
         self.hull = factory(hv, ht)
-        self.v, self.t = v, np.asarray(triangles, np.int64)
+        self.v = np.ascontiguousarray(v)
+        self.t = np.ascontiguousarray(triangles, dtype=np.int64)
         self.tol = 1e-6 * self.extent
         self.retried = 0
 
@@ -108,9 +127,46 @@ class WatertightCaster(CasterBase):
         right away (the re-check needs the primary cast's misses)."""
         d = np.asarray(directions, np.float64)
         o = np.asarray(origins, np.float64).reshape(-1, 3)
+        pending = self._start_compiled(o, d, max_dist, planes, order)
+        if pending is not None:
+            return pending
         dist, tri, normals = cast_exact(self.primary, o, d, max_dist, planes, order)
         self.win_back(o, d, max_dist, planes, dist, tri, normals)
         return lambda: (dist, tri, normals)
+
+    # Off: every cast re-checks in numpy (the reference the compiled loop is tested
+    # against).
+    compiled = True
+
+    def _start_compiled(self, o, d, max_dist, planes, order):
+        """The cast with its re-check in the compiled loop's threads (Embree), or None
+        where the loop or the hull cannot take it."""
+        primary_scene = getattr(self.primary, "native_scene", lambda: None)()
+        hull_scene = getattr(self.hull, "native_scene", lambda: None)()
+        if not self.compiled or primary_scene is None or hull_scene is None:
+            return None
+        from .embree import Recheck
+
+        boxes = has = None
+        if o.shape[0] == 1:
+            boxes, has = self.octant_boxes(o[0])
+            boxes, has = np.ascontiguousarray(boxes), np.ascontiguousarray(has)
+        rc = Recheck(hull=hull_scene, boxes=None if boxes is None else boxes.ctypes.data,
+                     has=None if has is None else has.ctypes.data, max_dist=float(max_dist),
+                     vertices=self.v.ctypes.data, triangles=self.t.ctypes.data,
+                     tol=self.tol, nudge=_NUDGE_SCALES[0] * 1e-6 * self.extent,
+                     axis=tuple(_NUDGE_AXES[0]), retried=0)
+        pending = self.primary.start_rechecked(o, d, max_dist, planes, order, rc,
+                                               keep=(self, boxes, has))
+        if pending is None:
+            return None
+
+        def result():
+            got = pending()
+            self.retried += rc.retried
+            return got
+
+        return result
 
     def describe(self):
         return self.primary.describe()
@@ -133,23 +189,27 @@ class WatertightCaster(CasterBase):
         meets no hull box before its limit is not re-cast."""
         won = []
         miss = np.nonzero(tri < 0)[0]
+        if len(miss) and o.shape[0] == 1:
+            # Model no more than the scene needs: a miss that cannot reach any hull
+            # box (e.g. a sky ray over everything) is a real miss, with no hull cast.
+            miss = miss[self.may_reach_hull(o[0], d[miss], max_dist)]
         if len(miss) == 0:
             return np.zeros(0, np.int64)
-        om = np.broadcast_to(o, d.shape)[miss]
-        entry, inside = self.hull.cast(om, d[miss], max_dist)
+        dm = d[miss]
+        entry, inside = self.hull.cast(o if o.shape[0] == 1 else o[miss], dm, max_dist)
         keep = inside >= 0
         if limit is not None and not self._starts_inside(o):
             keep &= entry <= limit[miss]
-        miss, om = miss[keep], om[keep]
+        miss = miss[keep]
+        om = np.broadcast_to(o, d.shape)[miss] if o.shape[0] == 1 else o[miss]
         for axis, scale in zip(_NUDGE_AXES, _NUDGE_SCALES):
             if len(miss) == 0:
                 break
             self.retried += len(miss)
             dm = d[miss]
-            perp = np.cross(dm, axis)
-            perp /= np.linalg.norm(perp, axis=1, keepdims=True)
-            nudge = scale * 1e-6 * self.extent
-            d2, t2 = self.primary.cast(om + perp * nudge, dm, max_dist)
+            perp = _unit(_cross(dm, axis[None]))
+            d2, t2 = self.primary.cast(om + perp * (scale * 1e-6 * self.extent), dm,
+                                       max_dist)
             # Keep a nudged hit only if the *original* ray passes the hit triangle within
             # float32 noise: through a crack it does, past a silhouette it does not.
             got = t2 >= 0
@@ -158,6 +218,45 @@ class WatertightCaster(CasterBase):
             won.append(miss[got])
             miss, om = miss[~got], om[~got]
         return np.concatenate(won) if won else np.zeros(0, np.int64)
+
+    def octant_boxes(self, origin):
+        """Per octant of directions (bit k set: negative along axis k), the union of the
+        hull boxes a ray from ``origin`` moving that way can reach (those ahead of the
+        origin along each axis), relative to the origin: ((8, 6) lo xyz hi xyz,
+        (8,) int32 1 where the octant has any box)."""
+        ahead_lo = self.box_hi > origin   # reachable moving + along the axis
+        ahead_hi = self.box_lo < origin   # reachable moving - along the axis
+        boxes, has = np.zeros((8, 6)), np.zeros(8, np.int32)
+        for code in range(8):
+            neg = np.array([(code >> k) & 1 for k in range(3)], bool)
+            sel = np.all(np.where(neg, ahead_hi, ahead_lo), axis=1)
+            if sel.any():
+                has[code] = 1
+                boxes[code, :3] = self.box_lo[sel].min(axis=0) - origin
+                boxes[code, 3:] = self.box_hi[sel].max(axis=0) - origin
+        return boxes, has
+
+    def may_reach_hull(self, origin, directions, max_dist, table=None):
+        """(M,) bool: False for rays from one ``origin`` that surely meet no hull box
+        within ``max_dist``, True for the others (conservative: a True ray may still
+        miss every box): a ray that misses its octant's union box (``octant_boxes``)
+        misses every box in it. From a sensor above the ground, the rays to the sky
+        meet only what stands taller than the sensor, so most are answered without a
+        cast. The compiled loop does the same test (embree_loop.c: may_reach_hull)."""
+        boxes, has = self.octant_boxes(origin) if table is None else table
+        d = np.asarray(directions, np.float64)
+        code = (d[:, 0] < 0).astype(np.int64) | ((d[:, 1] < 0) << 1) | ((d[:, 2] < 0) << 2)
+        lo, hi = boxes[code, :3], boxes[code, 3:]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / d
+            t1, t2 = lo * inv, hi * inv
+        flat = d == 0
+        inside = (lo <= 0) & (hi >= 0)
+        t1 = np.where(flat, np.where(inside, -np.inf, np.inf), t1)
+        t2 = np.where(flat, np.where(inside, np.inf, -np.inf), t2)
+        near = np.minimum(t1, t2).max(axis=1)
+        far = np.maximum(t1, t2).min(axis=1)
+        return (has[code] != 0) & (near <= far) & (far >= 0) & (near <= max_dist)
 
     def _starts_inside(self, o):
         """True unless ``o`` is one origin outside every hull box (then a ray's first

@@ -41,7 +41,7 @@
 /* What rls_embree_abi returns: the loader (embree.py, _native_loop) refuses a build
  * that answers anything else, or lacks the function (a build older than the
  * arguments it passes). Bump it whenever an exported signature or meaning changes. */
-#define RLS_EMBREE_ABI 2
+#define RLS_EMBREE_ABI 3
 
 #define K 16
 #define ORG 0
@@ -63,6 +63,27 @@
 
 typedef void (*isect16_fn)(const int *valid, void *scene, void *rayhit, void *args);
 
+/* The watertight re-check of misses, done in the worker threads (what
+ * rls_addon/core/casting/watertight.py: WatertightCaster._recheck does in numpy, the
+ * reference this follows operation by operation, so both give the same bits):
+ * a miss that cannot reach any hull box (one box per octant of directions, the union
+ * of the boxes ahead of the origin, NULL with per-ray origins) is a real miss; the
+ * others are cast into the hull (padded boxes of triangle clusters), and those that
+ * enter a box are cast once more with the origin nudged perpendicular to the ray; a
+ * nudged hit counts when the original ray crosses that triangle within tol. */
+typedef struct {
+    void *hull;            /* the hull's Embree scene */
+    const double *boxes;   /* 8 x (lo xyz, hi xyz) relative to the origin, or NULL */
+    const int32_t *has;    /* 8: the octant has a box */
+    double max_dist;
+    const double *vertices;   /* V x 3, the scene's */
+    const int64_t *triangles; /* T x 3 */
+    double tol;
+    double nudge;
+    double axis[3];
+    _Atomic int64_t retried;  /* out: rays re-cast nudged */
+} recheck_t;
+
 typedef struct {
     isect16_fn fn;
     void *scene;
@@ -81,6 +102,7 @@ typedef struct {
     double *dist;
     int64_t *tri;
     double *normal;       /* 3 per ray, or NULL */
+    recheck_t *recheck;   /* the watertight re-check of misses, or NULL */
     int64_t n;            /* rays */
     _Atomic int64_t *next;  /* shared: the first ray no worker has taken yet */
 } job_t;
@@ -133,6 +155,155 @@ static void local_ray(const double *m, int64_t nsteps, double tau, const double 
     if (len > 0) for (int k = 0; k < 3; k++) nw[k] /= len;
 }
 
+static double dot3(const double *a, const double *b) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+static void cross3(const double *a, const double *b, double *out) {
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+static void unit3(double *v) {
+    double len = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    v[0] /= len;
+    v[1] /= len;
+    v[2] /= len;
+}
+
+/* False when the ray surely meets no hull box within max_dist (watertight.py:
+ * may_reach_hull). */
+static int may_reach_hull(const recheck_t *rc, const double *d) {
+    int code = (d[0] < 0) | ((d[1] < 0) << 1) | ((d[2] < 0) << 2);
+    if (!rc->has[code]) return 0;
+    const double *lo = rc->boxes + 6 * code, *hi = lo + 3;
+    double t_in = -INFINITY, t_out = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        double t1, t2;
+        if (d[k] == 0) {
+            int inside = lo[k] <= 0 && hi[k] >= 0;
+            t1 = inside ? -INFINITY : INFINITY;
+            t2 = inside ? INFINITY : -INFINITY;
+        } else {
+            double inv = 1.0 / d[k];
+            t1 = lo[k] * inv;
+            t2 = hi[k] * inv;
+        }
+        double a = t1 < t2 ? t1 : t2, b = t1 < t2 ? t2 : t1;
+        if (a > t_in) t_in = a;
+        if (b < t_out) t_out = b;
+    }
+    return t_in <= t_out && t_out >= 0 && t_in <= rc->max_dist;
+}
+
+/* How far the ray's crossing of triangle p's plane lies outside the triangle
+ * (watertight.py: outside_distance). */
+static double outside_distance(const recheck_t *rc, int64_t p, const double *o,
+                               const double *d) {
+    const int64_t *t = rc->triangles + 3 * p;
+    const double *a = rc->vertices + 3 * t[0], *b = rc->vertices + 3 * t[1],
+                 *c = rc->vertices + 3 * t[2];
+    double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+    double ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+    double n[3];
+    cross3(ab, ac, n);
+    unit3(n);
+    double denom = dot3(n, d);
+    double ao[3] = {a[0] - o[0], a[1] - o[1], a[2] - o[2]};
+    double s = dot3(n, ao) / denom;
+    double x[3] = {o[0] + d[0] * s, o[1] + d[1] * s, o[2] + d[2] * s};
+    double out = 0.0;
+    const double *ps[3] = {a, b, c}, *qs[3] = {b, c, a};
+    for (int e = 0; e < 3; e++) {
+        const double *pp = ps[e], *q = qs[e];
+        double pq[3] = {q[0] - pp[0], q[1] - pp[1], q[2] - pp[2]};
+        double m[3];
+        cross3(n, pq, m);
+        unit3(m);
+        double xp[3] = {x[0] - pp[0], x[1] - pp[1], x[2] - pp[2]};
+        double v = -dot3(xp, m);
+        /* np.maximum: NaN wins */
+        out = (isnan(out) || isnan(v)) ? NAN : (v > out ? v : out);
+    }
+    return (isfinite(out) && s > 0) ? out : INFINITY;
+}
+
+/* Fills lane l of a packet with a float64 ray rounded to float32. */
+static void put_ray(float *f, uint32_t *u, int l, const double *o, const double *d, float tfar,
+                    float time) {
+    f[ORG + l] = (float)o[0];
+    f[ORG + K + l] = (float)o[1];
+    f[ORG + 2 * K + l] = (float)o[2];
+    f[DIR + l] = (float)d[0];
+    f[DIR + K + l] = (float)d[1];
+    f[DIR + 2 * K + l] = (float)d[2];
+    f[TNEAR + l] = 0.0f;
+    f[TIME + l] = time;
+    f[TFAR + l] = tfar;
+    u[MASK + l] = INVALID;
+    u[ID + l] = 0;
+    u[FLAGS + l] = 0;
+    u[PRIM + l] = INVALID;
+    u[GEOM + l] = INVALID;
+    u[INST + l] = INVALID;
+}
+
+/* The re-check of the misses of one cast packet (buf), in place: a miss won back
+ * gets the nudged cast's triangle and distance (refined afterwards like any hit). */
+static void recheck_packet(job_t *j, float *bf, uint32_t *bu, const int64_t *ray, int m) {
+    recheck_t *rc = j->recheck;
+    union { float f[STRIDE]; uint32_t u[STRIDE]; } hb __attribute__((aligned(64)));
+    int valid[K] __attribute__((aligned(64)));
+    int any = 0;
+    for (int l = 0; l < K; l++) {
+        valid[l] = 0;
+        if (l >= m || bu[GEOM + l] != INVALID) continue;
+        int64_t r = ray[l];
+        const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+        const double *d = j->dir + 3 * r;
+        if (rc->boxes && !may_reach_hull(rc, d)) continue;
+        put_ray(hb.f, hb.u, l, o, d, j->tfar, 0.0f);
+        valid[l] = -1;
+        any = 1;
+    }
+    if (!any) return;
+    j->fn(valid, rc->hull, &hb, NULL);
+    double nudged[K][3];
+    any = 0;
+    for (int l = 0; l < K; l++) {
+        if (!valid[l]) continue;
+        if (hb.u[GEOM + l] == INVALID) {
+            valid[l] = 0;
+            continue;
+        }
+        int64_t r = ray[l];
+        const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+        const double *d = j->dir + 3 * r;
+        double perp[3];
+        cross3(d, rc->axis, perp);
+        unit3(perp);
+        for (int k = 0; k < 3; k++) nudged[l][k] = o[k] + perp[k] * rc->nudge;
+        put_ray(hb.f, hb.u, l, nudged[l], d, j->tfar, 0.0f);
+        any++;
+    }
+    if (!any) return;
+    atomic_fetch_add_explicit(&rc->retried, any, memory_order_relaxed);
+    j->fn(valid, j->scene, &hb, NULL);
+    for (int l = 0; l < K; l++) {
+        if (!valid[l] || hb.u[GEOM + l] == INVALID) continue;
+        int64_t r = ray[l];
+        const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+        const double *d = j->dir + 3 * r;
+        uint32_t p = hb.u[PRIM + l];
+        if (outside_distance(rc, (int64_t)p, o, d) <= rc->tol) {
+            bu[GEOM + l] = hb.u[GEOM + l];
+            bu[PRIM + l] = p;
+            bf[TFAR + l] = hb.f[TFAR + l];
+        }
+    }
+}
+
 /* Casts rays [lo, hi) packet by packet. */
 static void cast_range(job_t *j, int64_t lo, int64_t hi) {
     union { float f[STRIDE]; uint32_t u[STRIDE]; } buf __attribute__((aligned(64)));
@@ -147,23 +318,10 @@ static void cast_range(job_t *j, int64_t lo, int64_t hi) {
             const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
             const double *d = j->dir + 3 * r;
             valid[l] = l < m ? -1 : 0;
-            buf.f[ORG + l] = (float)o[0];
-            buf.f[ORG + K + l] = (float)o[1];
-            buf.f[ORG + 2 * K + l] = (float)o[2];
-            buf.f[DIR + l] = (float)d[0];
-            buf.f[DIR + K + l] = (float)d[1];
-            buf.f[DIR + 2 * K + l] = (float)d[2];
-            buf.f[TNEAR + l] = 0.0f;
-            buf.f[TIME + l] = j->time ? j->time[r] : 0.0f;
-            buf.f[TFAR + l] = j->tfar;
-            buf.u[MASK + l] = INVALID;
-            buf.u[ID + l] = 0;
-            buf.u[FLAGS + l] = 0;
-            buf.u[PRIM + l] = INVALID;
-            buf.u[GEOM + l] = INVALID;
-            buf.u[INST + l] = INVALID;
+            put_ray(buf.f, buf.u, l, o, d, j->tfar, j->time ? j->time[r] : 0.0f);
         }
         j->fn(valid, j->scene, &buf, NULL);
+        if (j->recheck) recheck_packet(j, buf.f, buf.u, ray, m);
         if (j->plane && !j->info)  /* fetch the hit triangles' planes together */
             for (int l = 0; l < m; l++)
                 if (buf.u[GEOM + l] != INVALID)
@@ -249,11 +407,13 @@ RLS_EXPORT void *rls_embree_launch(void *fn, void *scene, const double *org, int
                         const float *time, int32_t *inst, const double *steps,
                         const int64_t *info, const double *const *planes_of, int n_inst,
                         const double *plane,
-                        double *dist, int64_t *tri, double *normal, int threads) {
+                        double *dist, int64_t *tri, double *normal, int threads,
+                        recheck_t *recheck) {
     batch_t *b = (batch_t *)calloc(1, sizeof(batch_t));
     if (!b) return NULL;
     b->job = (job_t){(isect16_fn)fn, scene, org, org_per_ray, dir, order, tfar, time, inst,
-                     steps, info, planes_of, n_inst, plane, dist, tri, normal, n, &b->next};
+                     steps, info, planes_of, n_inst, plane, dist, tri, normal, recheck, n,
+                     &b->next};
     atomic_init(&b->next, 0);
     int64_t blocks = (n + BLOCK - 1) / BLOCK;
     int want = threads - 1;

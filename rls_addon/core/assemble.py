@@ -1,0 +1,265 @@
+"""The per-hit stage of a frame: from what each ray brought back to the point records.
+
+Per ray: the intensity (reflectivity x |cos incidence|, CARLA's attenuation when set;
+ghosts bring their own), the range with its noise, CARLA's dropout, and for the rays
+kept their point records. ``assemble`` runs it in C (``native/points.c``, in the
+library of the compiled Embree loop, on all cores) where that library is built and
+the frame has no atmospheric attenuation, else in numpy (``assemble_numpy``): the
+readable reference the C code follows operation by operation, so both write the same
+bytes (tests/core/test_assemble.py). Every random number is drawn before, in numpy,
+from the scan's seeded generator (``Draws``): the bytes never depend on the path.
+"""
+
+import ctypes
+import os
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+
+from .points import point_dtype
+
+# The fields points.c knows, in its enum's order.
+FIELD_ORDER = ("x", "y", "z", "range", "intensity", "ring", "time", "label", "instance",
+               "ghost")
+NATIVE_POINTS_ABI = 2
+
+
+@dataclass
+class Draws:
+    """The random numbers of a frame's effects, one per ray, drawn up front."""
+
+    noise: np.ndarray | None = None      # float32 range noise (m)
+    general: np.ndarray | None = None    # uniforms of the general dropout
+    low: np.ndarray | None = None        # uniforms of the low-intensity dropout
+
+
+@dataclass
+class Hits:
+    """What each ray brought back (``frame.Returns`` after ghosts) and the tables its
+    indices point into."""
+
+    dist: np.ndarray       # (N,) float64 range
+    valid: np.ndarray      # (N,) bool
+    surface: np.ndarray    # (N, 2) int32 object, material
+    normals: np.ndarray    # (N, 3) float64
+    ghost: np.ndarray | None          # (N,) uint8 or None
+    ghost_rows: np.ndarray            # rows whose light came back by a bounce
+    ghost_dot: np.ndarray             # (G,) cos of each to its last leg
+    ghost_intensity: np.ndarray       # (G,) its intensity
+    reflectivity: np.ndarray          # per material, float64
+    labels: np.ndarray                # per object, uint32
+    instances: np.ndarray             # per object, uint32
+
+
+@dataclass
+class Rays:
+    """Where the rays went: world directions and origins, and the pattern's own
+    columns (sensor-frame directions, rings, times)."""
+
+    dirs: np.ndarray        # (N, 3) world unit directions
+    origins: np.ndarray     # (1, 3) or (N, 3)
+    columns: tuple          # 3 x (N,) sensor-frame direction components
+    rings: np.ndarray       # (N,) uint16
+    times: np.ndarray       # (N,) float64
+
+
+@dataclass
+class Effects:
+    general_rate: float = 0.0
+    intensity_limit: float = 0.0
+    intensity_zero: float = 0.0
+    attenuation_per_m: float = 0.0
+
+
+def _dot(a, b):
+    """Row-wise dot products summed as points.c sums them."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+def intensities(hits, dirs, attenuation_per_m=0.0):
+    """(intensity, cos) per ray: reflectivity x |cos| clipped to 0..1 (x exp(-a d) with
+    attenuation), the ghosts' own where they came back by a bounce."""
+    dot = _dot(hits.normals, dirs)
+    inten = hits.reflectivity[hits.surface[:, 1]] * np.abs(dot)
+    if attenuation_per_m:
+        inten = inten * np.exp(-float(attenuation_per_m)
+                               * np.where(hits.valid, hits.dist, 0.0))
+    inten = np.clip(inten, 0.0, 1.0)
+    if len(hits.ghost_rows):
+        dot[hits.ghost_rows] = hits.ghost_dot
+        inten[hits.ghost_rows] = hits.ghost_intensity
+    return inten, dot
+
+
+def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
+    """The reference: (points, index of each point's ray, back-face flag per point)."""
+    inten, dot = intensities(hits, rays.dirs, effects.attenuation_per_m)
+    d = hits.dist if draws.noise is None else hits.dist + draws.noise
+    keep = hits.valid.copy()
+    if draws.general is not None:
+        keep &= draws.general >= effects.general_rate
+    if draws.low is not None:
+        p = (effects.intensity_zero / effects.intensity_limit) * inten \
+            + (1.0 - effects.intensity_zero)
+        keep &= ~(inten <= effects.intensity_limit) | (draws.low < p)
+    keep &= d > 0
+    idx = np.nonzero(keep)[0]
+    d = d[idx]
+    obj = hits.surface[idx, 0]
+    dtype = point_dtype(fields)
+    pts = np.empty(len(idx), dtype=dtype)
+    want = set(dtype.names)
+    for k, f in enumerate("xyz"):
+        if f not in want:
+            continue
+        if frame_space == "world":
+            np.multiply(rays.dirs[idx, k], d, out=pts[f])
+            pts[f] += rays.origins[0, k] if rays.origins.shape[0] == 1 else rays.origins[idx, k]
+        else:
+            np.multiply(rays.columns[k].take(idx), d, out=pts[f])
+    columns = {"range": lambda: d, "intensity": lambda: inten.take(idx),
+               "ring": lambda: rays.rings.take(idx), "time": lambda: rays.times.take(idx),
+               "label": lambda: hits.labels[obj], "instance": lambda: hits.instances[obj],
+               "ghost": lambda: 0 if hits.ghost is None else hits.ghost.take(idx)}
+    for f, column in columns.items():
+        if f in want:
+            pts[f] = column()
+    return pts, idx, dot[idx] > 0
+
+
+class _PointsArgs(ctypes.Structure):
+    """``points_t`` of native/points.c."""
+
+    _fields_ = [("n", ctypes.c_int64), ("dist", ctypes.c_void_p), ("valid", ctypes.c_void_p),
+                ("surface", ctypes.c_void_p), ("normal", ctypes.c_void_p),
+                ("dir", ctypes.c_void_p), ("ghost", ctypes.c_void_p),
+                ("ghost_dot", ctypes.c_void_p), ("ghost_int", ctypes.c_void_p),
+                ("refl", ctypes.c_void_p), ("label", ctypes.c_void_p),
+                ("instance", ctypes.c_void_p), ("noise", ctypes.c_void_p),
+                ("u_general", ctypes.c_void_p), ("general_rate", ctypes.c_double),
+                ("u_low", ctypes.c_void_p), ("limit", ctypes.c_double),
+                ("zero", ctypes.c_double), ("world", ctypes.c_int),
+                ("origin", ctypes.c_void_p), ("origin_per_ray", ctypes.c_int),
+                ("cols", ctypes.c_void_p * 3), ("ring", ctypes.c_void_p),
+                ("time", ctypes.c_void_p), ("offsets", ctypes.c_int64 * len(FIELD_ORDER)),
+                ("itemsize", ctypes.c_int64), ("out", ctypes.c_void_p),
+                ("index", ctypes.c_void_p), ("back", ctypes.c_void_p)]
+
+
+_LOCK = threading.Lock()
+_NATIVE = None  # the bound function, False when not available
+_NATIVE_ERROR = ""
+
+
+def load_native(path):
+    """(count, write) of the per-hit stage in the library at ``path``, bound for
+    ctypes; OSError when they are missing or of another interface version."""
+    lib = ctypes.CDLL(path)
+    try:
+        abi, count, write = lib.rls_points_abi, lib.rls_points_count, lib.rls_points_write
+    except AttributeError as exc:
+        raise OSError(f"the compiled library has no per-hit stage ({exc}); rebuild it "
+                      "with tools/build_native.py") from None
+    abi.restype, abi.argtypes = ctypes.c_int, []
+    if abi() != NATIVE_POINTS_ABI:
+        raise OSError(f"stale per-hit stage (interface {abi()}, this RLS needs "
+                      f"{NATIVE_POINTS_ABI}); rebuild it with tools/build_native.py")
+    args = [ctypes.POINTER(_PointsArgs), ctypes.c_void_p, ctypes.c_int]
+    count.restype, count.argtypes = ctypes.c_int64, args
+    write.restype, write.argtypes = None, args
+    return count, write
+
+
+def native():
+    """The compiled per-hit stage, or None (the reason in ``native_error()``)."""
+    global _NATIVE, _NATIVE_ERROR
+    with _LOCK:
+        if _NATIVE is None:
+            from .casting.embree import native_library_path
+
+            path = native_library_path()
+            try:
+                if not os.path.exists(path):
+                    raise OSError(f"{os.path.basename(path)} is not built")
+                _NATIVE = load_native(path)
+            except OSError as exc:
+                _NATIVE, _NATIVE_ERROR = False, str(exc)
+        return _NATIVE or None
+
+
+def native_error():
+    return _NATIVE_ERROR
+
+
+def _threads():
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+# Off: every frame assembles in numpy (the reference the C code is tested against).
+compiled = True
+
+
+def assemble(hits, rays, draws, effects, frame_space, fields=None):
+    """(points, ray index per point, back-face flag per point): in C where it can,
+    else ``assemble_numpy``; the same bytes either way."""
+    fn = native() if compiled and not effects.attenuation_per_m else None
+    if fn is None:
+        return assemble_numpy(hits, rays, draws, effects, frame_space, fields)
+    return _assemble_native(fn, hits, rays, draws, effects, frame_space, fields)
+
+
+def _c(a, dtype):
+    return np.ascontiguousarray(a, dtype=dtype)
+
+
+def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
+    n = len(hits.dist)
+    dtype = point_dtype(fields)
+    keep = []  # every array the C code reads, alive until it returns
+
+    def ptr(a, dt):
+        if a is None:
+            return None
+        a = _c(a, dt)
+        keep.append(a)
+        return a.ctypes.data
+
+    ghost_dot = ghost_int = None
+    if len(hits.ghost_rows):
+        ghost_dot, ghost_int = np.zeros(n), np.zeros(n)
+        ghost_dot[hits.ghost_rows] = hits.ghost_dot
+        ghost_int[hits.ghost_rows] = hits.ghost_intensity
+    world = frame_space == "world"
+    args = _PointsArgs(
+        n=n, dist=ptr(hits.dist, np.float64), valid=ptr(hits.valid, np.uint8),
+        surface=ptr(hits.surface, np.int32), normal=ptr(hits.normals, np.float64),
+        dir=ptr(rays.dirs, np.float64), ghost=ptr(hits.ghost, np.uint8),
+        ghost_dot=ptr(ghost_dot, np.float64), ghost_int=ptr(ghost_int, np.float64),
+        refl=ptr(hits.reflectivity, np.float64), label=ptr(hits.labels, np.uint32),
+        instance=ptr(hits.instances, np.uint32), noise=ptr(draws.noise, np.float32),
+        u_general=ptr(draws.general, np.float64), general_rate=effects.general_rate,
+        u_low=ptr(draws.low, np.float64), limit=effects.intensity_limit,
+        zero=effects.intensity_zero, world=int(world),
+        origin=ptr(rays.origins, np.float64),
+        origin_per_ray=int(rays.origins.shape[0] != 1),
+        ring=ptr(rays.rings, np.uint16), time=ptr(rays.times, np.float64),
+        itemsize=dtype.itemsize)
+    if not world:
+        for k in range(3):
+            args.cols[k] = ptr(rays.columns[k], np.float64)
+    for k, f in enumerate(FIELD_ORDER):
+        args.offsets[k] = dtype.fields[f][1] if f in dtype.names else -1
+    count, write = fn
+    threads = _threads()
+    keep_rays = np.empty(n, np.uint8)
+    got = count(ctypes.byref(args), keep_rays.ctypes.data, threads)
+    out = np.empty(got, dtype=dtype)
+    index = np.empty(got, np.int64)
+    back = np.empty(got, np.uint8)
+    args.out, args.index, args.back = out.ctypes.data, index.ctypes.data, back.ctypes.data
+    write(ctypes.byref(args), keep_rays.ctypes.data, threads)
+    return out, index, back.view(bool)

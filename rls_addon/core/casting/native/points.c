@@ -1,0 +1,224 @@
+/* The per-hit stage of a frame, in C: from what each ray brought back to the point
+ * records, in one pass over the rays on a few threads (rls_points_count, then rls_points_write).
+ *
+ * rls_addon/core/frame.py (_assemble_numpy) is the readable reference this follows
+ * operation by operation, so both write the same bits: per ray, the shading
+ * (reflectivity x |cos incidence|, clipped to 0..1; a ghost's comes precomputed), the
+ * range with its noise, CARLA's dropout from the uniforms the scan's generator drew
+ * for every ray, and for each ray kept its point record written straight into the
+ * output array (fields at the offsets the caller's dtype gives, -1: not written).
+ * Random draws stay in numpy: the bytes do not depend on this file. Intensity with
+ * atmospheric attenuation (exp) stays in numpy too (libm's exp and numpy's differ in
+ * the last bit), so the caller only comes here without it.
+ *
+ * Two calls: rls_points_count decides which rays return a point (so the caller
+ * allocates exactly the records it needs: fresh pages cost time), rls_points_write
+ * writes them. Points keep the rays' order: each thread takes a contiguous share of
+ * the rays and writes its points after those of the shares before it. */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rls_threads.h"
+
+#define RLS_POINTS_ABI 2
+
+enum { F_X, F_Y, F_Z, F_RANGE, F_INTENSITY, F_RING, F_TIME, F_LABEL, F_INSTANCE, F_GHOST,
+       N_FIELDS };
+
+typedef struct {
+    int64_t n;                /* rays */
+    const double *dist;       /* per ray: range to what sent the light back */
+    const uint8_t *valid;     /* per ray: it returned something within range */
+    const int32_t *surface;   /* per ray: object, material index (2 int32) */
+    const double *normal;     /* per ray: 3 doubles */
+    const double *dir;        /* per ray: 3 doubles, unit, world */
+    const uint8_t *ghost;     /* per ray: 1 for a ghost, or NULL */
+    const double *ghost_dot;  /* per ray: cos to the ghost's last leg (ghost rows) */
+    const double *ghost_int;  /* per ray: the ghost's intensity (ghost rows) */
+    const double *refl;       /* per material: reflectivity */
+    const uint32_t *label;    /* per object */
+    const uint32_t *instance; /* per object */
+    const float *noise;       /* per ray: range noise, or NULL */
+    const double *u_general;  /* per ray: uniform of the general dropout, or NULL */
+    double general_rate;
+    const double *u_low;      /* per ray: uniform of the low-intensity dropout, or NULL */
+    double limit, zero;
+    int world;                /* 1: world frame (dir, origin); 0: sensor frame (cols) */
+    const double *origin;     /* world: 3 doubles, or 3 per ray when origin_per_ray */
+    int origin_per_ray;
+    const double *cols[3];    /* sensor: the pattern's direction columns */
+    const uint16_t *ring;     /* per ray */
+    const double *time;       /* per ray */
+    int64_t offsets[N_FIELDS];  /* byte offset of each field in a record, -1: absent */
+    int64_t itemsize;
+    uint8_t *out;             /* records, room for n */
+    int64_t *index;           /* per point: its ray */
+    uint8_t *back;            /* per point: 1 when it lies on the back of its face */
+} points_t;
+
+typedef struct {
+    const points_t *a;
+    int64_t lo, hi, count, at;
+    uint8_t *keep;
+} share_t;
+
+/* Whether ray i returns a point, with its range and intensity (frame.py:
+ * _assemble_numpy). */
+static int shade(const points_t *a, int64_t i, double *range, double *inten, double *dot) {
+    const double *nrm = a->normal + 3 * i, *d = a->dir + 3 * i;
+    int g = a->ghost && a->ghost[i];
+    double c = g ? a->ghost_dot[i] : nrm[0] * d[0] + nrm[1] * d[1] + nrm[2] * d[2];
+    double v;
+    if (g) {
+        v = a->ghost_int[i];
+    } else {
+        v = a->refl[a->surface[2 * i + 1]] * fabs(c);
+        v = v < 0.0 ? 0.0 : (v > 1.0 ? 1.0 : v);
+    }
+    *dot = c;
+    *inten = v;
+    double r = a->noise ? a->dist[i] + (double)a->noise[i] : a->dist[i];
+    *range = r;
+    if (!a->valid[i]) return 0;
+    if (a->u_general && !(a->u_general[i] >= a->general_rate)) return 0;
+    if (a->u_low) {
+        double p = (a->zero / a->limit) * v + (1.0 - a->zero);
+        if (v <= a->limit && !(a->u_low[i] < p)) return 0;
+    }
+    return r > 0;
+}
+
+#define PUT(field, type, value)                                         \
+    do {                                                                \
+        if (a->offsets[field] >= 0) {                                   \
+            type tmp_ = (value);                                        \
+            memcpy(rec + a->offsets[field], &tmp_, sizeof(tmp_));       \
+        }                                                               \
+    } while (0)
+
+static void count_share(share_t *s) {
+    const points_t *a = s->a;
+    int64_t c = 0;
+    double r, v, dot;
+    for (int64_t i = s->lo; i < s->hi; i++) {
+        uint8_t k = (uint8_t)shade(a, i, &r, &v, &dot);
+        s->keep[i - s->lo] = k;
+        c += k;
+    }
+    s->count = c;
+}
+
+static void write_share(share_t *s) {
+    const points_t *a = s->a;
+    int64_t p = s->at;
+    double r, v, dot;
+    for (int64_t i = s->lo; i < s->hi; i++) {
+        if (!s->keep[i - s->lo]) continue;
+        shade(a, i, &r, &v, &dot);
+        uint8_t *rec = a->out + p * a->itemsize;
+        int32_t obj = a->surface[2 * i];
+        if (a->world) {
+            const double *d = a->dir + 3 * i;
+            const double *o = a->origin + (a->origin_per_ray ? 3 * i : 0);
+            PUT(F_X, double, d[0] * r + o[0]);
+            PUT(F_Y, double, d[1] * r + o[1]);
+            PUT(F_Z, double, d[2] * r + o[2]);
+        } else {
+            PUT(F_X, double, a->cols[0][i] * r);
+            PUT(F_Y, double, a->cols[1][i] * r);
+            PUT(F_Z, double, a->cols[2][i] * r);
+        }
+        PUT(F_RANGE, double, r);
+        PUT(F_INTENSITY, float, (float)v);
+        PUT(F_RING, uint16_t, a->ring[i]);
+        PUT(F_TIME, double, a->time[i]);
+        PUT(F_LABEL, uint32_t, a->label[obj]);
+        PUT(F_INSTANCE, uint32_t, a->instance[obj]);
+        PUT(F_GHOST, uint8_t, a->ghost ? a->ghost[i] : 0);
+        a->index[p] = i;
+        a->back[p] = dot > 0;
+        p++;
+    }
+}
+
+RLS_THREAD_ENTRY(count_worker, arg) {
+    count_share((share_t *)arg);
+    RLS_THREAD_RETURN;
+}
+
+RLS_THREAD_ENTRY(write_worker, arg) {
+    write_share((share_t *)arg);
+    RLS_THREAD_RETURN;
+}
+
+#define MAX_SHARES 64
+/* Below this many rays per share a thread costs more than it saves. */
+#define MIN_SHARE 16384
+
+static int shares_of(int64_t n, int threads) {
+    int shares = threads < 1 ? 1 : (threads > MAX_SHARES ? MAX_SHARES : threads);
+    if (shares > 1 && n / shares < MIN_SHARE) shares = (int)(n / MIN_SHARE) + 1;
+    return shares > MAX_SHARES ? MAX_SHARES : shares;
+}
+
+/* Counts (write = 0) or writes the shares, one thread each (the caller takes the
+ * first). */
+static void run_shares(share_t *s, int shares, int write);
+
+static void split(const points_t *a, uint8_t *keep, int shares, share_t *s) {
+    int64_t n = a->n, step = (n + shares - 1) / shares;
+    for (int k = 0; k < shares; k++) {
+        int64_t lo = k * step < n ? k * step : n;
+        int64_t hi = lo + step < n ? lo + step : n;
+        s[k] = (share_t){a, lo, hi, 0, 0, keep + lo};
+    }
+}
+
+/* First call: which rays return a point (keep, one byte per ray, written) and how
+ * many; the caller then makes room for exactly that many records. */
+RLS_EXPORT int64_t rls_points_count(const points_t *a, uint8_t *keep, int threads) {
+    int shares = shares_of(a->n, threads);
+    share_t s[MAX_SHARES];
+    split(a, keep, shares, s);
+    run_shares(s, shares, 0);
+    int64_t total = 0;
+    for (int k = 0; k < shares; k++) total += s[k].count;
+    return total;
+}
+
+/* Second call: the records of the rays kept (keep from rls_points_count), in ray order. */
+RLS_EXPORT void rls_points_write(const points_t *a, const uint8_t *keep, int threads) {
+    int shares = shares_of(a->n, threads);
+    share_t s[MAX_SHARES];
+    split(a, (uint8_t *)keep, shares, s);
+    int64_t at = 0;
+    for (int k = 0; k < shares; k++) {
+        int64_t c = 0;
+        for (int64_t i = s[k].lo; i < s[k].hi; i++) c += keep[i];
+        s[k].at = at;
+        at += c;
+    }
+    run_shares(s, shares, 1);
+}
+
+static void run_shares(share_t *s, int shares, int write) {
+    rls_thread ids[MAX_SHARES];
+    int started[MAX_SHARES] = {0};
+    for (int k = 1; k < shares; k++)
+        started[k] = write ? rls_thread_start(&ids[k], write_worker, &s[k])
+                           : rls_thread_start(&ids[k], count_worker, &s[k]);
+    if (write) write_share(&s[0]);
+    else count_share(&s[0]);
+    for (int k = 1; k < shares; k++) {
+        if (started[k]) rls_thread_join(ids[k]);
+        else if (write) write_share(&s[k]);
+        else count_share(&s[k]);
+    }
+}
+
+/* The interface version of the per-hit stage (RLS_POINTS_ABI). */
+RLS_EXPORT int rls_points_abi(void) {
+    return RLS_POINTS_ABI;
+}

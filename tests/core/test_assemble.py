@@ -1,0 +1,190 @@
+"""The compiled per-hit stage (native/points.c) and the compiled watertight re-check
+(native/embree_loop.c) write the same bytes as their numpy references
+(``assemble.assemble_numpy``, ``WatertightCaster._recheck``), and the re-check casts
+no more than a leak needs."""
+
+import numpy as np
+import pytest
+
+from rls_addon.core import assemble
+from rls_addon.core.assemble import Draws, Effects, Hits, Rays, assemble_numpy
+from rls_addon.core.bodies import PreparedScene
+from rls_addon.core.casting import embree
+from rls_addon.core.frame import scan_frame
+from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+from rls_addon.core.points import POINT_DTYPE
+from rls_addon.core.presets import get_preset
+from rls_addon.core.settings import ScanSettings
+
+
+@pytest.fixture(scope="module")
+def native():
+    fn = assemble.native()
+    if fn is None:
+        pytest.fail(f"the compiled per-hit stage is not built ({assemble.native_error()}): "
+                    "run 'make native' (make test does)")
+    return fn
+
+
+def random_frame(n, seed, ghosts=True, per_ray_origins=False):
+    rng = np.random.default_rng(seed)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    normals = rng.normal(size=(n, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals[rng.random(n) < 0.1] = 0.0  # misses carry zero normals
+    valid = rng.random(n) < 0.7
+    dist = np.where(valid, rng.uniform(0.1, 120.0, n), np.inf)
+    surface = np.stack([rng.integers(0, 7, n), rng.integers(0, 5, n)], 1).astype(np.int32)
+    ghost, rows = None, np.zeros(0, np.int64)
+    gdot, gint = np.zeros(0), np.zeros(0)
+    if ghosts:
+        rows = np.sort(rng.choice(np.nonzero(valid)[0], size=max(1, n // 50), replace=False))
+        ghost = np.zeros(n, np.uint8)
+        ghost[rows] = 1
+        gdot = rng.uniform(-1, 1, len(rows))
+        gint = rng.uniform(0, 0.8, len(rows))
+    hits = Hits(dist, valid, surface, normals, ghost, rows, gdot, gint,
+                rng.uniform(0.05, 1.2, 5), rng.integers(0, 20, 7).astype(np.uint32),
+                rng.integers(0, 2**31, 7).astype(np.uint32))
+    origins = rng.normal(size=(n, 3)) * 50 if per_ray_origins else rng.normal(size=(1, 3)) * 1e4
+    cols = tuple(np.ascontiguousarray(c) for c in rng.normal(size=(3, n)))
+    rays = Rays(dirs, origins, cols, rng.integers(0, 128, n).astype(np.uint16),
+                np.sort(rng.uniform(0, 0.1, n)))
+    draws = Draws(noise=(rng.normal(size=n) * 0.5).astype(np.float32),
+                  general=rng.random(n), low=rng.random(n))
+    return hits, rays, draws
+
+
+EFFECTS = Effects(general_rate=0.05, intensity_limit=0.3, intensity_zero=0.4)
+
+
+@pytest.mark.parametrize("space", ["sensor", "world"])
+@pytest.mark.parametrize("fields", [None, ("x", "y", "label"), ("intensity", "ghost", "time")])
+@pytest.mark.parametrize("case", ["plain", "per_ray_origins", "no_ghosts", "no_draws"])
+def test_compiled_assembly_writes_the_reference_bytes(native, space, fields, case):
+    hits, rays, draws = random_frame(50_000, 3, ghosts=case != "no_ghosts",
+                                     per_ray_origins=case == "per_ray_origins")
+    effects = EFFECTS
+    if case == "no_draws":
+        draws, effects = Draws(), Effects()
+    want = assemble_numpy(hits, rays, draws, effects, space, fields)
+    got = assemble._assemble_native(native, hits, rays, draws, effects, space, fields)
+    assert got[0].dtype == want[0].dtype
+    assert len(want[0]) > 1000  # noise, dropout and misses leave a real cloud
+    assert got[0].tobytes() == want[0].tobytes()
+    np.testing.assert_array_equal(got[1], want[1])
+    np.testing.assert_array_equal(got[2], want[2])
+
+
+def test_compiled_assembly_edge_cases(native):
+    for n in (0, 1, 17, 40_000):
+        hits, rays, draws = random_frame(n, 5, ghosts=n > 100)
+        want = assemble_numpy(hits, rays, draws, EFFECTS, "world")
+        got = assemble._assemble_native(native, hits, rays, draws, EFFECTS, "world", None)
+        assert got[0].tobytes() == want[0].tobytes() and len(got[1]) == len(want[1])
+    hits, rays, draws = random_frame(1000, 6, ghosts=False)
+    hits.valid[:] = False  # nothing returned
+    got = assemble._assemble_native(native, hits, rays, draws, EFFECTS, "sensor", None)
+    assert len(got[0]) == 0 and got[0].dtype == POINT_DTYPE
+
+
+def test_the_reference_is_what_the_frame_used_to_compute():
+    """The reference's intensity and dropout, checked against their definitions."""
+    hits, rays, draws = random_frame(5000, 8, ghosts=False)
+    pts, idx, back = assemble_numpy(hits, rays, draws, EFFECTS, "sensor")
+    cos = np.abs(np.einsum("ij,ij->i", hits.normals, rays.dirs))[idx]
+    inten = np.clip(hits.reflectivity[hits.surface[idx, 1]] * cos, 0, 1)
+    np.testing.assert_allclose(pts["intensity"], inten.astype(np.float32), rtol=1e-6)
+    assert np.all(draws.general[idx] >= EFFECTS.general_rate)
+    low = inten <= EFFECTS.intensity_limit
+    p = EFFECTS.intensity_zero / EFFECTS.intensity_limit * inten + 1 - EFFECTS.intensity_zero
+    assert np.all(draws.low[idx][low] < p[low])
+    np.testing.assert_allclose(pts["range"], hits.dist[idx] + draws.noise[idx])
+    assert np.all(pts["range"] > 0) and np.all(hits.valid[idx])
+    assert np.array_equal(back, np.einsum("ij,ij->i", hits.normals, rays.dirs)[idx] > 0)
+
+
+def open_sky(boxes=20, seed=2):
+    """A 100 m ground plane (a grid), a few boxes up to 3 m tall and a glossy one."""
+    rng = np.random.default_rng(seed)
+    n = 40
+    s = np.linspace(-50, 50, n + 1)
+    gx, gy = np.meshgrid(s, s, indexing="ij")
+    verts = [np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], 1)]
+    k = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None]
+    k = k.ravel()
+    tris = [np.concatenate([np.stack([k, k + n + 1, k + 1], 1),
+                            np.stack([k + 1, k + n + 1, k + n + 2], 1)])]
+    objs, mats = [np.zeros(len(tris[0]), np.int64)], [np.zeros(len(tris[0]), np.int64)]
+    cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                     [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    off = len(verts[0])
+    for i in range(boxes):
+        lo = np.r_[rng.uniform(-30, 30, 2), 0.0]
+        size = np.r_[rng.uniform(0.5, 3, 2), rng.uniform(0.5, 3.0)]
+        verts.append(lo + cube * size)
+        tris.append(faces + off)
+        objs.append(np.full(12, i + 1))
+        mats.append(np.full(12, 2 if i == 0 else 1))
+        off += 8
+    objects = [ObjectInfo("Ground", 1, 1)] + [ObjectInfo(f"Box {i}", 3, i + 2)
+                                              for i in range(boxes)]
+    return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(objs),
+                         np.concatenate(mats), objects,
+                         [MaterialInfo("asphalt", 0.2), MaterialInfo("concrete", 0.5),
+                          MaterialInfo("glass", 0.3, glossy=True)])
+
+
+def _modes(scene, on):
+    scene.caster.compiled = on
+    assemble.compiled = on
+
+
+@pytest.mark.parametrize("space", ["sensor", "world"])
+def test_frames_are_byte_identical_compiled_or_numpy(space):
+    if not embree.available() or embree._native_loop() is None:
+        pytest.fail("embreex and the compiled loop are needed (make test installs and builds them)")
+    preset = get_preset("hesai_pandar64")
+    pose = np.eye(4)
+    pose[:3, 3] = (0.3, -0.2, 4.0)
+    scene = PreparedScene(open_sky(), pose[:3, 3], preset.range.max_m, embree.EmbreeCaster)
+    scene.reuse_casts = False
+    settings = ScanSettings(frame_space=space)
+    try:
+        clouds = []
+        for on in (True, False):
+            _modes(scene, on)
+            scene.caster.retried = 0
+            res = scan_frame(scene, preset.pattern(), pose, preset, settings, frame=4)
+            clouds.append((res.points.tobytes(), scene.caster.retried, res.stats["ghosts"]))
+    finally:
+        _modes(scene, True)
+    assert clouds[0] == clouds[1]
+    assert clouds[0][2] > 0  # the glossy box made ghosts: their rows went through too
+    assert len(clouds[0][0]) > 10_000 * POINT_DTYPE.itemsize
+
+
+def test_sky_rays_are_not_rechecked():
+    """From 4 m above the ground every ray to the sky passes over the boxes (3 m at
+    most): the re-check answers them all without a hull cast."""
+    preset = get_preset("hesai_pandar64")
+    origin = np.array([0.3, -0.2, 4.0])
+    scene = PreparedScene(open_sky(), origin, preset.range.max_m, embree.EmbreeCaster)
+    w = scene.caster
+    dirs = preset.pattern().directions
+    up = dirs[:, 2] > 0
+    reach = w.may_reach_hull(origin - scene.centre, dirs, preset.range.max_m)
+    assert up.sum() > 10_000 and not reach[up].any()
+    # conservative: every ray that enters some hull box is let through
+    o = origin - scene.centre
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / dirs
+        t1 = (w.box_lo[None] - o) * inv[:, None]
+        t2 = (w.box_hi[None] - o) * inv[:, None]
+    near = np.nanmax(np.minimum(t1, t2), axis=2)
+    far = np.nanmin(np.maximum(t1, t2), axis=2)
+    enters = ((near <= far) & (far >= 0) & (near <= preset.range.max_m)).any(axis=1)
+    assert enters.sum() > 1000 and np.all(reach[enters])
