@@ -57,6 +57,18 @@ class RayRecord:
         return o + self.dirs[self.point_ray] * np.asarray(ranges, np.float64)[:, None]
 
 
+def distinct_times(times):
+    """``np.unique(times, return_inverse=True)``, in one pass when the times do not
+    decrease (a pattern's firing order, and its sub-step times): no sort."""
+    t = np.asarray(times)
+    if len(t) and np.all(t[1:] >= t[:-1]):
+        first = np.empty(len(t), bool)
+        first[0] = True
+        np.not_equal(t[1:], t[:-1], out=first[1:])
+        return t[first], np.cumsum(first) - 1
+    return np.unique(t, return_inverse=True)
+
+
 def sensor_axes(sensor_to_world):
     """Origins and orthonormal rotations of 4x4 poses (one (4, 4) or a stack (N, 4, 4));
     scale and shear are removed, and a mirrored sensor still looks along its own axes."""
@@ -214,14 +226,15 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     else:
         # One pose per distinct firing time (the channels of a firing share it): a
         # spinning lidar has 64 to 128 times fewer poses to take apart than rays.
-        times, at = np.unique(tscene, return_inverse=True)
-        origins, rots = sensor_axes(sensor_track.at(times))
-        origins = origins[at]
+        times, at = distinct_times(tscene)
+        poses, rots = sensor_axes(sensor_track.at(times))
+        origins = poses[at]
         dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
+    poses = origins if origins.shape[0] == 1 else poses  # one per distinct time
     if not isinstance(scene, PreparedScene):
-        scene = PreparedScene(scene, origins.mean(axis=0),
-                              rmax + np.ptp(origins, axis=0).max(initial=0.0), caster_factory)
-    elif not scene.covers(origins, rmax):
+        scene = PreparedScene(scene, poses.mean(axis=0),
+                              rmax + np.ptp(poses, axis=0).max(initial=0.0), caster_factory)
+    elif not scene.covers(poses, rmax):
         raise SceneError("the prepared scene does not cover this sensor's range: prepare "
                          "it around the sensor with a reach of at least its range")
     world = World(scene, list(moving))

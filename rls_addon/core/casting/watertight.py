@@ -147,12 +147,9 @@ class WatertightCaster(CasterBase):
             return None
         from .embree import Recheck
 
-        boxes = has = None
-        if o.shape[0] == 1:
-            boxes, has = self.octant_boxes(o[0])
-            boxes, has = np.ascontiguousarray(boxes), np.ascontiguousarray(has)
-        rc = Recheck(hull=hull_scene, boxes=None if boxes is None else boxes.ctypes.data,
-                     has=None if has is None else has.ctypes.data, max_dist=float(max_dist),
+        boxes, has = (np.ascontiguousarray(a) for a in self.octant_boxes(o))
+        rc = Recheck(hull=hull_scene, boxes=boxes.ctypes.data, has=has.ctypes.data,
+                     max_dist=float(max_dist),
                      vertices=self.v.ctypes.data, triangles=self.t.ctypes.data,
                      tol=self.tol, nudge=_NUDGE_SCALES[0] * 1e-6 * self.extent,
                      axis=tuple(_NUDGE_AXES[0]), retried=0)
@@ -189,10 +186,11 @@ class WatertightCaster(CasterBase):
         meets no hull box before its limit is not re-cast."""
         won = []
         miss = np.nonzero(tri < 0)[0]
-        if len(miss) and o.shape[0] == 1:
+        if len(miss):
             # Model no more than the scene needs: a miss that cannot reach any hull
             # box (e.g. a sky ray over everything) is a real miss, with no hull cast.
-            miss = miss[self.may_reach_hull(o[0], d[miss], max_dist)]
+            miss = miss[self.may_reach_hull(o if o.shape[0] == 1 else o[miss], d[miss],
+                                            max_dist, self.octant_boxes(o))]
         if len(miss) == 0:
             return np.zeros(0, np.int64)
         dm = d[miss]
@@ -219,34 +217,40 @@ class WatertightCaster(CasterBase):
             miss, om = miss[~got], om[~got]
         return np.concatenate(won) if won else np.zeros(0, np.int64)
 
-    def octant_boxes(self, origin):
+    def octant_boxes(self, origins):
         """Per octant of directions (bit k set: negative along axis k), the union of the
-        hull boxes a ray from ``origin`` moving that way can reach (those ahead of the
-        origin along each axis), relative to the origin: ((8, 6) lo xyz hi xyz,
-        (8,) int32 1 where the octant has any box)."""
-        ahead_lo = self.box_hi > origin   # reachable moving + along the axis
-        ahead_hi = self.box_lo < origin   # reachable moving - along the axis
+        hull boxes a ray from any of ``origins`` ((1, 3) or (N, 3)) moving that way
+        can reach (those ahead of the origins' bounds along each axis): ((8, 6) lo xyz
+        hi xyz, (8,) int32 1 where the octant has any box)."""
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        # per column: numpy's min over axis 0 of an (N, 3) array is ~25x slower
+        lo_o = np.array([o[:, k].min() for k in range(3)])
+        hi_o = np.array([o[:, k].max() for k in range(3)])
+        ahead_lo = self.box_hi > lo_o   # reachable moving + along the axis
+        ahead_hi = self.box_lo < hi_o   # reachable moving - along the axis
         boxes, has = np.zeros((8, 6)), np.zeros(8, np.int32)
         for code in range(8):
             neg = np.array([(code >> k) & 1 for k in range(3)], bool)
             sel = np.all(np.where(neg, ahead_hi, ahead_lo), axis=1)
             if sel.any():
                 has[code] = 1
-                boxes[code, :3] = self.box_lo[sel].min(axis=0) - origin
-                boxes[code, 3:] = self.box_hi[sel].max(axis=0) - origin
+                boxes[code, :3] = self.box_lo[sel].min(axis=0)
+                boxes[code, 3:] = self.box_hi[sel].max(axis=0)
         return boxes, has
 
-    def may_reach_hull(self, origin, directions, max_dist, table=None):
-        """(M,) bool: False for rays from one ``origin`` that surely meet no hull box
-        within ``max_dist``, True for the others (conservative: a True ray may still
-        miss every box): a ray that misses its octant's union box (``octant_boxes``)
-        misses every box in it. From a sensor above the ground, the rays to the sky
-        meet only what stands taller than the sensor, so most are answered without a
-        cast. The compiled loop does the same test (embree_loop.c: may_reach_hull)."""
-        boxes, has = self.octant_boxes(origin) if table is None else table
+    def may_reach_hull(self, origins, directions, max_dist, table=None):
+        """(M,) bool: False for rays (from ``origins``, (1, 3) or (M, 3)) that surely
+        meet no hull box within ``max_dist``, True for the others (conservative: a
+        True ray may still miss every box): a ray that misses its octant's union box
+        (``octant_boxes``) misses every box in it. From a sensor above the ground,
+        the rays to the sky meet only what stands taller than the sensor, so most are
+        answered without a cast. The compiled loop does the same test, operation by
+        operation (embree_loop.c: may_reach_hull)."""
+        o = np.asarray(origins, np.float64).reshape(-1, 3)
+        boxes, has = self.octant_boxes(o) if table is None else table
         d = np.asarray(directions, np.float64)
         code = (d[:, 0] < 0).astype(np.int64) | ((d[:, 1] < 0) << 1) | ((d[:, 2] < 0) << 2)
-        lo, hi = boxes[code, :3], boxes[code, 3:]
+        lo, hi = boxes[code, :3] - o, boxes[code, 3:] - o
         with np.errstate(divide="ignore", invalid="ignore"):
             inv = 1.0 / d
             t1, t2 = lo * inv, hi * inv

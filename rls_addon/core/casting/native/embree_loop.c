@@ -67,13 +67,13 @@ typedef void (*isect16_fn)(const int *valid, void *scene, void *rayhit, void *ar
  * rls_addon/core/casting/watertight.py: WatertightCaster._recheck does in numpy, the
  * reference this follows operation by operation, so both give the same bits):
  * a miss that cannot reach any hull box (one box per octant of directions, the union
- * of the boxes ahead of the origin, NULL with per-ray origins) is a real miss; the
+ * of the boxes ahead of the origins) is a real miss; the
  * others are cast into the hull (padded boxes of triangle clusters), and those that
  * enter a box are cast once more with the origin nudged perpendicular to the ray; a
  * nudged hit counts when the original ray crosses that triangle within tol. */
 typedef struct {
     void *hull;            /* the hull's Embree scene */
-    const double *boxes;   /* 8 x (lo xyz, hi xyz) relative to the origin, or NULL */
+    const double *boxes;   /* 8 x (lo xyz, hi xyz), or NULL (no prefilter) */
     const int32_t *has;    /* 8: the octant has a box */
     double max_dist;
     const double *vertices;   /* V x 3, the scene's */
@@ -174,10 +174,12 @@ static void unit3(double *v) {
 
 /* False when the ray surely meets no hull box within max_dist (watertight.py:
  * may_reach_hull). */
-static int may_reach_hull(const recheck_t *rc, const double *d) {
+static int may_reach_hull(const recheck_t *rc, const double *o, const double *d) {
     int code = (d[0] < 0) | ((d[1] < 0) << 1) | ((d[2] < 0) << 2);
     if (!rc->has[code]) return 0;
-    const double *lo = rc->boxes + 6 * code, *hi = lo + 3;
+    const double *box = rc->boxes + 6 * code;
+    double lo[3] = {box[0] - o[0], box[1] - o[1], box[2] - o[2]};
+    double hi[3] = {box[3] - o[0], box[4] - o[1], box[5] - o[2]};
     double t_in = -INFINITY, t_out = INFINITY;
     for (int k = 0; k < 3; k++) {
         double t1, t2;
@@ -262,7 +264,7 @@ static void recheck_packet(job_t *j, float *bf, uint32_t *bu, const int64_t *ray
         int64_t r = ray[l];
         const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
         const double *d = j->dir + 3 * r;
-        if (rc->boxes && !may_reach_hull(rc, d)) continue;
+        if (rc->boxes && !may_reach_hull(rc, o, d)) continue;
         put_ray(hb.f, hb.u, l, o, d, j->tfar, 0.0f);
         valid[l] = -1;
         any = 1;
