@@ -1020,6 +1020,10 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         if val:
             L.append(f"- {name}: {val}")
     L.append("")
+    if costs.get("scale_out"):
+        from bench import scale_out
+
+        L.extend(scale_out.section(costs["scale_out"]))
     L.append("## How the Embree backend runs\n")
     L.append("embreex 4.4.0.post1's own `EmbreeScene.run` casts one ray at a time and holds "
              "the GIL for the whole call (measured: two threads take as long as one). RLS "
@@ -1112,6 +1116,10 @@ def measure(quick):
     mem = memory_section([100_000, 1_000_000] if quick else [100_000, 1_000_000, 4_000_000])
     levels = [8, 16, 32, 64, 128, 256] if quick else [8, 16, 32, 64, 128, 256, 512]
     tess = tessellation_study(p64, levels)
+    log("bench: scale-out, rls dataset and rls study on 1 and 2 Dask workers (bench/scale_out.py)")
+    from bench import scale_out
+
+    costs["scale_out"] = scale_out.measure(repeat=1 if quick else 2)
     info["loadavg_end"] = os.getloadavg()[0]
     return {"machine": info, "devices": dev, "triangles": tri_rows, "rays": ray_rows,
             "memory": mem, "tessellation": tess, "pattern_s": pattern_s, "hooks": hooks,

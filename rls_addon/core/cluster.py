@@ -27,6 +27,18 @@ WORKER_MEMORY_BYTES = 2 * 1024 ** 3
 # A rough serial cost model for ``auto``: per scan and per ray (Embree, one core)
 SECONDS_PER_SCAN = 0.05
 SECONDS_PER_RAY = 2.5e-7
+# Checked against bench/scale_out.py, 2026-11-22 23:27 to 11-23 00:02 (2 cores, load
+# average 1.2-2.5 from the benchmark itself, other work under 0.05 cores; the sample
+# intersection with 6 LiDARs, `rls dataset --layout kitti --frames 1-60`): its 360 scans
+# of 28.6 M rays took 26.3-34.2 s in one process (the machine's speed drifts), 513-680
+# ns per ray in scan_frame and 32-41 ms per scan for the rest (frame changes, ground
+# truth, files); the model says 25.2 s, so the constants stay. Two workers were
+# 1.49-1.74x faster, with fixed costs of 2.7-3.8 s (0.8-1.2 s in one process): break-even
+# at about 4-6 s of serial work, 1.3x at 10-15 s, so AUTO_MIN_SECONDS = 20 s starts
+# workers where they clearly pay. The model overestimates a study's scans 4-5x (840
+# scans of 96.8 M rays, no files, no frame changes: 12.3-15.3 s; the model says 66 s;
+# two workers 1.17-1.19x faster): no pair of these two constants fits both, and scan
+# runs are the ones that lose most when ``auto`` wrongly stays in one process.
 
 
 class ClusterError(RLSError):
@@ -116,10 +128,22 @@ def cluster_client(workers, scheduler=None, threads=None):
         return
     env = {"RLS_EMBREE_THREADS": str(threads or threads_per_worker(workers)),
            "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    cluster = distributed.LocalCluster(
-        n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-        dashboard_address=None, silence_logs=50, worker_class=distributed.Nanny,
-        env=env)
+    # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536 (its
+    # ``distributed.nanny.pre-spawn-environ``). Setting it also fixes glibc's mmap
+    # threshold at 128 KiB, so every large numpy array of a scan is mapped and unmapped
+    # anew and its pages faulted in again: the time goes to the kernel. Measured
+    # 2026-11-22 on the 2-core machine, bench/scale_out.py's dataset (360 scans, 6
+    # LiDARs, 60 frames): one process 60.1 s with the variable set, 30.8 s without;
+    # two workers 33.8 s with it (slower than one process without it), 22.4 s without.
+    # Workers keep glibc's defaults, as a run in one process has them (a variable set
+    # in this process's environment still reaches them).
+    import dask
+
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+        cluster = distributed.LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None, silence_logs=50, worker_class=distributed.Nanny,
+            env=env)
     client = distributed.Client(cluster)
     try:
         yield client
