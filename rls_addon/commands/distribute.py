@@ -141,7 +141,10 @@ def remove_temporaries(run):
 
 def study_scan_all(args, blend):
     """A ``run_study(scan_all=...)`` that hands blocks of candidates to workers, or None
-    to scan here (``--workers`` / ``--scheduler``)."""
+    to scan here (``--workers`` / ``--scheduler``). Workers send back counts only
+    (``CandidateScan``); the few candidates a density map needs are scanned again here
+    by ``run_study``'s own scanner, built from the same scene and settings (the same
+    seeds: the same points)."""
     from ..blender.worker import study_piece
 
     def scan_all(scanner, cands, on_scan):

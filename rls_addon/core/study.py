@@ -137,16 +137,32 @@ class StudyResult:
     candidates: list
     counts: CandidateCounts
     searches: dict                  # k -> placement.SearchResult
-    xy: list                        # per candidate (N, 2) kept points
     timing: dict
     hidden_traffic: list
     backend: str
     structure_builds: int
     notices: list
     visibility: "TrafficVisibility" = None  # with cfg.traffic_frames
+    # The study's scanner: the candidates keep only counts, so a density map scans its
+    # set's members again (the same seeds: the same points). Kept: the points of those
+    # scanned again, per candidate (a handful: the members of the sets drawn).
+    scanner: "StudyScanner" = dataclasses.field(default=None, repr=False)
+    kept: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    def kept_xy(self, index):
+        """(n, 2) world xy of candidate ``index``'s points in the region with a counted
+        label, from the scanner (once per candidate, then kept)."""
+        got = self.kept.get(index)
+        if got is None:
+            if self.scanner is None:
+                raise SceneError("this study result has no scanner to scan its candidates again")
+            got = self.kept[index] = self.scanner.kept_xy(self.candidates[index])
+        return got
 
     def density(self, members):
-        xy = np.concatenate([self.xy[i] for i in members]) if members else np.empty((0, 2))
+        """The density map (``metrics.DensityMap``) of the set ``members``."""
+        xy = (np.concatenate([self.kept_xy(i) for i in members]) if len(members)
+              else np.empty((0, 2)))
         return density_map(xy, self.polygon, self.config.cell)
 
 
@@ -185,16 +201,23 @@ def candidate_spots(scene, cfg, polygon):
 
 @dataclasses.dataclass
 class CandidateScan:
-    """What one candidate's scans give the study."""
+    """What one candidate's scans give the study: counts only, no points (a study of
+    thousands of candidates keeps a few tens of KB each; see ``StudyResult.kept_xy``
+    for the points of the few a density map needs)."""
 
     index: int
     n_points: int            # kept points in the InfraLOB (traffic removed)
     disk_counts: np.ndarray  # (D,) of them per disk
-    xy: np.ndarray           # (n, 2) the kept points
     scan_points: int
     rays: int
     seconds: float
     vehicle_points: np.ndarray = None  # (J,) points on each vehicle-frame (with traffic)
+
+
+# The point fields a study gathers: where a point is and what it hit (counted in the
+# region), and with the traffic in view whose it is and whether it is a ghost.
+STUDY_FIELDS = ("x", "y", "label")
+TRAFFIC_FIELDS = ("instance", "ghost")
 
 
 class StudyScanner:
@@ -222,6 +245,11 @@ class StudyScanner:
         t = time.perf_counter()
         self.prepared = self.session.prepared(geometry, centre, reach)
         self.build_s = time.perf_counter() - t
+        if not cfg.traffic_frames:
+            # Each candidate casts its rays once: a kept cast would never be asked for
+            # again, and keeping it costs a copy of it per candidate (the traffic frames
+            # reuse theirs: the static scene seen from the same pose).
+            self.prepared.reuse_casts = False
         self.traffic, self.vehicle_frames = [], []
         if cfg.traffic_frames:
             self._traffic(scene)
@@ -249,24 +277,40 @@ class StudyScanner:
                     self.vehicle_frames.append((int(f), inst.key))
             self.traffic.append((int(f), group, scored))
 
+    def _static(self, cand):
+        """(xy of the kept points, the frame's ``ScanResult``) of candidate ``cand``
+        over the static scene: only x, y and label are gathered."""
+        result = scan_frame(self.prepared, self.preset.pattern(self.frame), cand.pose,
+                            self.preset, self.settings, frame=self.frame, sensor=cand.name,
+                            fields=STUDY_FIELDS)
+        return self.layout.select([result.points], self.label_ids), result
+
+    def kept_xy(self, cand):
+        """(n, 2) world xy of candidate ``cand``'s points in the region with a counted
+        label: its scan of the static scene again, with the same seed (the points its
+        counts came from)."""
+        return self._static(cand)[0]
+
     def scan(self, cand):
         """A ``CandidateScan`` of candidate ``cand``."""
         t = time.perf_counter()
-        result = scan_frame(self.prepared, self.preset.pattern(self.frame), cand.pose,
-                            self.preset, self.settings, frame=self.frame, sensor=cand.name)
-        xy = self.layout.select([result.points], self.label_ids)
+        xy, result = self._static(cand)
+        n_points, counts = len(xy), self.layout.counts(xy)
+        scan_points, rays = len(result.points), result.rays
+        del xy, result
         seen = None
         if self.traffic:
             seen = np.zeros(len(self.vehicle_frames), np.int64)
             for f, group, scored in self.traffic:
                 res = scan_frame(self.prepared, self.preset.pattern(f), cand.pose, self.preset,
                                  self.settings, frame=f, sensor=cand.name,
-                                 moving=[group] if group is not None else [])
-                pts = res.points[res.points["ghost"] == 0]
+                                 moving=[group] if group is not None else [],
+                                 fields=TRAFFIC_FIELDS)
+                instance = res.points["instance"][res.points["ghost"] == 0]
                 for j, iid in scored:
-                    seen[j] = int(np.count_nonzero(pts["instance"] == iid))
-        return CandidateScan(cand.index, len(xy), self.layout.counts(xy), xy,
-                             len(result.points), result.rays, time.perf_counter() - t, seen)
+                    seen[j] = int(np.count_nonzero(instance == iid))
+        return CandidateScan(cand.index, n_points, counts, scan_points, rays,
+                             time.perf_counter() - t, seen)
 
 
 @dataclasses.dataclass
@@ -308,15 +352,25 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
     preset, polygon, layout, cands = inputs.preset, inputs.polygon, inputs.layout, inputs.candidates
     scanner = StudyScanner(scene, cfg, preset, polygon, layout, cands, factory)
     t_scan = time.perf_counter()
-    scans = [None] * len(cands)
+    # Only counts are kept, written in place as the scans arrive: no points, and no
+    # second copy of the disk counts when the search starts.
+    n_points = np.zeros(len(cands), np.int64)
+    disk_counts = np.zeros((len(cands), len(layout.centres)), np.int64)
+    vehicle_points = (np.zeros((len(cands), len(scanner.vehicle_frames)), np.int64)
+                      if scanner.traffic else None)
+    scanned = np.zeros(len(cands), bool)
 
     def on_scan(got):
-        scans[got.index] = got
-        c = cands[got.index]
+        i = got.index
+        scanned[i] = True
+        n_points[i], disk_counts[i] = got.n_points, got.disk_counts
+        if vehicle_points is not None:
+            vehicle_points[i] = got.vehicle_points
+        c = cands[i]
         c.n_points, c.scan_points, c.rays, c.seconds = (got.n_points, got.scan_points,
                                                         got.rays, got.seconds)
         if progress is not None:
-            done = sum(s is not None for s in scans)
+            done = int(np.count_nonzero(scanned))
             elapsed = time.perf_counter() - t_scan
             progress(done, len(cands), c, elapsed / done * (len(cands) - done))
 
@@ -325,10 +379,12 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
             on_scan(scanner.scan(c))
     else:
         scan_all(scanner, cands, on_scan)
+    if not scanned.all():
+        raise SceneError(f"{int(np.count_nonzero(~scanned))} of {len(cands)} candidates "
+                         "were not scanned")
     t_search = time.perf_counter()
     groups = [c.mount for c in cands] if cfg.one_per_mount else None
-    cc = CandidateCounts([s.n_points for s in scans], np.array([s.disk_counts for s in scans]),
-                         layout.area_m2, layout.p, groups)
+    cc = CandidateCounts(n_points, disk_counts, layout.area_m2, layout.p, groups)
     for c, p in zip(cands, cc.evaluate([(c.index,) for c in cands])):
         c.infra_d, c.infra_nuc = p.infra_d, p.infra_nuc
     searches = {}
@@ -339,16 +395,25 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
             raise SceneError(f"k = {k}: {exc}") from None
     vis = None
     if scanner.traffic:
-        vis = TrafficVisibility.of(scanner, cands, scans, groups, searches, cfg)
+        vis = TrafficVisibility.of(scanner, cands, vehicle_points, groups, searches, cfg)
+    t_maps = time.perf_counter()
+    result = StudyResult(cfg, scene.name, scanner.frame,
+                         {"id": preset.id, "name": preset.name, "source": preset.source},
+                         polygon, layout, cands, cc, searches, {}, scanner.hidden,
+                         scanner.prepared.backend, scanner.session.builds, scanner.notices, vis,
+                         scanner)
+    # The density maps the report draws (the best set of each k): their members are
+    # scanned again here with this process's scanner (in a run on workers the counts
+    # came from its twins, built from the same scene and settings: the same points).
+    for k in sorted(searches):
+        for i in searches[k].best.members:
+            result.kept_xy(i)
     t_end = time.perf_counter()
-    timing = {"total_s": t_end - t0, "build_s": scanner.build_s, "scan_s": t_search - t_scan,
-              "search_s": t_end - t_search,
-              "per_candidate_s": (t_search - t_scan) / max(len(cands), 1)}
-    return StudyResult(cfg, scene.name, scanner.frame,
-                       {"id": preset.id, "name": preset.name, "source": preset.source},
-                       polygon, layout, cands, cc, searches, [s.xy for s in scans], timing,
-                       scanner.hidden, scanner.prepared.backend, scanner.session.builds,
-                       scanner.notices, vis)
+    result.timing.update({
+        "total_s": t_end - t0, "build_s": scanner.build_s, "scan_s": t_search - t_scan,
+        "search_s": t_maps - t_search, "maps_s": t_end - t_maps,
+        "per_candidate_s": (t_search - t_scan) / max(len(cands), 1)})
+    return result
 
 
 @dataclasses.dataclass
@@ -365,8 +430,10 @@ class TrafficVisibility:
     best: dict                    # k -> Visibility of the best set by visibility
 
     @classmethod
-    def of(cls, scanner, cands, scans, groups, searches, cfg):
-        counts = VisibilityCounts(np.array([s.vehicle_points for s in scans]),
+    def of(cls, scanner, cands, vehicle_points, groups, searches, cfg):
+        """``vehicle_points``: (candidates, vehicle-frames) points of each candidate on
+        each vehicle-frame."""
+        counts = VisibilityCounts(np.asarray(vehicle_points),
                                   [key for _, key in scanner.vehicle_frames], groups,
                                   cfg.visibility_thresholds)
         per = counts.evaluate([(c.index,) for c in cands])

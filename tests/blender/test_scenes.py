@@ -75,7 +75,7 @@ def test_study_scan_matches_a_lidar_object_scan(scene):
     result, _ = scan_lidar(lidar, settings=settings)
     xy = res.layout.select([result.points], [1, 2])
     assert len(xy) == cand.n_points
-    np.testing.assert_allclose(np.sort(xy, axis=0), np.sort(res.xy[0], axis=0), atol=1e-6)
+    np.testing.assert_allclose(np.sort(xy, axis=0), np.sort(res.kept_xy(0), axis=0), atol=1e-6)
 
 
 def test_traffic_is_left_out_unless_kept(scene):
