@@ -14,7 +14,8 @@ from .blender import preset_catalog
 from .blender.preview import COLOR_ATTRIBUTES
 from .blender.region import is_lob
 from .blender.sensor import DEFAULT_PRESET
-from .core.choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
+from .core.choices import (BACKENDS, DETECTION, FIELDS, FORMATS, FRAME_SPACES, MOTION,
+                           SNOW_TYPES, WEATHER)
 from .core.errors import RLSError
 from .core.io import DEFAULT_FIELDS
 from .core.io.point_types import POINT_TYPE_CHOICES
@@ -145,6 +146,22 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
                                 description="Use your own maximum range instead of the preset's")
     max_range: FloatProperty(name="Max Range", default=100.0, min=0.1, soft_max=500.0,
                              unit="LENGTH", description="No returns beyond this")
+    detection: EnumProperty(name="Detection", items=DETECTION.items(), default="auto",
+                            description="What the device detects: the LiDAR equation from "
+                                        "its datasheet's range figures, or CARLA's model")
+    weather: EnumProperty(name="Weather", items=WEATHER.items(), default="clear",
+                          description="Fog, rain or snow: returns are dimmed by the air's "
+                                      "two-way transmission (and lost where the device's "
+                                      "LiDAR equation says so), and the air sends false "
+                                      "returns near the sensor (label 'weather')")
+    fog_visibility: FloatProperty(name="Visibility", default=100.0, min=1.0, soft_max=2000.0,
+                                  unit="LENGTH", description="Fog: visibility (Koschmieder)")
+    precipitation_rate: FloatProperty(name="Rate (mm/h)", default=5.0, min=0.01, max=500.0,
+                                      soft_max=50.0, precision=2,
+                                      description="Rain or snowfall rate in mm/h (snow: "
+                                                  "water equivalent)")
+    snow_type: EnumProperty(name="Snow", items=SNOW_TYPES.items(), default="dry",
+                            description="Dry or wet snow")
     motion: EnumProperty(name="Motion", items=MOTION.items(), default="exact",
                          description="How moving objects and a moving sensor are scanned")
     substeps: IntProperty(name="Sub-steps", default=0, min=0, soft_max=64,

@@ -185,6 +185,14 @@ class OBJECT_PT_rls_lidar_range(_LidarPanel, bpy.types.Panel):
         sub.active = s.use_noise_sigma
         sub.prop(s, "noise_sigma", text="")
         layout.prop(s, "seed")
+        layout.prop(s, "detection")
+        layout.prop(s, "weather")
+        if s.weather == "fog":
+            layout.prop(s, "fog_visibility")
+        elif s.weather in ("rain", "snow"):
+            layout.prop(s, "precipitation_rate")
+            if s.weather == "snow":
+                layout.prop(s, "snow_type")
 
 
 class OBJECT_PT_rls_lidar_motion(_LidarPanel, bpy.types.Panel):

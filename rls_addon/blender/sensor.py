@@ -55,6 +55,8 @@ def read_settings(obj):
         substeps=int(s.substeps),
         ghosting=bool(s.ghosting),
         sweep_start_deg=float(s.sweep_start) if s.use_sweep_start else None,
+        weather=weather_spec_of(s),
+        detection=s.detection,
     )
     output = OutputSettings(directory=s.output_dir, format=s.file_format,
                             fields=("x", "y", "z") + tuple(sorted(s.fields)),
@@ -63,6 +65,17 @@ def read_settings(obj):
                             point_type=s.point_type, crs=s.crs.strip() or None)
     return LidarSettings(preset=s.preset_id or DEFAULT_PRESET, scan=scan, output=output,
                          backend=s.backend)
+
+
+def weather_spec_of(s):
+    """The weather spec of a LiDAR's properties (None: clear)."""
+    if s.weather == "fog":
+        return f"fog:visibility={float(s.fog_visibility):g}"
+    if s.weather == "rain":
+        return f"rain:rate={float(s.precipitation_rate):g}"
+    if s.weather == "snow":
+        return f"snow:rate={float(s.precipitation_rate):g},type={s.snow_type}"
+    return None
 
 
 def sensor_job(obj, settings=None):

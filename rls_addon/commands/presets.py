@@ -58,7 +58,9 @@ def run(args):
     if args.action == "show":
         p = pr.get_preset(args.name, args.user_dir)
         out = _summary(p)
-        out.update(dropout=vars(p.dropout), attenuation_per_m=p.attenuation_per_m, scan=p.scan)
+        out.update(dropout=vars(p.dropout), attenuation_per_m=p.attenuation_per_m,
+                   detection=None if p.detection is None else p.detection.to_dict(),
+                   scan=p.scan)
         if p.table is not None:
             out["table"] = {"file": p.scan.get("table"), "channels": len(p.table.elevations_deg),
                             "source": p.table.source, "note": p.table.note}

@@ -7,7 +7,7 @@ every LiDAR of the run."""
 import json
 import sys
 
-from ..core.choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
+from ..core.choices import BACKENDS, DETECTION, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from ..core.io.point_types import POINT_TYPES
 from ..core.errors import SceneError
 from .distribute import add_arguments as add_cluster_arguments
@@ -64,6 +64,14 @@ def add_parser(sub):
     p.add_argument("--sweep-start", type=float, default=None, metavar="DEG",
                    help="spinning devices: azimuth where each sweep starts (degrees, "
                         "counter-clockwise from the LiDAR's +X; 180 = behind it)")
+    p.add_argument("--weather", default=None, metavar="SPEC",
+                   help="fog, rain or snow: 'fog:visibility=50' (m), 'rain:rate=10' (mm/h), "
+                        "'snow:rate=2[,type=wet]' (mm/h water equivalent), or 'clear' "
+                        "(default: each LiDAR's); see docs/realism.md")
+    p.add_argument("--detection", choices=DETECTION.ids, default=None,
+                   help="what is detected: the LiDAR equation from the preset's datasheet "
+                        "figures where it has them (auto), or CARLA's model for every "
+                        "preset (carla) (default: each LiDAR's)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="skip scans whose cloud and sidecar already exist and agree "
@@ -85,8 +93,23 @@ def overrides(args):
             "fields": fields, "template": args.template, "directory": args.out,
             "sweep_start_deg": args.sweep_start, "point_type": args.point_type,
             "start_time_s": args.start_time, "crs": args.crs,
-            "las_offset": _offset(args.las_offset),
+            "las_offset": _offset(args.las_offset), "weather": _weather(args.weather),
+            "detection": args.detection,
             "ghosting": None if args.ghosting is None else args.ghosting == "on"}
+
+
+def _weather(text):
+    """The --weather spec, validated ('clear' clears each LiDAR's weather)."""
+    if text is None:
+        return None
+    from ..core.errors import SettingsError
+    from ..core.weather import parse_weather
+
+    try:
+        air = parse_weather(text)
+    except SettingsError as exc:
+        raise SceneError(f"--weather: {exc}") from None
+    return "clear" if air is None else air.spec
 
 
 def _offset(text):

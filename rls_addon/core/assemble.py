@@ -8,15 +8,21 @@ the frame has no atmospheric attenuation, else in numpy (``assemble_numpy``): th
 readable reference the C code follows operation by operation, so both write the same
 bytes (tests/core/test_assemble.py). Every random number is drawn before, in numpy,
 from the scan's seeded generator (``Draws``): the bytes never depend on the path.
+
+Frames with detection by the LiDAR equation (``detection``), weather (its two-way
+transmission and false returns from the air, ``weather``) or another reported
+intensity than CARLA's are assembled in numpy only (``_assemble_lidar_equation``).
 """
 
 import ctypes
 import os
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import weather as wx
+from .labels import WEATHER_LABEL
 from .points import point_dtype
 
 # The fields points.c knows, in its enum's order.
@@ -32,6 +38,10 @@ class Draws:
     noise: np.ndarray | None = None      # float32 range noise (m)
     general: np.ndarray | None = None    # uniforms of the general dropout
     low: np.ndarray | None = None        # uniforms of the low-intensity dropout
+    # Drawn after the above, only when used (so other frames keep their streams):
+    detect: np.ndarray | None = None     # uniforms of detection by the LiDAR equation
+    medium: np.ndarray | None = None     # uniforms: does the air send a false return
+    medium_range: np.ndarray | None = None  # uniforms: its range (weather.false_return_ranges)
 
 
 @dataclass
@@ -50,6 +60,9 @@ class Hits:
     reflectivity: np.ndarray          # per material, float64
     labels: np.ndarray                # per object, uint32
     instances: np.ndarray             # per object, uint32
+    # Rows whose return is a false one from the air (weather), and its range
+    medium_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    medium_dist: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass
@@ -70,6 +83,14 @@ class Effects:
     intensity_limit: float = 0.0
     intensity_zero: float = 0.0
     attenuation_per_m: float = 0.0
+    detection: object = None        # detection.DetectionModel, or None: CARLA's model
+    intensity: str = "carla"        # what is reported (detection.INTENSITY_MODES)
+    alpha: float = 0.0              # extinction coefficient of the air (1/m, weather)
+
+    @property
+    def plain(self):
+        """Today's CARLA model in clear air: what points.c computes."""
+        return self.detection is None and self.intensity == "carla" and not self.alpha
 
 
 def _dot(a, b):
@@ -94,6 +115,8 @@ def intensities(hits, dirs, attenuation_per_m=0.0):
 
 def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
     """The reference: (points, index of each point's ray, back-face flag per point)."""
+    if not effects.plain or len(hits.medium_rows):
+        return _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields)
     inten, dot = intensities(hits, rays.dirs, effects.attenuation_per_m)
     d = hits.dist if draws.noise is None else hits.dist + draws.noise
     keep = hits.valid.copy()
@@ -105,7 +128,12 @@ def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
         keep &= ~(inten <= effects.intensity_limit) | (draws.low < p)
     keep &= d > 0
     idx = np.nonzero(keep)[0]
-    d = d[idx]
+    return _records(hits, rays, idx, d[idx], inten, frame_space, fields), idx, dot[idx] > 0
+
+
+def _records(hits, rays, idx, d, inten, frame_space, fields, medium=None):
+    """The point records of rays ``idx`` at ranges ``d``; ``medium`` (bool per point):
+    false returns from the air, labelled ``WEATHER_LABEL``, instance 0, no ghost."""
     obj = hits.surface[idx, 0]
     dtype = point_dtype(fields)
     pts = np.empty(len(idx), dtype=dtype)
@@ -122,9 +150,78 @@ def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
                "ring": lambda: rays.rings.take(idx), "time": lambda: rays.times.take(idx),
                "label": lambda: hits.labels[obj], "instance": lambda: hits.instances[obj],
                "ghost": lambda: 0 if hits.ghost is None else hits.ghost.take(idx)}
+    if medium is not None and medium.any():
+        ghost = columns["ghost"]
+        columns.update(
+            label=lambda: np.where(medium, np.uint32(WEATHER_LABEL), hits.labels[obj]),
+            instance=lambda: np.where(medium, np.uint32(0), hits.instances[obj]),
+            ghost=lambda: np.where(medium, np.uint8(0), ghost()))
     for f, column in columns.items():
         if f in want:
             pts[f] = column()
+    return pts
+
+
+def _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields):
+    """``assemble_numpy`` with detection by the LiDAR equation, weather or a device's
+    own intensity (see ``detection``, ``weather``). Per ray, with T^2 = exp(-2 alpha R):
+    a false return from the air replaces the ray's return where one was drawn (frame
+    decides, ``hits.medium_rows``); received power P = rho |cos| T^2 / R^2; the ray is
+    detected when its uniform is below p(P) (false returns are detected by
+    construction); the intensity is what the device reports; then noise and CARLA's
+    dropout as in the plain model."""
+    model, alpha = effects.detection, float(effects.alpha)
+    dot = _dot(hits.normals, rays.dirs)
+    rho_cos = hits.reflectivity[hits.surface[:, 1]] * np.abs(dot)
+    carla = rho_cos
+    if effects.attenuation_per_m:
+        carla = carla * np.exp(-float(effects.attenuation_per_m)
+                               * np.where(hits.valid, hits.dist, 0.0))
+    carla = np.clip(carla, 0.0, 1.0)
+    g = hits.ghost_rows
+    if len(g):
+        dot[g] = hits.ghost_dot
+        rho_cos[g] = hits.ghost_intensity
+        carla[g] = hits.ghost_intensity
+    dist, valid = hits.dist, hits.valid
+    m = hits.medium_rows
+    medium = None
+    if len(m):
+        dist, valid = dist.copy(), valid.copy()
+        dist[m], valid[m] = hits.medium_dist, True
+        rho = wx.medium_reflectivity(alpha)
+        rho_cos[m], dot[m] = rho, -1.0
+        carla[m] = np.clip(rho * np.exp(-float(effects.attenuation_per_m) * dist[m]), 0.0, 1.0)
+        medium = np.zeros(len(dist), bool)
+        medium[m] = True
+    r = np.where(valid, dist, 1.0)
+    t2 = wx.transmission2(alpha, r) if alpha else 1.0
+    power = None
+    if model is not None:
+        power = rho_cos * t2 / (r * r)
+    keep = valid.copy()
+    if model is not None:
+        detected = draws.detect < model.probability_of(power)
+        if medium is not None:
+            detected |= medium
+        keep &= detected
+    if effects.intensity == "reflectivity":
+        inten = np.clip(rho_cos * t2, 0.0, 1.0)
+    elif effects.intensity == "strength":
+        inten = model.strength(power)
+    else:
+        inten = carla * t2
+    d = dist if draws.noise is None else dist + draws.noise
+    if draws.general is not None:
+        keep &= draws.general >= effects.general_rate
+    if draws.low is not None:
+        p = (effects.intensity_zero / effects.intensity_limit) * inten \
+            + (1.0 - effects.intensity_zero)
+        keep &= ~(inten <= effects.intensity_limit) | (draws.low < p)
+    keep &= d > 0
+    idx = np.nonzero(keep)[0]
+    pts = _records(hits, rays, idx, d[idx], inten, frame_space, fields,
+                   None if medium is None else medium[idx])
     return pts, idx, dot[idx] > 0
 
 
@@ -206,7 +303,8 @@ compiled = True
 def assemble(hits, rays, draws, effects, frame_space, fields=None):
     """(points, ray index per point, back-face flag per point): in C where it can,
     else ``assemble_numpy``; the same bytes either way."""
-    fn = native() if compiled and not effects.attenuation_per_m else None
+    fn = native() if compiled and not effects.attenuation_per_m and effects.plain \
+        and not len(hits.medium_rows) else None
     if fn is None:
         return assemble_numpy(hits, rays, draws, effects, frame_space, fields)
     return _assemble_native(fn, hits, rays, draws, effects, frame_space, fields)

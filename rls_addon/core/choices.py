@@ -56,6 +56,26 @@ MOTION = Choices("motion mode", [
     ("snapshot", "Snapshot", "One scene state per frame, as CARLA: no motion distortion"),
 ])
 
+DETECTION = Choices("detection model", [
+    ("auto", "Datasheet", "The LiDAR equation calibrated from the preset's datasheet range "
+                          "figures where it has them (what is detected depends on "
+                          "reflectivity, incidence, range and weather), else CARLA's model"),
+    ("carla", "CARLA", "CARLA's model for every preset: every hit within the range limits "
+                       "returns (then noise and the preset's dropout)"),
+])
+
+WEATHER = Choices("weather", [
+    ("clear", "Clear", "Clear air: no extinction, no false returns"),
+    ("fog", "Fog", "Fog of a visibility in metres (Koschmieder extinction 3.912 / V)"),
+    ("rain", "Rain", "Rain of a rate in mm/h"),
+    ("snow", "Snow", "Snowfall of a rate in mm/h water equivalent"),
+])
+
+SNOW_TYPES = Choices("snow type", [
+    ("dry", "Dry", "Dry snow (attenuates more for the same rate)"),
+    ("wet", "Wet", "Wet snow"),
+])
+
 BACKENDS = Choices("ray-casting backend", [
     ("auto", "Automatic", "Embree (bundled: embreex with the compiled loop on all cores, or "
                           "pyemblite on macOS) when available, else Blender's BVHTree"),

@@ -8,9 +8,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import blas, effects, ghost
+from . import blas, effects, ghost, weather
 from .assemble import Draws, Effects, Hits, Rays, _dot, assemble
 from .bodies import PreparedScene
+from .detection import detection_of
 from .errors import SceneError
 from .motion import effective_times, polar
 from .settings import resolve_range
@@ -156,6 +157,20 @@ class _Bounces:
         return g, self.r.take(fi, axis=0), mirror
 
 
+def _false_returns(air, draws, block, rmin, rmax):
+    """(rows, ranges) of the rays whose return is a false one from the air: drawn with
+    the weather's probability, at a range from its distribution between the blind zone
+    (at least ``weather.OVERLAP_M``) and the maximum range, and only where that is
+    nearer than the first surface the ray meets."""
+    r_near = max(float(rmin), weather.OVERLAP_M)
+    if r_near >= rmax:
+        return np.zeros(0, np.int64), np.zeros(0)
+    ranges = weather.false_return_ranges(draws.medium_range, air.alpha, r_near, rmax)
+    rows = np.nonzero((draws.medium < weather.false_return_probability(air.alpha))
+                      & (ranges < block))[0]
+    return rows, ranges[rows]
+
+
 def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
     """Warn when nearly all points on an object land on the back of its faces: the
     sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
@@ -209,6 +224,8 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     sigma = preset.range.noise_sigma_m if s.noise_sigma_m is None else s.noise_sigma_m
     atten = preset.attenuation_per_m if s.attenuation_per_m is None else s.attenuation_per_m
     rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
+    model = detection_of(preset, s)          # None: CARLA's model
+    air = weather.parse_weather(s.weather)   # None: clear
 
     n = len(pattern)
     substeps_used = None
@@ -252,6 +269,9 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     reused = scene.reused > reused
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
+    # Where each ray meets its first surface (a mirror, not its ghost): the air beyond
+    # it sends nothing back
+    block = np.where(tri >= 0, dist, np.inf) if air is not None else None
     first_hit = None
     if keep_rays:  # before ghosts relabel the glossy rays
         hit = (tri >= 0) & (dist <= rmax)
@@ -269,6 +289,14 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         draws.general, draws.low = effects.dropout_draws(rng, n, preset.dropout.general_rate,
                                                          preset.dropout.intensity_limit,
                                                          preset.dropout.intensity_zero)
+    # Drawn after noise and dropout, and only when used: a frame without datasheet
+    # figures and weather draws what it drew before the LiDAR equation.
+    if model is not None:
+        draws.detect = rng.random(n)
+    medium_rows, medium_dist = np.zeros(0, np.int64), np.zeros(0)
+    if air is not None:
+        draws.medium, draws.medium_range = rng.random(n), rng.random(n)
+        medium_rows, medium_dist = _false_returns(air, draws, block, rmin, rmax)
     refl = g.material_field("reflectivity").astype(np.float64)
     stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
     rows, ghost_dot, ghost_int = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
@@ -280,12 +308,22 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
             ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]],
                                                    np.abs(ghost_dot), ret.dist[rows], atten)
     hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
-                ghost_int, refl, g.object_field("label"), g.object_field("instance"))
+                ghost_int, refl, g.object_field("label"), g.object_field("instance"),
+                medium_rows, medium_dist)
     rays = Rays(dirs, origins, pattern.columns, pattern.channels, pattern.times)
     fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
-                 preset.dropout.intensity_zero, atten)
+                 preset.dropout.intensity_zero, atten, model,
+                 "carla" if model is None else model.intensity,
+                 0.0 if air is None else air.alpha)
     pts, idx, back = assemble(hits, rays, draws, fx, s.frame_space, fields)
-    warnings += _inside_warnings(world, ret.surface[idx, 0], back)
+    surfaces = idx
+    if len(medium_rows):  # false returns from the air lie on no object
+        real = ~np.isin(idx, medium_rows, assume_unique=True)
+        stats["weather_returns"] = int(len(idx) - np.count_nonzero(real))
+        surfaces, back = idx[real], back[real]
+    elif air is not None:
+        stats["weather_returns"] = 0
+    warnings += _inside_warnings(world, ret.surface[surfaces, 0], back)
     stats["moving_bodies"] = len(moving)
     stats["substeps_used"] = substeps_used
     stats["static_cast_reused"] = reused

@@ -27,7 +27,11 @@ DEFAULT_LABELS = {
     16: "static",
     17: "metal",
     18: "cyclist",
+    19: "weather",   # false returns from fog, rain or snow near the sensor (instance 0)
 }
+
+# The label of false returns from the air (``weather``).
+WEATHER_LABEL = 19
 
 # Labels whose objects get ground-truth boxes by default (see ``ground_truth``).
 OBJECT_CLASSES = ("vehicle", "pedestrian", "cyclist")
@@ -62,6 +66,7 @@ ALIASES = {
     "truck": "vehicle",
     "trucks": "vehicle",
     "bus": "vehicle",
+    "weather_noise": "weather",
 }
 
 NAME_TO_ID = {name: i for i, name in DEFAULT_LABELS.items()}

@@ -241,3 +241,59 @@ def check_custom(s, where):
     no_unknown(s, CUSTOM_KEYS, where)
     string(s, "file", where)
     return None
+
+
+# ---- [detection] ----------------------------------------------------------------------
+
+DETECTION_KEYS = {"range_at_reflectivity", "probability_at_range", "intensity",
+                  "logistic_width"}
+MAX_FIGURES = 16
+
+
+def check_detection(d, where):
+    """Validate a ``[detection]`` table and build its ``DetectionModel``:
+    ``range_at_reflectivity = [[reflectivity 0..1, range m], ...]`` (1..16 datasheet
+    figures), optional ``probability_at_range`` (what a figure stands for, default
+    0.9), ``intensity`` (reflectivity | strength | carla, default reflectivity) and
+    ``logistic_width`` (in ln received power, default 0.164)."""
+    from .detection import (
+        DEFAULT_PROBABILITY,
+        DEFAULT_WIDTH,
+        INTENSITY_MODES,
+        DetectionModel,
+    )
+
+    if not isinstance(d, dict):
+        raise PresetError(f"{where}: must be a table of keys")
+    no_unknown(d, DETECTION_KEYS, where)
+    figs = d.get("range_at_reflectivity")
+    shape = ("a list of [reflectivity, range_m] pairs, e.g. [[0.10, 90.0], [0.80, 260.0]] "
+             "(reflectivity 0..1, range in metres)")
+    if not isinstance(figs, list) or not 1 <= len(figs) <= MAX_FIGURES:
+        got = "nothing" if figs is None else f"{len(figs)} entries" \
+            if isinstance(figs, list) else f"a {type(figs).__name__}"
+        raise PresetError(f"{where}: key 'range_at_reflectivity' must be {shape} "
+                          f"(1..{MAX_FIGURES} of them), got {got}")
+    figures = []
+    for i, f in enumerate(figs):
+        if not isinstance(f, list) or len(f) != 2 or any(
+                isinstance(x, bool) or not isinstance(x, (int, float)) for x in f):
+            raise PresetError(f"{where}: key 'range_at_reflectivity' entry {i + 1} must be "
+                              f"[reflectivity, range_m], got {f!r}")
+        rho, r = float(f[0]), float(f[1])
+        if not (math.isfinite(rho) and 0.0 < rho <= 1.0):
+            raise PresetError(f"{where}: key 'range_at_reflectivity' entry {i + 1}: the "
+                              f"reflectivity must be in (0, 1] (0.10 for 10 %), got {f[0]!r}")
+        if not (math.isfinite(r) and 0.01 <= r <= 1e5):
+            raise PresetError(f"{where}: key 'range_at_reflectivity' entry {i + 1}: the "
+                              f"range must be 0.01..100000 m, got {f[1]!r}")
+        figures.append((rho, r))
+    if len({rho for rho, _ in figures}) != len(figures):
+        raise PresetError(f"{where}: key 'range_at_reflectivity' gives one reflectivity twice")
+    prob = num(d, "probability_at_range", where, default=DEFAULT_PROBABILITY)
+    if not 0.5 <= prob <= 0.999:
+        raise PresetError(f"{where}: key 'probability_at_range' must be in 0.5..0.999 (the "
+                          f"detection probability a figure stands for), got {prob}")
+    width = num(d, "logistic_width", where, lo=0.01, hi=2.0, default=DEFAULT_WIDTH)
+    intensity = choice(d, "intensity", where, INTENSITY_MODES, default="reflectivity")
+    return DetectionModel(tuple(figures), prob, intensity, width)

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import preset_schema as sch
 from .angle_tables import AngleTable, ccw_offsets_deg, read_angle_table, resolve_table_path
+from .detection import DetectionModel
 from .errors import PatternError, PresetError
 from .patterns.base import ScanPattern
 from .patterns.custom import read_pattern_csv
@@ -28,7 +29,7 @@ FAMILIES = ("spinning", "mems", "risley", "custom")
 SCHEMA_VERSION = 1
 MAX_PRESET_BYTES = 2_000_000
 TOP_KEYS = {"schema", "id", "name", "family", "source", "fitted", "frequency_hz", "range",
-            "dropout", "attenuation_per_m", "scan"}
+            "dropout", "attenuation_per_m", "detection", "scan"}
 PATTERN_CACHE_FRAMES = 4
 
 
@@ -64,6 +65,9 @@ class DevicePreset:
     table: AngleTable = None      # the resolved angle table of a spinning preset, if any
     base_dir: str = ""            # folder that relative file names in [scan] resolve against
     rays_per_frame: int = None    # estimated at validation (None for custom files)
+    # Detection by the LiDAR equation from the datasheet's range-at-reflectivity figures
+    # ([detection]); None: CARLA's model (every hit within range returns)
+    detection: DetectionModel = None
 
     @property
     def period(self):
@@ -210,6 +214,8 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
         intensity_limit=sch.num(dr, "intensity_limit", dw, 0.0, 1.0, default=0.0),
         intensity_zero=sch.num(dr, "intensity_zero", dw, 0.0, 1.0, default=0.0),
     )
+    detection = sch.check_detection(data["detection"], f"{where} [detection]") \
+        if "detection" in data else None
     if "scan" not in data:
         raise PresetError(f"{where}: missing table [scan] (the scan pattern parameters)")
     scan = sch.table_of(data, "scan", where)
@@ -239,6 +245,7 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
         attenuation_per_m=sch.num(data, "attenuation_per_m", where, 0.0, 1.0, default=0.0),
         scan=dict(scan), path=where, fitted=fitted, table=table,
         base_dir="" if base_dir is None else str(base_dir), rays_per_frame=rays,
+        detection=detection,
     )
 
 

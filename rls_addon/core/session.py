@@ -17,6 +17,7 @@ import dataclasses
 import numpy as np
 
 from .bodies import PreparedScene, RigidBodies, TimedScene
+from .detection import detection_info
 from .frame import scan_frame
 from .ground_truth import object_boxes
 from .instances import object_table, static_key, world_geometry
@@ -24,6 +25,7 @@ from .labels import DEFAULT_LABELS
 from .motion import pose_knots
 from .settings import resolve_range, scan_pattern
 from .sweep import SweepMotion, classify, substep_count
+from .weather import parse_weather
 
 MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
 DRIVING_SLACK = 0.25
@@ -183,7 +185,8 @@ class ScanSession:
                    "substeps": {keys[k]: n for k, n in substeps.items()},
                    "sensor_moves": motion.sensor is not None}
         return {
-            "device": {"id": preset.id, "name": preset.name, "source": preset.source},
+            "device": {"id": preset.id, "name": preset.name, "source": preset.source,
+                       "detection": detection_info(preset, settings)},
             **_channels(preset),
             "sensor": sensor,
             "frame": frame,
@@ -195,7 +198,9 @@ class ScanSession:
                         "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
                         "motion": settings.motion, "substeps": settings.substeps,
                         "sweep_start_deg": settings.sweep_start_deg,
-                        "substeps_used": n_used, "ghosting": settings.ghosting},
+                        "substeps_used": n_used, "ghosting": settings.ghosting,
+                        "detection": settings.detection,
+                        "weather": _weather_info(settings)},
             "motion": summary,
             "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
             "backend": scene.backend,
@@ -205,9 +210,17 @@ class ScanSession:
             "objects_read": read.stats.get("objects", len(instances)),
             "objects_culled_by_range": read.stats.get("culled_by_range", 0),
             "ghosts": result.stats.get("ghosts", 0),
+            "weather_returns": result.stats.get("weather_returns", 0),
             "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }
+
+
+def _weather_info(settings):
+    """The sidecar's weather: None (clear) or the spec, extinction coefficient and false
+    return model (``weather.Weather.to_dict``)."""
+    air = parse_weather(settings.weather)
+    return None if air is None else air.to_dict()
 
 
 def _channels(preset):

@@ -10,11 +10,12 @@ value is checked against ``choices`` here, so a typo anywhere ends in one
 import dataclasses
 from dataclasses import dataclass, field
 
-from .choices import BACKENDS, FIELDS, FORMATS, FRAME_SPACES, MOTION
+from .choices import BACKENDS, DETECTION, FIELDS, FORMATS, FRAME_SPACES, MOTION
 from .errors import SettingsError
 from .io.fields import DEFAULT_FIELDS, resolve_fields
 from .io.point_types import POINT_TYPE_CHOICES
 from .labels import OBJECT_CLASSES, label_id, label_name
+from .weather import weather_spec
 
 DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
 DEFAULT_OUTPUT_DIR = "//lidar/"
@@ -47,10 +48,18 @@ class ScanSettings:
     # where each sweep starts and the last one ended; None: the head's forward (0).
     # An object on this seam is scanned at the start and at the end of the sweep.
     sweep_start_deg: float | None = None
+    # Weather as a spec ('fog:visibility=50', 'rain:rate=10', 'snow:rate=2'; see
+    # ``weather``), kept in its canonical form; None: clear air
+    weather: str | None = None
+    # choices.DETECTION: "auto" (the LiDAR equation for presets with datasheet figures)
+    # or "carla" (CARLA's model for every preset, as before the LiDAR equation)
+    detection: str = "auto"
 
     def __post_init__(self):
         FRAME_SPACES.check(self.frame_space)
         MOTION.check(self.motion)
+        DETECTION.check(self.detection)
+        object.__setattr__(self, "weather", weather_spec(self.weather))
         if int(self.substeps) != self.substeps or self.substeps < 0:
             raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "
                                 f"got {self.substeps}")

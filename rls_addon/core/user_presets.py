@@ -28,7 +28,7 @@ def preset_to_dict(preset):
         scan["table_source"] = preset.table.source or preset.table.name
         if preset.table.note:
             scan["table_note"] = preset.table.note
-    return {
+    out = {
         "schema": 1, "id": preset.id, "name": preset.name, "family": preset.family,
         "source": preset.source, "fitted": preset.fitted, "frequency_hz": preset.frequency_hz,
         "attenuation_per_m": preset.attenuation_per_m,
@@ -37,8 +37,14 @@ def preset_to_dict(preset):
         "dropout": {"general_rate": preset.dropout.general_rate,
                     "intensity_limit": preset.dropout.intensity_limit,
                     "intensity_zero": preset.dropout.intensity_zero},
-        "scan": scan,
     }
+    det = preset.detection
+    if det is not None:
+        out["detection"] = {"range_at_reflectivity": [list(f) for f in det.figures],
+                            "probability_at_range": det.probability,
+                            "intensity": det.intensity, "logistic_width": det.width}
+    out["scan"] = scan
+    return out
 
 
 def _value(v, where):

@@ -102,6 +102,22 @@ def test_scan_settings_are_mapped_in_one_place(scene):
     assert st.min_range_m is None and st.max_range_m is None and st.noise_sigma_m is None
 
 
+def test_weather_and_detection_are_mapped_from_the_panel(scene):
+    from rls_addon.blender.sensor import read_settings
+
+    obj = add_lidar_op("livox_mid40")
+    s = obj.rls_lidar
+    st = read_settings(obj).scan
+    assert st.weather is None and st.detection == "auto"
+    s.weather, s.fog_visibility, s.detection = "fog", 50.0, "carla"
+    st = read_settings(obj).scan
+    assert st.weather == "fog:visibility=50" and st.detection == "carla"
+    s.weather, s.precipitation_rate = "rain", 12.5
+    assert read_settings(obj).scan.weather == "rain:rate=12.5"
+    s.weather, s.precipitation_rate, s.snow_type = "snow", 2.0, "wet"
+    assert read_settings(obj).scan.weather == "snow:rate=2,type=wet"
+
+
 def test_motion_mode_reaches_the_sidecar(scene, tmp_path):
     from rls_addon.core.io import read_sidecar
 

@@ -48,7 +48,7 @@ USER_CLASS_BASE = 64
 # RLS label name -> ASPRS class: a standard class where one means the same thing, else
 # the user-definable class 64 + label id (the label itself is also kept as an extra byte).
 _STANDARD = {"unlabeled": 1, "road": 11, "sidewalk": 2, "building": 6, "vegetation": 5,
-             "terrain": 2, "water": 9, "ground": 2}
+             "terrain": 2, "water": 9, "ground": 2, "weather": 18}
 ASPRS_CLASS = {i: _STANDARD.get(name, USER_CLASS_BASE + i) for i, name in DEFAULT_LABELS.items()}
 UNMAPPED_CLASS = 1  # labels beyond the user-definable range: Unclassified
 
