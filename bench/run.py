@@ -1020,6 +1020,14 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         if val:
             L.append(f"- {name}: {val}")
     L.append("")
+    if costs.get("frame_costs"):
+        from bench import frame_costs
+
+        L.extend(frame_costs.report_lines(costs["frame_costs"]))
+    if costs.get("study_costs"):
+        from bench import study_costs
+
+        L.extend(study_costs.section(costs["study_costs"]))
     if costs.get("scale_out"):
         from bench import scale_out
 
@@ -1110,6 +1118,10 @@ def measure(quick):
     costs = engine_costs_section(g, SENSOR_POSE, p64, quick)
     log("bench: a still lidar in Blender (scene extraction included)")
     costs["blender"] = blender_section(g, SENSOR_POSE)
+    log("bench: a frame against its cast, open sky and street (bench/frame_costs.py)")
+    from bench import frame_costs
+
+    costs["frame_costs"] = frame_costs.measure(street=g, quick=quick)
     del g
     gc.collect()
     tri_rows = scaling_triangles(SENSOR_POSE, p64, quick)
@@ -1120,6 +1132,10 @@ def measure(quick):
     from bench import scale_out
 
     costs["scale_out"] = scale_out.measure(repeat=1 if quick else 2)
+    log("bench: a study candidate against its cast (bench/study_costs.py)")
+    from bench import study_costs
+
+    costs["study_costs"] = study_costs.measure(quick)
     info["loadavg_end"] = os.getloadavg()[0]
     return {"machine": info, "devices": dev, "triangles": tri_rows, "rays": ray_rows,
             "memory": mem, "tessellation": tess, "pattern_s": pattern_s, "hooks": hooks,

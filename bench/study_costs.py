@@ -233,22 +233,49 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
             "disks": len(inputs.layout.centres)}
 
 
-def main(argv=None):
-    quick = "--quick" in (argv if argv is not None else sys.argv[1:])
+def measure(quick=False):
+    """Memory, seconds per candidate against its cast, and where the time goes."""
     load = os.getloadavg()
     mem = study_memory_per_1000((50, 150) if quick else (100, 400))
     s, c, ratio = study_seconds_per_candidate(20 if quick else 40, repeat=2 if quick else 3)
     parts = study_cost_parts(20 if quick else 40, repeat=2 if quick else 3)
-    out = {"load_average_before": [round(v, 2) for v in load],
-           "memory": mem,
-           "seconds_per_candidate": {"study_s": round(s, 5), "cast_alone_s": round(c, 5),
-                                     "ratio": round(ratio, 3)},
-           "parts_s_per_candidate": {k: round(v, 5) if isinstance(v, float) else v
-                                     for k, v in parts.items()},
-           "targets": {"kept_bytes_per_candidate <= 50000":
-                       mem["kept_bytes_per_candidate"] <= 50_000, "ratio <= 1.5": ratio <= 1.5},
-           "load_average_after": [round(v, 2) for v in os.getloadavg()]}
+    return {"load_average_before": [round(v, 2) for v in load],
+            "memory": mem,
+            "seconds_per_candidate": {"study_s": round(s, 5), "cast_alone_s": round(c, 5),
+                                      "ratio": round(ratio, 3)},
+            "parts_s_per_candidate": {k: round(v, 5) if isinstance(v, float) else v
+                                      for k, v in parts.items()},
+            "targets": {"kept_bytes_per_candidate <= 50000":
+                        mem["kept_bytes_per_candidate"] <= 50_000, "ratio <= 1.5": ratio <= 1.5},
+            "load_average_after": [round(v, 2) for v in os.getloadavg()]}
+
+
+def section(res):
+    """Markdown of ``measure``'s result for docs/benchmarks.md."""
+    mem, sec, parts = res["memory"], res["seconds_per_candidate"], res["parts_s_per_candidate"]
+    return ["## A study candidate against its cast (issue 18)\n",
+            f"`run_study` on a synthetic junction without Blender (`bench/study_costs.py`: "
+            f"road, sidewalks, 40 buildings, {mem['device']}). A candidate keeps only its "
+            f"counts per disk; the cast alone is the bare backend on the candidate's rays.\n",
+            "| measure | value | target |", "|---|---|---|",
+            f"| seconds per candidate | {sec['study_s'] * 1e3:.1f} ms, "
+            f"**{sec['ratio']:.2f}x** its cast alone ({sec['cast_alone_s'] * 1e3:.1f} ms) | "
+            f"<= 1.5x |",
+            f"| of which: frame and selection / disk counts | "
+            f"{parts['frame_and_select_s'] * 1e3:.1f} ms / {parts['disks_s'] * 1e3:.1f} ms "
+            f"({parts['points_in_region']:,} points in the region, {parts['disks']} disks) | |",
+            f"| memory kept per candidate | **{mem['kept_bytes_per_candidate'] / 1e3:.1f} KB** "
+            f"({mem['kept_mb_per_1000']} MB per 1,000) | <= 50 KB |",
+            f"| peak while scanning, per 1,000 candidates | {mem['scan_peak_mb_per_1000']} MB "
+            f"(whole study: {mem['peak_mb_per_1000']} MB) | |",
+            f"\nLoad average before / after: {res['load_average_before'][0]:.2f} / "
+            f"{res['load_average_after'][0]:.2f}.\n"]
+
+
+def main(argv=None):
+    out = measure("--quick" in (argv if argv is not None else sys.argv[1:]))
     print(json.dumps(out, indent=2))
+    print("\n".join(section(out)))
     return out
 
 
