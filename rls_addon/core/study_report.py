@@ -106,6 +106,7 @@ def report_dict(result):
 
 REPORT_FILES = ("candidates.csv", "placements.csv", "study.json", "pareto.png")
 VISIBILITY_FIELDS = ("share_5", "share_20", "share_50", "mean_points", "never_seen")
+VISIBILITY_ROWS = 30  # candidates listed in visibility.png (the best, and best-set members)
 
 
 def candidate_rows(result):
@@ -197,8 +198,9 @@ def _visibility_png(result):
     import numpy as np
 
     vis, names = result.visibility, [c.name for c in result.candidates]
-    rows = [(c.name, c.infra_d, c.infra_nuc, vis.candidates[i].score)
-            for i, c in enumerate(result.candidates)]
+    shown = _candidates_shown(result)
+    rows = [(result.candidates[i].name, result.candidates[i].infra_d,
+             result.candidates[i].infra_nuc, vis.candidates[i].score) for i in shown]
     counts = result.counts
     for k, s in sorted(result.searches.items()):
         if k == 1:
@@ -225,10 +227,29 @@ def _visibility_png(result):
     axes[0].set_yticks(y)
     axes[0].set_yticklabels(labels, fontsize=7)
     axes[0].invert_yaxis()
+    more = len(result.candidates) - len(shown)
     fig.suptitle(f"{result.scene}: traffic-free metrics and visibility of the traffic over "
-                 f"{len(vis.frames)} frames ({len(vis.vehicle_frames)} vehicle-frames)")
+                 f"{len(vis.frames)} frames ({len(vis.vehicle_frames)} vehicle-frames)"
+                 + (f"\n{len(shown)} of {len(result.candidates)} candidates: the best by "
+                    "visibility and the best sets' members (all in candidates.csv)" if more else ""))
     fig.tight_layout()
     return _fig_bytes(fig)
+
+
+def _candidates_shown(result, limit=VISIBILITY_ROWS):
+    """Indices of the candidates the visibility chart lists, in the study's order: all
+    of them up to ``limit``, else the ``limit`` best by visibility and every member of
+    a best set (a chart of hundreds of rows is neither readable nor quick to draw)."""
+    n = len(result.candidates)
+    if n <= limit:
+        return list(range(n))
+    vis = result.visibility
+    keep = set(sorted(range(n), key=lambda i: (-vis.candidates[i].score, i))[:limit])
+    for k, s in result.searches.items():
+        keep.update(s.best.members)
+        if k in vis.best:
+            keep.update(vis.best[k].members)
+    return sorted(keep)
 
 
 def _fig_bytes(fig):

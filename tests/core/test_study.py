@@ -323,3 +323,13 @@ def test_study_report_carries_visibility(tmp_path):
     assert set(summary["best_by_visibility"]) == {"1", "2"}
     assert "share_20" in (tmp_path / "placements.csv").read_text().splitlines()[0]
     assert (tmp_path / "visibility.png").read_bytes()[:4] == b"\x89PNG"
+    # a long study lists its best candidates by visibility and the best sets' members
+    from rls_addon.core.study_report import _candidates_shown
+
+    n = len(res.candidates)
+    assert _candidates_shown(res) == list(range(n))
+    shown = _candidates_shown(res, limit=1)
+    top = max(range(n), key=lambda i: (res.visibility.candidates[i].score, -i))
+    members = {m for s in res.searches.values() for m in s.best.members} | {
+        m for v in res.visibility.best.values() for m in v.members}
+    assert set(shown) == {top} | members and shown == sorted(shown)
