@@ -2,6 +2,7 @@
 ``blender -b scene.blend -c rls``. Errors become one line on stderr and exit code 1."""
 
 import argparse
+import re
 import sys
 
 from .commands import load_commands
@@ -20,11 +21,28 @@ def build_parser():
     return parser
 
 
+# A list or range that starts with a negative number: "-20:20:20", "-10,0,10"
+NEGATIVE_LIST = re.compile(r"^-\d[\d.]*(?:[:,]-?\d[\d.]*)+$")
+
+
+def joined_negative_values(argv):
+    """``--yaw -20:20:20`` as ``--yaw=-20:20:20``: argparse takes a value that starts
+    with "-" and is not a plain number for an option and stops with "expected one
+    argument"."""
+    out = []
+    for arg in argv:
+        if out and NEGATIVE_LIST.match(arg) and out[-1].startswith("--") and "=" not in out[-1]:
+            out[-1] = f"{out[-1]}={arg}"
+        else:
+            out.append(arg)
+    return out
+
+
 def main(argv=None):
     """Run one command; return the process exit code."""
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(joined_negative_values(sys.argv[1:] if argv is None else argv))
     except SystemExit as exc:  # --help, --version, usage errors
         return int(exc.code or 0)
     try:
