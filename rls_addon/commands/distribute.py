@@ -94,8 +94,7 @@ def run_scan(args, run, blend, by_sensor=True):
     notices = []
     with cluster_client(workers, args.scheduler) as client:
         size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
-        rays = {j.name: len(j.preset.pattern(run.frames[0])) for j in run.sensors}
-        pieces = run.pieces(size * PIECES_PER_WORKER, by_sensor, cost=lambda j: rays[j.name])
+        pieces = run.pieces(size * PIECES_PER_WORKER, by_sensor)
         print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
               + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
               file=sys.stderr, flush=True)

@@ -222,28 +222,17 @@ class ScanRun:
 
     # ---- a run spread over workers ------------------------------------------------------
 
-    def pieces(self, count, by_sensor=True, cost=None):
-        """The plan split into about ``count`` pieces of [(sensor names, frames)]:
+    def pieces(self, count, by_sensor=True):
+        """The plan split into at most ``count`` pieces of [(sensor names, frames)]:
         per sensor, runs of consecutive frames (a worker keeps a still sensor's cast
         and a sensor's prepared scene over its frames); with ``by_sensor=False`` runs
-        of frames with every sensor (layouts whose files need a whole frame).
-
-        A sensor's frames are split only when there are fewer sensors than pieces: a
-        sensor split over two workers is prepared, and its still scene cast, on both
-        (measured on the bench's six LiDARs: 1.16x the work of one process with two
-        pieces per LiDAR). ``cost(job)``: a sensor's cost per frame (e.g. its rays);
-        pieces are then handed out dearest first, so the cheap ones fill the gaps at
-        the end."""
+        of frames with every sensor (layouts whose files need a whole frame)."""
         from .cluster import shards
 
         if not by_sensor:
             return [([j.name for j in self.sensors], f) for f in shards(self.frames, count)]
-        per = max(1, count // len(self.sensors))
-        jobs = self.sensors if cost is None else sorted(self.sensors, key=cost, reverse=True)
-        out = [(j, f) for j in jobs for f in shards(self.frames, per)]
-        if cost is not None:
-            out.sort(key=lambda p: cost(p[0]) * len(p[1]), reverse=True)
-        return [([j.name], f) for j, f in out]
+        per = max(1, -(-count // len(self.sensors)))
+        return [([j.name], f) for j in self.sensors for f in shards(self.frames, per)]
 
     def absorb(self, steps, id_map, warnings=()):
         """Take a piece's steps (run elsewhere) into this run, then, once every step of

@@ -219,23 +219,3 @@ def test_overrides_change_only_the_fields_given():
     assert got.output.fields == ("x", "y", "z", "range") and got.preset == "velodyne_vlp16"
     assert OutputSettings(fields=("ring", "x", "y", "z", "range")).fields == \
         ("x", "y", "z", "range", "ring")  # always the files' own order
-
-
-def test_pieces_keep_whole_sensors_when_there_are_enough_and_hand_out_the_dearest_first():
-    scene = street()
-    jobs = [job(n) for n in ("a", "b", "c")]
-    run = run_of(scene, jobs, list(range(1, 13)))
-    cost = {"a": 1, "b": 5, "c": 2}
-    # 4 pieces for 3 sensors: no sensor is split; dearest first
-    assert run.pieces(4, cost=lambda j: cost[j.name]) == [
-        (["b"], list(range(1, 13))), (["c"], list(range(1, 13))), (["a"], list(range(1, 13)))]
-    # 6 pieces: each sensor's frames in two runs, every step exactly once
-    six = run.pieces(6, cost=lambda j: cost[j.name])
-    assert [p[0][0] for p in six] == ["b", "b", "c", "c", "a", "a"]
-    assert sorted((n[0], f) for n, fs in six for f in fs) == sorted(
-        (s, f) for s in "abc" for f in range(1, 13))
-    # without costs, in the run's sensor order; by frames with every sensor
-    assert [p[0] for p in run.pieces(3)] == [["a"], ["b"], ["c"]]
-    assert run.pieces(3, by_sensor=False) == [(["a", "b", "c"], [1, 2, 3, 4]),
-                                              (["a", "b", "c"], [5, 6, 7, 8]),
-                                              (["a", "b", "c"], [9, 10, 11, 12])]
