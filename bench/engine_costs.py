@@ -29,6 +29,9 @@ class _Recorder:
     def __init__(self, inner, log):
         self.inner, self.log, self.name = inner, log, getattr(inner, "name", "caster")
 
+    def start_refined(self, *args):
+        return None  # cast here, and refine after (cast_exact), so every ray is recorded
+
     def cast(self, origins, directions, max_dist):
         self.log.append((self.inner, np.broadcast_to(origins, directions.shape).copy(),
                          directions.copy(), float(max_dist)))
