@@ -1082,6 +1082,10 @@ def main():
     charts["disks"] = "bench_infranuc_disks.png"
     ec.chart_motion(res["costs"]["motion"]["embree"], out / charts["motion"])
     ec.chart_disks(res["costs"]["disks"], out / charts["disks"])
+    if res["costs"].get("fog"):
+        from bench import realism_chart
+
+        realism_chart.chart(res["costs"]["fog"], out / "realism_fog.png")
     r = write_report(out / "benchmarks.md", res["machine"], res["devices"], res["triangles"],
                      res["rays"], res["memory"], res["tessellation"], res["pattern_s"],
                      charts, res["hooks"], res["seconds"], res["costs"])
@@ -1132,6 +1136,10 @@ def measure(quick):
     from bench import scale_out
 
     costs["scale_out"] = scale_out.measure(repeat=1 if quick else 2)
+    log("bench: points kept in fog against visibility (bench/realism_chart.py)")
+    from bench import realism_chart
+
+    costs["fog"] = realism_chart.measure()
     log("bench: a study candidate against its cast (bench/study_costs.py)")
     from bench import study_costs
 

@@ -209,12 +209,16 @@ def test_fog_dims_returns_by_the_two_way_transmission():
         assert ratio == pytest.approx(want, rel=2e-3), (preset.detection, ratio, want)
 
 
-def test_fog_shortens_the_detection_range_as_the_equation_says():
+@pytest.mark.parametrize("r, v, rho", [(38.0, 150.0, 0.10), (30.0, 50.0, 0.80),
+                                       (40.0, 50.0, 0.80)])
+def test_fog_shortens_the_detection_range_as_the_equation_says(r, v, rho):
+    """The share of rays returning from a wall in fog: the detection probability of its
+    received power dimmed by the two-way transmission (less the rays a false return
+    took first); within 4 sigma of the binomial and within 2 points."""
     preset = device()
-    r, v = 60.0, 150.0
     t2 = math.exp(-2.0 * 3.912 / v * r)
-    got = share_on(scan(wall(r, 0.10), beam(N), preset, weather=f"fog:visibility={v:g}"), N)
-    want = float(preset.detection.probability_of(0.10 * t2 / r ** 2))
+    got = share_on(scan(wall(r, rho), beam(N), preset, weather=f"fog:visibility={v:g}"), N)
+    want = float(preset.detection.probability_of(rho * t2 / r ** 2))
     # rays whose false return came first are not on the wall
     p_false = weather.false_return_probability(3.912 / v)
     r_near = max(preset.range.min_m, weather.OVERLAP_M)
@@ -222,7 +226,7 @@ def test_fog_shortens_the_detection_range_as_the_equation_says():
     pdf = weather.false_return_pdf(grid, 3.912 / v, r_near, preset.range.max_m)
     before = float(np.sum((pdf[1:] + pdf[:-1]) * 0.5 * np.diff(grid)))
     want *= 1.0 - p_false * before
-    assert abs(got - want) <= tolerance(want, N), (got, want)
+    assert abs(got - want) <= min(tolerance(want, N), 0.02), (got, want)
 
 
 def _cdf(grid, pdf):
