@@ -24,9 +24,9 @@ import math
 
 import numpy as np
 
+from .disk_counter import DiskCounter
 from .errors import InputError, RegionError, SettingsError
-from .metrics import (DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, count_in_disks,
-                      select_xy)
+from .metrics import DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, select_xy
 from .polygon import as_polygon, sample_in_polygon, shoelace_area
 
 DEFAULT_WEIGHTS = tuple(np.round(np.linspace(0.0, 1.0, 11), 2))
@@ -44,6 +44,7 @@ class DiskLayout:
     radius_m: float
     seed: int
     disk_placement: str = "inside"
+    _counter: object = dataclasses.field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def make(cls, polygon, disks=DEFAULT_DISKS, radius=DEFAULT_RADIUS_M, seed=DEFAULT_SEED,
@@ -68,7 +69,11 @@ class DiskLayout:
         return select_xy(clouds, self.polygon, label_ids)[0]
 
     def counts(self, xy):
-        return count_in_disks(xy, self.centres, self.radius_m)
+        """Points of ``xy`` in each disk: ``count_in_disks``'s counts, with what depends on
+        the disks alone worked out once per layout (``DiskCounter``)."""
+        if self._counter is None:
+            self._counter = DiskCounter(self.centres, self.radius_m)
+        return self._counter.counts(xy)
 
 
 def set_metrics(n_points, disk_counts, area_m2, p):
