@@ -93,7 +93,6 @@ def scene_ratios(geometry, pose, preset, repeat=7, bvh_repeat=2):
         bvh = min(bvh, _best(lambda: scan_frame(bscene, pattern, pose, preset, settings),
                              bvh_repeat))
     out.update(bvh_bare_loop_s=bare, bvh_frame_s=bvh, bvh_over_bare=bvh / bare)
-    del scene, bscene, raw
     return out
 
 

@@ -63,8 +63,8 @@ def test_scan_frame_writes_only_the_chosen_fields_and_colours_the_preview(scene,
     from rls_addon.core.io import read_records, read_sidecar
 
     labelled_ground()
-    obj = add_lidar_op(out=tmp_path, file_format="ply_binary", fields={"intensity", "label"},
-                       frame_space="world", preview_color="ring")
+    add_lidar_op(out=tmp_path, file_format="ply_binary", fields={"intensity", "label"},
+             frame_space="world", preview_color="ring")
     assert bpy.ops.rls.scan_frame() == {"FINISHED"}
     files = _files(tmp_path)
     assert files == ["Scene_LiDAR_000001.json", "Scene_LiDAR_000001.ply", "Scene_instances.json"]

@@ -23,6 +23,16 @@ if not hasattr(bpy.types.Object, "rls_lidar"):
 """
 
 
+def build_blend(folder, name, script, *extra):
+    """Run a scene-building ``script`` (``SCENE_SCRIPT_HEAD`` + its own lines) in a
+    subprocess with argv = [repository, FOLDER/NAME, *extra]; return the .blend path."""
+    blend = Path(folder) / name
+    proc = subprocess.run([sys.executable, "-c", script, str(ROOT), str(blend),
+                           *map(str, extra)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return blend
+
+
 def rls(*args, cwd=None, timeout=600):
     """Run ``python -m rls_addon ARGS``; return the CompletedProcess (text mode)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))

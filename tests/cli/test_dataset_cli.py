@@ -4,13 +4,11 @@ OpenPCDet's files, Open3D's legacy reader and PyYAML as OpenCOOD reads OPV2V."""
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from .conftest import ROOT, SCENE_SCRIPT_HEAD, rls
+from .conftest import SCENE_SCRIPT_HEAD, build_blend, rls
 
 FRAMES = (26, 29)
 FPS = 10.0
@@ -38,12 +36,7 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 
 @pytest.fixture(scope="module")
 def junction(tmp_path_factory):
-    d = tmp_path_factory.mktemp("junction")
-    blend = d / "intersection.blend"
-    proc = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(blend)],
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return blend
+    return build_blend(tmp_path_factory.mktemp("junction"), "intersection.blend", BUILD)
 
 
 def car_at(name, seconds):

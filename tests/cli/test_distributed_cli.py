@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import ROOT, SCENE_SCRIPT_HEAD, rls
+from .conftest import ROOT, SCENE_SCRIPT_HEAD, build_blend, rls
 
 distributed = pytest.importorskip("distributed")
 
@@ -42,12 +42,7 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 
 @pytest.fixture(scope="module")
 def scene(tmp_path_factory):
-    d = tmp_path_factory.mktemp("dask")
-    blend = d / "junction.blend"
-    proc = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(blend)],
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return blend
+    return build_blend(tmp_path_factory.mktemp("dask"), "junction.blend", BUILD)
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from .conftest import ROOT, SCENE_SCRIPT_HEAD, one_line_error, rls
+from .conftest import ROOT, SCENE_SCRIPT_HEAD, build_blend, one_line_error, rls
 
 SPEED = 5.55   # m/s of the moving box
 FPS = 25
@@ -68,11 +68,7 @@ assert bpy.ops.rls.scan_frame() == {"FINISHED"}
 @pytest.fixture(scope="module")
 def moving_blend(tmp_path_factory):
     d = tmp_path_factory.mktemp("moving")
-    blend = d / "moving.blend"
-    proc = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(blend), str(d / "panel")],
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return blend
+    return build_blend(d, "moving.blend", BUILD, d / "panel")
 
 
 def test_scan_writes_what_the_output_panel_says_unless_a_flag_overrides(moving_blend, tmp_path):

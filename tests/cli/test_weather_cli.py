@@ -2,13 +2,11 @@
 sensor, labelled 'weather', and the sidecar records the weather and the device's
 detection model."""
 
-import subprocess
-import sys
 
 import numpy as np
 import pytest
 
-from .conftest import ROOT, SCENE_SCRIPT_HEAD, one_line_error, rls
+from .conftest import SCENE_SCRIPT_HEAD, build_blend, one_line_error, rls
 
 BUILD = SCENE_SCRIPT_HEAD + r"""
 scene = bpy.context.scene
@@ -43,11 +41,7 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 @pytest.fixture(scope="module")
 def foggy_blend(tmp_path_factory):
     d = tmp_path_factory.mktemp("foggy")
-    blend = d / "foggy.blend"
-    proc = subprocess.run([sys.executable, "-c", BUILD, str(ROOT), str(blend), str(d / "panel")],
-                          capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return blend
+    return build_blend(d, "foggy.blend", BUILD, d / "panel")
 
 
 def _scan(blend, out, *flags):
