@@ -7,15 +7,31 @@ the core validates with and the command line offers.
 """
 
 import bpy
-from bpy.props import (BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty,
-                       StringProperty)
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 
 from .blender import preset_catalog
 from .blender.preview import COLOR_ATTRIBUTES
 from .blender.region import is_lob
 from .blender.sensor import DEFAULT_PRESET
-from .core.choices import (BACKENDS, DETECTION, FIELDS, FORMATS, FRAME_SPACES, MOTION,
-                           SNOW_TYPES, WEATHER)
+from .core.choices import (
+    BACKENDS,
+    DETECTION,
+    FIELDS,
+    FOOTPRINT,
+    FORMATS,
+    FRAME_SPACES,
+    MOTION,
+    RETURN_MODES,
+    SNOW_TYPES,
+    WEATHER,
+)
 from .core.errors import RLSError
 from .core.io import DEFAULT_FIELDS
 from .core.io.point_types import POINT_TYPE_CHOICES
@@ -149,6 +165,14 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
     detection: EnumProperty(name="Detection", items=DETECTION.items(), default="auto",
                             description="What the device detects: the LiDAR equation from "
                                         "its datasheet's range figures, or CARLA's model")
+    footprint: EnumProperty(name="Beam Footprint", items=FOOTPRINT.items(), default="auto",
+                            description="A beam as a cone of the preset's divergence: rays "
+                                        "next to a depth edge bring back several echoes "
+                                        "or a mixed point (presets without a divergence: "
+                                        "thin rays)")
+    return_mode: EnumProperty(name="Return Mode", items=RETURN_MODES.items(),
+                              default="preset",
+                              description="Which echoes of a pulse the device reports")
     weather: EnumProperty(name="Weather", items=WEATHER.items(), default="clear",
                           description="Fog, rain or snow: returns are dimmed by the air's "
                                       "two-way transmission (and lost where the device's "

@@ -186,6 +186,10 @@ class OBJECT_PT_rls_lidar_range(_LidarPanel, bpy.types.Panel):
         sub.prop(s, "noise_sigma", text="")
         layout.prop(s, "seed")
         layout.prop(s, "detection")
+        layout.prop(s, "footprint")
+        row = layout.row()
+        row.active = s.footprint != "off"
+        row.prop(s, "return_mode")
         layout.prop(s, "weather")
         if s.weather == "fog":
             layout.prop(s, "fog_visibility")

@@ -57,6 +57,8 @@ def read_settings(obj):
         sweep_start_deg=float(s.sweep_start) if s.use_sweep_start else None,
         weather=weather_spec_of(s),
         detection=s.detection,
+        footprint=s.footprint,
+        return_mode=s.return_mode,
     )
     output = OutputSettings(directory=s.output_dir, format=s.file_format,
                             fields=("x", "y", "z") + tuple(sorted(s.fields)),

@@ -60,6 +60,7 @@ def run(args):
         out = _summary(p)
         out.update(dropout=vars(p.dropout), attenuation_per_m=p.attenuation_per_m,
                    detection=None if p.detection is None else p.detection.to_dict(),
+                   beam=None if p.beam is None else p.beam.to_dict(),
                    scan=p.scan)
         if p.table is not None:
             out["table"] = {"file": p.scan.get("table"), "channels": len(p.table.elevations_deg),

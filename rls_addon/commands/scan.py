@@ -7,9 +7,18 @@ every LiDAR of the run."""
 import json
 import sys
 
-from ..core.choices import BACKENDS, DETECTION, FIELDS, FORMATS, FRAME_SPACES, MOTION
-from ..core.io.point_types import POINT_TYPES
+from ..core.choices import (
+    BACKENDS,
+    DETECTION,
+    FIELDS,
+    FOOTPRINT,
+    FORMATS,
+    FRAME_SPACES,
+    MOTION,
+    RETURN_MODES,
+)
 from ..core.errors import SceneError
+from ..core.io.point_types import POINT_TYPES
 from .distribute import add_arguments as add_cluster_arguments
 
 
@@ -72,6 +81,14 @@ def add_parser(sub):
                    help="what is detected: the LiDAR equation from the preset's datasheet "
                         "figures where it has them (auto), or CARLA's model for every "
                         "preset (carla) (default: each LiDAR's)")
+    p.add_argument("--footprint", choices=FOOTPRINT.ids, default=None,
+                   help="beam footprints: a beam is a cone of the preset's divergence, "
+                        "sampled near depth edges into multiple returns and mixed points "
+                        "(auto; presets without a divergence keep thin rays), or thin rays "
+                        "always (off) (default: each LiDAR's); see docs/realism.md")
+    p.add_argument("--return-mode", choices=RETURN_MODES.ids, default=None,
+                   help="which echoes of a pulse are reported: the device's (preset), the "
+                        "strongest, the last, or both (dual) (default: each LiDAR's)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="skip scans whose cloud and sidecar already exist and agree "
@@ -94,7 +111,8 @@ def overrides(args):
             "sweep_start_deg": args.sweep_start, "point_type": args.point_type,
             "start_time_s": args.start_time, "crs": args.crs,
             "las_offset": _offset(args.las_offset), "weather": _weather(args.weather),
-            "detection": args.detection,
+            "detection": args.detection, "footprint": args.footprint,
+            "return_mode": args.return_mode,
             "ghosting": None if args.ghosting is None else args.ghosting == "on"}
 
 
@@ -177,8 +195,13 @@ def _print_step(step):
 def scan_run(args):
     """The core's ``ScanRun`` for these arguments: the scene opened, every LiDAR's
     settings read and overridden, outputs checked."""
-    from ..blender.sensor import absolute_output, find_lidar, lidar_objects, read_settings, \
-        sensor_job
+    from ..blender.sensor import (
+        absolute_output,
+        find_lidar,
+        lidar_objects,
+        read_settings,
+        sensor_job,
+    )
     from ..blender.source import BlenderScene
     from ..core.io.writer import make_writer
     from ..core.run import ScanRun

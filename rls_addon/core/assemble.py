@@ -11,7 +11,9 @@ from the scan's seeded generator (``Draws``): the bytes never depend on the path
 
 Frames with detection by the LiDAR equation (``detection``), weather (its two-way
 transmission and false returns from the air, ``weather``) or another reported
-intensity than CARLA's are assembled in numpy only (``_assemble_lidar_equation``).
+intensity than CARLA's are assembled in numpy only (``_assemble_lidar_equation``), and
+so are frames whose beam footprints changed a return (``footprint``: echoes detected
+there, second echoes as extra rows).
 """
 
 import ctypes
@@ -63,6 +65,15 @@ class Hits:
     # Rows whose return is a false one from the air (weather), and its range
     medium_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     medium_dist: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    # Rows whose return is an echo of their beam's footprint (``footprint``): detected
+    # there already, with the echo's effective rho |cos| and CARLA intensity (before
+    # T^2); per row, each point's return index and its pulse's number of returns
+    # (None: 1 and 1)
+    echo_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    echo_rho_cos: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    echo_carla: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    return_index: np.ndarray | None = None
+    num_returns: np.ndarray | None = None
 
 
 @dataclass
@@ -115,7 +126,7 @@ def intensities(hits, dirs, attenuation_per_m=0.0):
 
 def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
     """The reference: (points, index of each point's ray, back-face flag per point)."""
-    if not effects.plain or len(hits.medium_rows):
+    if not effects.plain or len(hits.medium_rows) or len(hits.echo_rows):
         return _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields)
     inten, dot = intensities(hits, rays.dirs, effects.attenuation_per_m)
     d = hits.dist if draws.noise is None else hits.dist + draws.noise
@@ -149,7 +160,11 @@ def _records(hits, rays, idx, d, inten, frame_space, fields, medium=None):
     columns = {"range": lambda: d, "intensity": lambda: inten.take(idx),
                "ring": lambda: rays.rings.take(idx), "time": lambda: rays.times.take(idx),
                "label": lambda: hits.labels[obj], "instance": lambda: hits.instances[obj],
-               "ghost": lambda: 0 if hits.ghost is None else hits.ghost.take(idx)}
+               "ghost": lambda: 0 if hits.ghost is None else hits.ghost.take(idx),
+               "return_index": lambda: 1 if hits.return_index is None
+               else hits.return_index.take(idx),
+               "num_returns": lambda: 1 if hits.num_returns is None
+               else hits.num_returns.take(idx)}
     if medium is not None and medium.any():
         ghost = columns["ghost"]
         columns.update(
@@ -183,6 +198,10 @@ def _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields):
         dot[g] = hits.ghost_dot
         rho_cos[g] = hits.ghost_intensity
         carla[g] = hits.ghost_intensity
+    e = hits.echo_rows
+    if len(e):
+        rho_cos[e] = hits.echo_rho_cos
+        carla[e] = hits.echo_carla
     dist, valid = hits.dist, hits.valid
     m = hits.medium_rows
     medium = None
@@ -204,6 +223,8 @@ def _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields):
         detected = draws.detect < model.probability_of(power)
         if medium is not None:
             detected |= medium
+        if len(e):  # detected echo by echo (footprint.resolve)
+            detected[e] = True
         keep &= detected
     if effects.intensity == "reflectivity":
         inten = np.clip(rho_cos * t2, 0.0, 1.0)
@@ -304,7 +325,7 @@ def assemble(hits, rays, draws, effects, frame_space, fields=None):
     """(points, ray index per point, back-face flag per point): in C where it can,
     else ``assemble_numpy``; the same bytes either way."""
     fn = native() if compiled and not effects.attenuation_per_m and effects.plain \
-        and not len(hits.medium_rows) else None
+        and not len(hits.medium_rows) and not len(hits.echo_rows) else None
     if fn is None:
         return assemble_numpy(hits, rays, draws, effects, frame_space, fields)
     return _assemble_native(fn, hits, rays, draws, effects, frame_space, fields)
@@ -360,4 +381,7 @@ def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
     back = np.empty(got, np.uint8)
     args.out, args.index, args.back = out.ctypes.data, index.ctypes.data, back.ctypes.data
     write(ctypes.byref(args), keep_rays.ctypes.data, threads)
+    for f in ("return_index", "num_returns"):  # fields points.c does not know: one echo
+        if f in dtype.names:
+            out[f] = 1
     return out, index, back.view(bool)

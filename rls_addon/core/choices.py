@@ -64,6 +64,22 @@ DETECTION = Choices("detection model", [
                        "returns (then noise and the preset's dropout)"),
 ])
 
+FOOTPRINT = Choices("beam footprint", [
+    ("auto", "Preset's Beam", "A beam is a cone of the preset's divergence: rays next to a "
+                              "depth edge cast sub-rays, and their echoes become multiple "
+                              "returns or mixed points (presets without a divergence: one "
+                              "thin ray)"),
+    ("off", "Off", "Every ray is one thin line with one return (as before footprints)"),
+])
+
+RETURN_MODES = Choices("return mode", [
+    ("preset", "Preset", "The device's own return mode (its preset's; strongest unless "
+                         "it says otherwise)"),
+    ("strongest", "Strongest", "The strongest detected echo of each pulse"),
+    ("last", "Last", "The farthest detected echo of each pulse"),
+    ("dual", "Dual", "The strongest and the last echo (one point when they are the same)"),
+])
+
 WEATHER = Choices("weather", [
     ("clear", "Clear", "Clear air: no extinction, no false returns"),
     ("fog", "Fog", "Fog of a visibility in metres (Koschmieder extinction 3.912 / V)"),
@@ -114,4 +130,7 @@ FIELDS = Choices("point field", [
     ("instance", "Instance", "Per-object id (uint32)"),
     ("ghost", "Ghost", "1 for ghost points from glossy surfaces (uint8)"),
     ("range", "Range", "Distance along the ray in metres (float32)"),
+    ("return_index", "Return Index", "Rank by range of the echo among its pulse's echoes, "
+                                     "1 = nearest (uint8)"),
+    ("num_returns", "Number of Returns", "Echoes the pulse brought back (uint8)"),
 ])

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import blas, effects, ghost, weather
+from . import blas, effects, footprint, ghost, weather
 from .assemble import Draws, Effects, Hits, Rays, _dot, assemble
 from .bodies import PreparedScene
 from .detection import detection_of
@@ -111,10 +111,10 @@ class _Bounces:
         if obj_glossy.any():
             glossy |= obj_glossy[obj]
         cand = np.nonzero(glossy & ret.valid)[0]
-        self.stats = {"glossy_hits": int(len(cand)), "ghosts": 0, "bounce_rays": 0}
+        self.stats = {"glossy_hits": len(cand), "ghosts": 0, "bounce_rays": 0}
         self.chosen = cand[rng.random(len(ret.dist))[cand] < mat_ratio[mat[cand]]] \
             if len(cand) else cand
-        self.stats["bounce_rays"] = int(len(self.chosen))
+        self.stats["bounce_rays"] = len(self.chosen)
         self.pending = None
         if len(self.chosen) == 0:
             return
@@ -145,7 +145,7 @@ class _Bounces:
         fi = np.nonzero(found)[0]
         g = self.chosen[fi]
         ret.valid[self.chosen[~found]] = False
-        self.stats["ghosts"] = int(len(g))
+        self.stats["ghosts"] = len(g)
         if len(g) == 0:
             return none, np.zeros((0, 3)), np.zeros(0)
         mirror = self.world.geometry.material_field("reflectivity")[ret.surface[g, 1]]
@@ -226,6 +226,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
     model = detection_of(preset, s)          # None: CARLA's model
     air = weather.parse_weather(s.weather)   # None: clear
+    beam = footprint.beam_of(preset, s)      # None: thin rays, one return each
 
     n = len(pattern)
     substeps_used = None
@@ -277,6 +278,9 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         hit = (tri >= 0) & (dist <= rmax)
         first_hit = (np.where(hit, ret.surface[:, 0], -1).astype(np.int32),
                      np.where(hit, dist, np.inf))
+    # Rays next to a depth edge cast their beam's sub-rays (before ghosts change rows)
+    sub = footprint.SubRays(beam, world, pattern, origins, dirs, tscene, ret, tri, rmax) \
+        if beam is not None else None
     bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
         if s.ghosting and ret.valid.any() else None
 
@@ -307,18 +311,38 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
             ghost_dot = _dot(last_leg, ret.normals.take(rows, axis=0))
             ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]],
                                                    np.abs(ghost_dot), ret.dist[rows], atten)
+    echoes = None
+    if sub is not None and sub.count:
+        # Drawn last and only here: the key of the detection uniforms of echoes that do
+        # not hold the centre ray (footprint._uniforms)
+        key = int(rng.integers(0, 2 ** 63)) if model is not None else 0
+        skip = np.concatenate([bounces.chosen if bounces is not None else rows, medium_rows])
+        echoes, fstats = footprint.resolve(sub, ret, dirs, skip, refl, model, draws.detect,
+                                           key, 0.0 if air is None else air.alpha, atten,
+                                           rmin, rmax)
+        stats.update(fstats)
+    elif sub is not None:
+        stats.update(footprint_rays=0, footprint_sub_rays=sub.probes)
     hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
                 ghost_int, refl, g.object_field("label"), g.object_field("instance"),
                 medium_rows, medium_dist)
     rays = Rays(dirs, origins, pattern.columns, pattern.channels, pattern.times)
+    parent = None
+    if echoes is not None:
+        hits, rays, draws, parent = footprint.extend(hits, rays, draws, echoes)
     fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
                  preset.dropout.intensity_zero, atten, model,
                  "carla" if model is None else model.intensity,
                  0.0 if air is None else air.alpha)
     pts, idx, back = assemble(hits, rays, draws, fx, s.frame_space, fields)
+    if parent is not None:  # second echoes next to their pulse's first, rows to rays
+        idx = parent[idx]
+        if len(idx) and np.any(idx[1:] < idx[:-1]):
+            order = np.argsort(idx, kind="stable")
+            pts, idx, back = pts[order], idx[order], back[order]
     surfaces = idx
     if len(medium_rows):  # false returns from the air lie on no object
-        real = ~np.isin(idx, medium_rows, assume_unique=True)
+        real = ~np.isin(idx, medium_rows, assume_unique=parent is None)
         stats["weather_returns"] = int(len(idx) - np.count_nonzero(real))
         surfaces, back = idx[real], back[real]
     elif air is not None:

@@ -10,6 +10,10 @@ time        float64  seconds since the start of the frame's sweep
 label       uint32   semantic class id (see ``labels``)
 instance    uint32   stable per-object id (0 = none)
 ghost       uint8    1 for a ghost point from a specular bounce
+return_index uint8   1-based rank by range of this echo among the detected echoes of
+                     its pulse (1 for a pulse with one echo; see ``footprint``)
+num_returns uint8    how many echoes the pulse's beam brought back (1 unless its
+                     footprint straddled a depth edge)
 """
 
 import numpy as np
@@ -26,6 +30,8 @@ POINT_DTYPE = np.dtype(
         ("label", np.uint32),
         ("instance", np.uint32),
         ("ghost", np.uint8),
+        ("return_index", np.uint8),
+        ("num_returns", np.uint8),
     ]
 )
 

@@ -240,7 +240,6 @@ def check_risley(s, where, frequency_hz):
 def check_custom(s, where):
     no_unknown(s, CUSTOM_KEYS, where)
     string(s, "file", where)
-    return None
 
 
 # ---- [detection] ----------------------------------------------------------------------
@@ -297,3 +296,28 @@ def check_detection(d, where):
     width = num(d, "logistic_width", where, lo=0.01, hi=2.0, default=DEFAULT_WIDTH)
     intensity = choice(d, "intensity", where, INTENSITY_MODES, default="reflectivity")
     return DetectionModel(tuple(figures), prob, intensity, width)
+
+
+# ---- [beam] ---------------------------------------------------------------------------
+
+BEAM_KEYS = {"divergence_rad", "return_mode", "echo_separation_m"}
+
+
+def check_beam(d, where):
+    """Validate a ``[beam]`` table and build its ``footprint.Beam``: ``divergence_rad``
+    (the full divergence angle, one number or [horizontal, vertical], 0..0.1 rad),
+    optional ``return_mode`` (strongest | last | dual, default strongest) and
+    ``echo_separation_m`` (two echoes closer than this are one, default 1 m)."""
+    from .footprint import ECHO_SEPARATION_M, RETURN_MODES, Beam
+
+    if not isinstance(d, dict):
+        raise PresetError(f"{where}: must be a table of keys")
+    no_unknown(d, BEAM_KEYS, where)
+    div = d.get("divergence_rad", 0.0)
+    if isinstance(div, list):
+        hv = numlist(d, "divergence_rad", where, 0.0, 0.1, length=2)
+    else:
+        hv = [num(d, "divergence_rad", where, 0.0, 0.1, default=0.0)] * 2
+    mode = choice(d, "return_mode", where, RETURN_MODES, default="strongest")
+    sep = num(d, "echo_separation_m", where, 0.01, 100.0, default=ECHO_SEPARATION_M)
+    return Beam(tuple(hv), mode, sep)

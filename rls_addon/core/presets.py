@@ -29,7 +29,7 @@ FAMILIES = ("spinning", "mems", "risley", "custom")
 SCHEMA_VERSION = 1
 MAX_PRESET_BYTES = 2_000_000
 TOP_KEYS = {"schema", "id", "name", "family", "source", "fitted", "frequency_hz", "range",
-            "dropout", "attenuation_per_m", "detection", "scan"}
+            "dropout", "attenuation_per_m", "detection", "beam", "scan"}
 PATTERN_CACHE_FRAMES = 4
 
 
@@ -68,6 +68,9 @@ class DevicePreset:
     # Detection by the LiDAR equation from the datasheet's range-at-reflectivity figures
     # ([detection]); None: CARLA's model (every hit within range returns)
     detection: DetectionModel = None
+    # The beam's divergence, return mode and echo separation ([beam], footprint.Beam);
+    # None: a thin ray with one return
+    beam: object = None
 
     @property
     def period(self):
@@ -216,6 +219,7 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
     )
     detection = sch.check_detection(data["detection"], f"{where} [detection]") \
         if "detection" in data else None
+    beam = sch.check_beam(data["beam"], f"{where} [beam]") if "beam" in data else None
     if "scan" not in data:
         raise PresetError(f"{where}: missing table [scan] (the scan pattern parameters)")
     scan = sch.table_of(data, "scan", where)
@@ -245,7 +249,7 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
         attenuation_per_m=sch.num(data, "attenuation_per_m", where, 0.0, 1.0, default=0.0),
         scan=dict(scan), path=where, fitted=fitted, table=table,
         base_dir="" if base_dir is None else str(base_dir), rays_per_frame=rays,
-        detection=detection,
+        detection=detection, beam=beam,
     )
 
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from .bodies import PreparedScene, RigidBodies, TimedScene
 from .detection import detection_info
+from .footprint import footprint_info
 from .frame import scan_frame
 from .ground_truth import object_boxes
 from .instances import object_table, static_key, world_geometry
@@ -186,7 +187,8 @@ class ScanSession:
                    "sensor_moves": motion.sensor is not None}
         return {
             "device": {"id": preset.id, "name": preset.name, "source": preset.source,
-                       "detection": detection_info(preset, settings)},
+                       "detection": detection_info(preset, settings),
+                       "beam": footprint_info(preset, settings)},
             **_channels(preset),
             "sensor": sensor,
             "frame": frame,
@@ -200,7 +202,9 @@ class ScanSession:
                         "sweep_start_deg": settings.sweep_start_deg,
                         "substeps_used": n_used, "ghosting": settings.ghosting,
                         "detection": settings.detection,
-                        "weather": _weather_info(settings)},
+                        "weather": _weather_info(settings),
+                        "footprint": settings.footprint,
+                        "return_mode": settings.return_mode},
             "motion": summary,
             "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
             "backend": scene.backend,
@@ -211,6 +215,9 @@ class ScanSession:
             "objects_culled_by_range": read.stats.get("culled_by_range", 0),
             "ghosts": result.stats.get("ghosts", 0),
             "weather_returns": result.stats.get("weather_returns", 0),
+            "footprint": {k: result.stats.get(k, 0) for k in (
+                "footprint_rays", "footprint_changed_rays", "multi_echo_rays",
+                "second_returns", "mixed_points")},
             "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }

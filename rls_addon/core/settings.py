@@ -10,7 +10,16 @@ value is checked against ``choices`` here, so a typo anywhere ends in one
 import dataclasses
 from dataclasses import dataclass, field
 
-from .choices import BACKENDS, DETECTION, FIELDS, FORMATS, FRAME_SPACES, MOTION
+from .choices import (
+    BACKENDS,
+    DETECTION,
+    FIELDS,
+    FOOTPRINT,
+    FORMATS,
+    FRAME_SPACES,
+    MOTION,
+    RETURN_MODES,
+)
 from .errors import SettingsError
 from .io.fields import DEFAULT_FIELDS, resolve_fields
 from .io.point_types import POINT_TYPE_CHOICES
@@ -54,11 +63,18 @@ class ScanSettings:
     # choices.DETECTION: "auto" (the LiDAR equation for presets with datasheet figures)
     # or "carla" (CARLA's model for every preset, as before the LiDAR equation)
     detection: str = "auto"
+    # choices.FOOTPRINT: "auto" (a beam is a cone of the preset's divergence, sampled
+    # near depth edges; presets without one: a thin ray) or "off" (a thin ray always)
+    footprint: str = "auto"
+    # choices.RETURN_MODES: "preset" (the device's), "strongest", "last" or "dual"
+    return_mode: str = "preset"
 
     def __post_init__(self):
         FRAME_SPACES.check(self.frame_space)
         MOTION.check(self.motion)
         DETECTION.check(self.detection)
+        FOOTPRINT.check(self.footprint)
+        RETURN_MODES.check(self.return_mode)
         object.__setattr__(self, "weather", weather_spec(self.weather))
         if int(self.substeps) != self.substeps or self.substeps < 0:
             raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "

@@ -43,6 +43,12 @@ def preset_to_dict(preset):
         out["detection"] = {"range_at_reflectivity": [list(f) for f in det.figures],
                             "probability_at_range": det.probability,
                             "intensity": det.intensity, "logistic_width": det.width}
+    beam = getattr(preset, "beam", None)
+    if beam is not None:
+        h, v = beam.divergence_rad
+        out["beam"] = {"divergence_rad": h if h == v else [h, v],
+                       "return_mode": beam.return_mode,
+                       "echo_separation_m": beam.echo_separation_m}
     out["scan"] = scan
     return out
 

@@ -2,7 +2,8 @@
 
 Files store what point-cloud tools expect, not our in-memory ``POINT_DTYPE``:
 x, y, z, intensity as float32, ring uint16, time float64 (float32 on request),
-label and instance uint32, ghost uint8; ``range`` is optional (float32).
+label and instance uint32, ghost, return_index and num_returns uint8; ``range`` is
+optional (float32).
 PLY stores label and instance as int32 (``ply_records``). All on-disk types are
 little-endian.
 """
@@ -40,6 +41,8 @@ FILE_TYPES = {
     "label": "<u4",
     "instance": "<u4",
     "ghost": "u1",
+    "return_index": "u1",
+    "num_returns": "u1",
 }
 TIME_DTYPES = ("float64", "float32")
 assert set(FILE_TYPES) == set(REQUIRED_FIELDS) | set(FIELDS.ids)  # one list of fields

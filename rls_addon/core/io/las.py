@@ -9,7 +9,8 @@ Point data record format 6 (LAS 1.4 base format with GPS time), per point:
 
     X Y Z               int32, world coordinates = offset + scale * XYZ (metres)
     intensity           uint16, round(65535 * RLS intensity 0..1)
-    return_number       1 of number_of_returns 1 (one echo per ray)
+    return_number       the point's return_index of its pulse's num_returns (1 of 1 for
+                        a pulse with one echo)
     classification      ASPRS class from the RLS label (``ASPRS_CLASS``)
     point_source_id     the sensor: 1..K in the order the run names its sensors
     gps_time            float64 s, the point's absolute time (``gps_time``)
@@ -228,8 +229,13 @@ class LasWriter:
         las.X, las.Y, las.Z = q[:, 0], q[:, 1], q[:, 2]
         las.intensity = np.clip(np.rint(points["intensity"].astype(np.float64) * 65535),
                                 0, 65535).astype(np.uint16)
-        las.return_number = np.ones(len(points), np.uint8)
-        las.number_of_returns = np.ones(len(points), np.uint8)
+        names = points.dtype.names
+        number = np.ones(len(points), np.uint8)
+        if "return_index" in names:  # LAS 1.4 point format 6 holds 1..15
+            number = np.clip(points["return_index"], 1, 15).astype(np.uint8)
+        count = np.clip(points["num_returns"], number, 15).astype(np.uint8) \
+            if "num_returns" in names else number.copy()
+        las.return_number, las.number_of_returns = number, count
         las.classification = asprs_classes(points["label"])
         las.point_source_id = ids
         las.gps_time = times

@@ -1,0 +1,454 @@
+"""Beam footprints and multiple returns (see docs/realism.md).
+
+A beam is a cone of the preset's divergence, not a line. It is sampled only where that
+can matter: the central rays are cast as always; rays next to a depth discontinuity (a
+neighbour in the pattern that hits where it does not, or whose hit lies more than
+``DEPTH_STEP`` x the echo separation off the plane of its own, and it off the
+neighbour's) cast ``RING`` sub-rays on a ring at the cone's edge; where every sub-ray
+meets the centre's object within the echo separation of its range, nothing changes.
+
+The beam's profile is a Gaussian whose 1/e^2 radius is half the divergence (a stated
+reading of the datasheets' "divergence"); the centre ray carries ``CENTRE_SHARE`` = 1/2
+of the energy and each ring sub-ray (at the 1/e^2 radius) 1/12: the seven samples have
+the Gaussian's second and fourth radial moments (w^2/2 and w^4/2) exactly.
+
+Sub-ray returns are grouped into echoes by range: sorted, a gap larger than the echo
+separation starts a new echo. An echo's energy is the sum over its sub-rays of
+share x rho x |cos| x T^2 / R^2 (the LiDAR equation's received power), its range the
+energy-weighted mean of theirs (two surfaces closer than the separation give one mixed
+point between them), its surface the sub-ray that sent the most. Each echo is detected
+as ``detection`` says (presets with datasheet figures), or always (CARLA's model); the
+device reports the strongest, the last, or both (``dual``) of the detected echoes.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import weather as wx
+
+RING = 6                   # sub-rays on the ring at the 1/e^2 radius
+CENTRE_SHARE = 0.5         # the centre ray's share of the beam's energy
+RING_SHARE = (1.0 - CENTRE_SHARE) / RING
+# Two echoes closer than this are one (mixed) echo: "the sensor records both returns
+# only when the separation between the two objects is one meter or more" (Velodyne
+# VLS-128 User Manual 63-9483 Rev A, 6.2.3 Dual Return Mode).
+ECHO_SEPARATION_M = 1.0
+RETURN_MODES = ("strongest", "last", "dual")
+# Neighbouring rays whose hits lie off each other's plane by more than this share of the
+# echo separation (0.1 m for 1 m) mark a depth step worth sampling: smaller steps move
+# a mixed point by less than that (a stated choice, about 5 sigma of the presets' range
+# noise of 2 cm)
+DEPTH_STEP = 0.1
+
+
+@dataclass(frozen=True)
+class Beam:
+    """A preset's ``[beam]`` table: full divergence angles (horizontal, vertical, rad),
+    the device's return mode and its echo separation (m)."""
+
+    divergence_rad: tuple = (0.0, 0.0)
+    return_mode: str = "strongest"
+    echo_separation_m: float = ECHO_SEPARATION_M
+
+    @property
+    def sampled(self):
+        return max(self.divergence_rad) > 0.0
+
+    def to_dict(self):
+        return {"model": "footprint", "divergence_rad": list(self.divergence_rad),
+                "return_mode": self.return_mode,
+                "echo_separation_m": self.echo_separation_m, "sub_rays": RING,
+                "centre_share": CENTRE_SHARE}
+
+
+def beam_of(preset, settings):
+    """The ``Beam`` a scan samples (its return mode after the setting's), or None: no
+    divergence in the preset, or ``settings.footprint`` is "off"."""
+    beam = getattr(preset, "beam", None)
+    if beam is None or not beam.sampled or settings.footprint != "auto":
+        return None
+    if settings.return_mode not in (None, "preset") and settings.return_mode != beam.return_mode:
+        beam = Beam(beam.divergence_rad, settings.return_mode, beam.echo_separation_m)
+    return beam
+
+
+def footprint_info(preset, settings):
+    """The sidecar's record of the beam model of a scan."""
+    beam = getattr(preset, "beam", None)
+    if beam is None or not beam.sampled:
+        return {"model": "thin_ray", "reason": "no beam divergence in the preset"}
+    if settings.footprint != "auto":
+        return {"model": "thin_ray", "reason": f"footprint = '{settings.footprint}'"}
+    return beam_of(preset, settings).to_dict()
+
+
+# ---- which rays may straddle a depth discontinuity ------------------------------------
+
+def neighbour_pairs(pattern):
+    """(a, b) index arrays of neighbouring rays in ``pattern``: consecutive rays of each
+    channel (a spinning channel's next azimuth, a Risley or MEMS trace's next point);
+    across channels, when every channel fires equally often, the ray of the channel
+    next in elevation nearest in azimuth (a fixed shift in its firing count: channels
+    fire at their own azimuth offsets), else consecutive rays in firing order. Kept on
+    the pattern."""
+    got = pattern.__dict__.get("_neighbour_pairs")
+    if got is not None:
+        return got
+    ch = np.asarray(pattern.channels)
+    n = len(ch)
+    order = np.argsort(ch, kind="stable")
+    same = ch[order[:-1]] == ch[order[1:]]
+    a, b = [order[:-1][same]], [order[1:][same]]
+    counts = np.bincount(ch) if n else np.zeros(0, np.int64)
+    used = np.nonzero(counts)[0]
+    if len(used) > 1 and np.all(counts[used] == counts[used[0]]):
+        grid = order.reshape(len(used), -1)
+        d = np.asarray(pattern.directions)
+        grid = grid[np.argsort(d[grid, 2].mean(axis=1), kind="stable")]
+        # each channel's k-th ray against the next channel's ray nearest in azimuth:
+        # channels fire at their own azimuth offsets (a fixed shift in index)
+        az = np.arctan2(d[grid, 1], d[grid, 0])
+        step = np.median(_wrap(np.diff(az, axis=1)), axis=1) if grid.shape[1] > 1 \
+            else np.zeros(len(grid))
+        shift = np.median(_wrap(az[1:] - az[:-1]), axis=1)
+        k = np.where(step[:-1] != 0, np.rint(shift / np.where(step[:-1] != 0, step[:-1], 1)), 0)
+        for r in range(len(grid) - 1):
+            a.append(grid[r])
+            b.append(np.roll(grid[r + 1], int(k[r])))
+    elif n > 1 and len(used) > 1:
+        a.append(np.arange(n - 1))
+        b.append(np.arange(1, n))
+    got = (np.concatenate(a).astype(np.int64), np.concatenate(b).astype(np.int64))
+    pattern.__dict__["_neighbour_pairs"] = got
+    return got
+
+
+def _wrap(angle):
+    return (angle + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def candidates(pattern, hit, dist, normals, dirs, origins, step):
+    """(a, b): the neighbour pairs across a depth discontinuity: a neighbour hits and it does not, or neither
+    lies within ``step`` of the other's plane (the range each ray would have on the
+    plane of the other's hit, along its own direction): a step in depth, not a
+    surface seen at a slant (the ground's neighbouring channels differ by metres in
+    range and lie on one plane)."""
+    a, b = neighbour_pairs(pattern)
+    ha, hb = hit[a], hit[b]
+    edge = ha != hb
+    # a step beyond ``step`` changes the range by about as much: only pairs whose ranges
+    # differ by more are tested against each other's plane (a slanted surface's are)
+    both = np.nonzero(ha & hb & (np.abs(dist[a] - dist[b]) > step))[0]
+    if len(both):
+        i, j = a[both], b[both]
+        di, dj, ni, nj = dirs[i], dirs[j], normals[i], normals[j]
+        ri, rj = dist[i], dist[j]
+
+        def dot(x, y):
+            return x[:, 0] * y[:, 0] + x[:, 1] * y[:, 1] + x[:, 2] * y[:, 2]
+
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if origins.shape[0] == 1:
+                # one origin: ray j on the plane of i's hit, ray i on the plane of j's
+                tj = ri * dot(ni, di) / dot(ni, dj)
+                ti = rj * dot(nj, dj) / dot(nj, di)
+            else:
+                oi, oj = origins[i], origins[j]
+                tj = dot(ni, oi + di * ri[:, None] - oj) / dot(ni, dj)
+                ti = dot(nj, oj + dj * rj[:, None] - oi) / dot(nj, di)
+            edge[both] = ~(np.abs(tj - rj) <= step) & ~(np.abs(ti - ri) <= step)
+    return a[edge], b[edge]
+
+
+def ring_directions(dirs, divergence_rad, k=None):
+    """(C, RING, 3) unit sub-ray directions on the ring at the 1/e^2 radius (half the
+    divergence) around each of ``dirs`` (C, 3): the first horizontal, then every
+    360 / RING degrees; an elliptical beam (horizontal != vertical) has an elliptical
+    ring. With ``k`` (C,) ring indices: only those, (C, 3)."""
+    d = np.asarray(dirs, np.float64)
+    u, v = _basis(d)
+    h, vert = (math.tan(0.5 * float(x)) for x in divergence_rad)
+    if k is not None:
+        phi = 2.0 * np.pi * np.asarray(k) / RING
+        out = d + (h * np.cos(phi))[:, None] * u + (vert * np.sin(phi))[:, None] * v
+        return out / np.linalg.norm(out, axis=1, keepdims=True)
+    phi = 2.0 * np.pi * np.arange(RING) / RING
+    out = d[:, None, :] + (h * np.cos(phi))[None, :, None] * u[:, None, :] \
+        + (vert * np.sin(phi))[None, :, None] * v[:, None, :]
+    return out / np.linalg.norm(out, axis=2, keepdims=True)
+
+
+def _basis(d):
+    """(u, v): unit vectors across each of the unit directions ``d`` (C, 3), u
+    horizontal."""
+    up = np.where(np.abs(d[:, 2:3]) > 0.999, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]])
+    u = np.cross(d, up)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    return u, np.cross(u, d)
+
+
+class SubRays:
+    """The sub-rays of one frame's rays next to a depth edge, cast in two steps: first,
+    for each ray and each neighbour across an edge, the one ring sub-ray nearest the
+    neighbour's direction (the one most likely to reach across the edge); then the
+    whole ring of the rays where such a probe disagrees with the centre (another
+    object, no hit, or beyond the echo separation). A ray whose probes agree keeps its
+    one return: its cone does not reach the edge toward any neighbour."""
+
+    def __init__(self, beam, world, pattern, origins, dirs, times, ret, tri, rmax):
+        hit = tri >= 0
+        self.beam = beam
+        sep = beam.echo_separation_m
+        a, b = candidates(pattern, hit, np.where(hit, ret.dist, 0.0), ret.normals, dirs,
+                          origins, DEPTH_STEP * sep)
+        times = np.asarray(times)
+        self.rows = np.zeros(0, np.int64)
+        self.count = 0
+        self.probes = 0
+        if not len(a):
+            return
+        # probes: ray i toward neighbour j, the ring point nearest that direction
+        i = np.concatenate([a, b])
+        j = np.concatenate([b, a])
+        u, v = _basis(dirs[i])
+        delta = dirs[j] - dirs[i]
+        h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in beam.divergence_rad)
+        phi = np.arctan2(np.einsum("ck,ck->c", delta, v) / vert,
+                         np.einsum("ck,ck->c", delta, u) / h)
+        k = np.rint(phi / (2.0 * np.pi / RING)).astype(np.int64) % RING
+        key = np.unique(i * RING + k)
+        pi, pk = key // RING, key % RING
+        pdir = ring_directions(dirs[pi], beam.divergence_rad, pk)
+        o = origins if origins.shape[0] == 1 else origins[pi]
+        dist, body, tri2, _ = world.cast(o, pdir, times[pi], rmax)
+        obj = world.surface_ids(body, tri2)[:, 0]
+        self.probes = len(pi)
+        phit = tri2 >= 0
+        chit = ret.valid[pi]
+        with np.errstate(invalid="ignore"):
+            off = (phit != chit) | (phit & ((obj != ret.surface[pi, 0])
+                                            | (np.abs(dist - ret.dist[pi]) > sep)))
+        c = np.unique(pi[off])
+        self.rows = c
+        self.count = len(c)
+        if not len(c):
+            return
+        sub = ring_directions(dirs[c], beam.divergence_rad).reshape(-1, 3)
+        o = origins if origins.shape[0] == 1 else np.repeat(origins[c], RING, axis=0)
+        t = np.repeat(times[c], RING)
+        dist, body, tri2, normals = world.cast(o, sub, t, rmax)
+        self.dirs, self.dist, self.tri = sub, dist, tri2
+        self.surface = world.surface_ids(body, tri2)
+        self.normals = normals
+
+
+@dataclass
+class Echoes:
+    """What the footprint changed: rows of the frame whose return is an echo of their
+    beam (their range, surface and normal are written into the frame's returns), the
+    effective rho |cos| and CARLA intensity of each such row, and for ``dual`` the
+    extra rows (second echoes) with their parent ray. ``return_index`` and
+    ``num_returns`` per row of the extended frame (N + extra)."""
+
+    rows: np.ndarray
+    rho_cos: np.ndarray
+    carla: np.ndarray
+    extra_parent: np.ndarray
+    extra_dist: np.ndarray
+    extra_surface: np.ndarray
+    extra_normals: np.ndarray
+    extra_rho_cos: np.ndarray
+    extra_carla: np.ndarray
+    return_index: np.ndarray
+    num_returns: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+
+def _uniforms(key, rays, echo):
+    """Uniforms in [0, 1) per (ray, echo), from a 64-bit counter hash (splitmix64) of
+    the frame's key: per ray, whatever the other rays did."""
+    with np.errstate(over="ignore"):
+        x = np.uint64(key) + rays.astype(np.uint64) * np.uint64(RING + 1) \
+            + echo.astype(np.uint64) + np.uint64(0x9E3779B97F4A7C15)
+        x = (x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        x = (x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        x = x ^ (x >> np.uint64(31))
+    return (x >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+
+
+def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, rmax):
+    """Group each candidate's centre and sub-ray returns into echoes, detect them and
+    choose what the device reports (``Echoes``; None when every candidate's sub-rays
+    agree with its centre). ``skip``: rows left as they are (ghosts, false returns from
+    the air); ``detect``: the frame's detection uniforms (None without a model);
+    ``key``: the frame's key for the uniforms of echoes without the centre ray."""
+    beam, sep = sub.beam, sub.beam.echo_separation_m
+    c = sub.rows
+    n_c = len(c)
+    # (C, 1 + RING) samples: the centre, then the ring
+    dist = np.concatenate([ret.dist[c][:, None], sub.dist.reshape(n_c, RING)], axis=1)
+    surf = np.concatenate([ret.surface[c][:, None, :], sub.surface.reshape(n_c, RING, 2)], 1)
+    nrm = np.concatenate([ret.normals[c][:, None, :], sub.normals.reshape(n_c, RING, 3)], 1)
+    sdir = np.concatenate([dirs[c][:, None, :], sub.dirs.reshape(n_c, RING, 3)], axis=1)
+    hit = np.isfinite(dist) & (dist >= rmin) & (dist <= rmax)
+    hit[:, 0] &= ret.valid[c]
+    hit[:, 1:] &= (sub.tri >= 0).reshape(n_c, RING)
+    obj = surf[:, :, 0]
+    agree = hit.all(axis=1) & (obj == obj[:, :1]).all(axis=1) \
+        & (np.abs(np.where(hit, dist, 0.0) - dist[:, :1]) <= sep).all(axis=1)
+    act = ~agree
+    if skip is not None and len(skip):
+        act &= ~np.isin(c, skip)
+    stats = {"footprint_rays": int(n_c), "footprint_sub_rays": int(n_c * RING + sub.probes)}
+    if not act.any():
+        return None, stats
+    k = np.nonzero(act)[0]
+    rays = c[k]
+    m = len(k)
+    S = 1 + RING
+    dist, surf, nrm, sdir, hit = dist[k], surf[k], nrm[k], sdir[k], hit[k]
+    share = np.full(S, RING_SHARE)
+    share[0] = CENTRE_SHARE
+    r = np.where(hit, dist, np.inf)
+    cos = np.abs(np.einsum("csk,csk->cs", nrm, sdir))
+    rho_cos = refl[surf[:, :, 1]] * cos
+    rr = np.where(hit, r, 1.0)
+    t2 = wx.transmission2(alpha, rr) if alpha else np.ones_like(rr)
+    energy = np.where(hit, share * rho_cos * t2 / (rr * rr), 0.0)
+    carla = rho_cos if not atten else rho_cos * np.exp(-float(atten) * rr)
+    carla = np.where(hit, share * np.clip(carla, 0.0, 1.0) * t2, 0.0)
+    # sort each beam's samples by range; a gap beyond the separation starts an echo
+    order = np.argsort(r, axis=1, kind="stable")
+    rs = np.take_along_axis(r, order, 1)
+    gap = np.zeros((m, S), bool)
+    with np.errstate(invalid="ignore"):
+        gap[:, 1:] = (rs[:, 1:] - rs[:, :-1]) > sep
+    echo = np.cumsum(gap, axis=1)
+    ekey = (np.arange(m)[:, None] * S + echo)       # flat (beam, echo) id
+    flat = np.zeros((m, S), np.int64)
+    np.put_along_axis(flat, order, ekey, 1)          # back in sample order
+    fk = flat[hit]
+    e_w = energy[hit]
+    n_keys = m * S
+    E = np.bincount(fk, e_w, n_keys)
+    W = np.bincount(fk, share[np.nonzero(hit)[1]], n_keys)
+    has = np.bincount(fk, minlength=n_keys) > 0
+    RE = np.bincount(fk, e_w * r[hit], n_keys)
+    RW = np.bincount(fk, share[np.nonzero(hit)[1]] * r[hit], n_keys)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        R = np.where(E > 0, RE / np.where(E > 0, E, 1.0), RW / np.where(W > 0, W, 1.0))
+    CA = np.bincount(fk, carla[hit], n_keys)
+    # the sample that sent the most of each echo: its surface and normal
+    samples = np.nonzero(hit.ravel())[0]
+    best = np.lexsort((-energy.ravel()[samples], fk))
+    first = np.ones(len(best), bool)
+    first[1:] = fk[best][1:] != fk[best][:-1]
+    dom = np.zeros(n_keys, np.int64)
+    dom[fk[best][first]] = samples[best][first]
+    centre_key = flat[:, 0]
+    contains_centre = np.zeros(n_keys, bool)
+    contains_centre[centre_key[hit[:, 0]]] = True
+    # detection per echo
+    beam_of_key = np.arange(n_keys) // S
+    det = has.copy()
+    if model is not None:
+        u = _uniforms(key, rays[beam_of_key], np.arange(n_keys) % S)
+        if detect is not None:
+            u = np.where(contains_centre, detect[rays[beam_of_key]], u)
+        det &= u < model.probability_of(E)
+    det2 = det.reshape(m, S)
+    num = det2.sum(axis=1)
+    Em = np.where(det, E, -np.inf).reshape(m, S)
+    Rm = np.where(det, R, -np.inf).reshape(m, S)
+    strongest = np.argmax(Em, axis=1)
+    last = np.argmax(Rm, axis=1)
+    rank = np.cumsum(det2, axis=1)                   # echoes are in range order
+    mode = beam.return_mode
+    primary = last if mode == "last" else strongest
+    got = num > 0
+    two = np.zeros(m, bool)
+    if mode == "dual":
+        # the strongest and the last; when the strongest is the last, the second
+        # strongest (as Velodyne's dual return mode does); in range order
+        second = np.where(last != strongest, last, np.argmax(
+            np.where(np.arange(S) == strongest[:, None], -np.inf, Em), axis=1))
+        two = num > 1
+        near = np.where(Rm[np.arange(m), second] < Rm[np.arange(m), strongest], second,
+                        strongest)
+        far = np.where(near == strongest, second, strongest)
+        primary = np.where(two, near, strongest)
+        last = np.where(two, far, strongest)  # the extra row's echo
+    pk = np.arange(m) * S + primary
+    t2e = wx.transmission2(alpha, np.where(got, R[pk], 1.0)) if alpha else 1.0
+    Rp = np.where(got, R[pk], 1.0)
+    prho = E[pk] * Rp * Rp / t2e
+    pcar = CA[pk] / t2e
+    ret.valid[rays] = got
+    sel = np.nonzero(got)[0]
+    d = dom[pk[sel]]
+    ret.dist[rays[sel]] = R[pk[sel]]
+    ret.surface[rays[sel]] = surf.reshape(-1, 2)[d]
+    ret.normals[rays[sel]] = nrm.reshape(-1, 3)[d]
+    n = len(ret.dist)
+    extra = np.nonzero(two)[0]
+    ek = np.arange(m)[extra] * S + last[extra]
+    t2x = wx.transmission2(alpha, R[ek]) if alpha else 1.0
+    de = dom[ek]
+    rix = np.ones(n + len(extra), np.uint8)
+    nret = np.ones(n + len(extra), np.uint8)
+    rix[rays[sel]] = rank[sel, primary[sel]]
+    nret[rays[sel]] = num[sel]
+    rix[n:] = rank[extra, last[extra]]
+    nret[n:] = num[extra]
+    # mixed points: a reported echo made of more than one object's light
+    lo = np.full(n_keys, np.iinfo(np.int64).max)
+    hi = np.full(n_keys, -1)
+    np.minimum.at(lo, fk, obj[k][hit])
+    np.maximum.at(hi, fk, obj[k][hit])
+    stats.update(footprint_changed_rays=int(m), multi_echo_rays=int(np.count_nonzero(num > 1)),
+                 mixed_points=int(np.count_nonzero(lo[pk[sel]] != hi[pk[sel]])),
+                 second_returns=len(extra))
+    return Echoes(rays, prho, pcar, rays[extra], R[ek], surf.reshape(-1, 2)[de],
+                  nrm.reshape(-1, 3)[de], E[ek] * R[ek] ** 2 / t2x, CA[ek] / t2x,
+                  rix, nret, stats), stats
+
+
+def extend(hits, rays, draws, echoes):
+    """The frame's ``Hits``, ``Rays`` and ``Draws`` with the echoes applied: the rows
+    whose return is an echo carry its effective rho |cos| and intensity, and second
+    echoes (``dual``) are extra rows after the frame's own, copies of their pulse's ray
+    and draws. Returns (hits, rays, draws, parent ray of every row)."""
+    n = len(hits.dist)
+    p = echoes.extra_parent
+    e = len(p)
+    parent = np.concatenate([np.arange(n), p]) if e else np.arange(n)
+    rows = np.concatenate([echoes.rows, n + np.arange(e)]) if e else echoes.rows
+    over = {"echo_rows": rows,
+            "echo_rho_cos": np.concatenate([echoes.rho_cos, echoes.extra_rho_cos]),
+            "echo_carla": np.concatenate([echoes.carla, echoes.extra_carla]),
+            "return_index": echoes.return_index, "num_returns": echoes.num_returns}
+    if not e:
+        return dataclasses.replace(hits, **over), rays, draws, parent
+
+    def grow(a, extra=None):
+        if a is None:
+            return None
+        return np.concatenate([a, a[p] if extra is None else extra])
+
+    hits = dataclasses.replace(
+        hits, dist=grow(hits.dist, echoes.extra_dist),
+        valid=grow(hits.valid, np.ones(e, bool)),
+        surface=grow(hits.surface, echoes.extra_surface.astype(hits.surface.dtype)),
+        normals=grow(hits.normals, echoes.extra_normals),
+        ghost=grow(hits.ghost, np.zeros(e, np.uint8)), **over)
+    rays = dataclasses.replace(
+        rays, dirs=grow(rays.dirs),
+        origins=rays.origins if rays.origins.shape[0] == 1 else grow(rays.origins),
+        columns=tuple(grow(np.asarray(c)) for c in rays.columns),
+        rings=grow(np.asarray(rays.rings)), times=grow(np.asarray(rays.times)))
+    draws = dataclasses.replace(draws, noise=grow(draws.noise), general=grow(draws.general),
+                                low=grow(draws.low), detect=grow(draws.detect))
+    return hits, rays, draws, parent
