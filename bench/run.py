@@ -1024,6 +1024,10 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         from bench import frame_costs
 
         L.extend(frame_costs.report_lines(costs["frame_costs"]))
+    if costs.get("effect_costs"):
+        from bench import effect_costs
+
+        L.extend(effect_costs.section(costs["effect_costs"]))
     if costs.get("study_costs"):
         from bench import study_costs
 
@@ -1129,6 +1133,10 @@ def measure(quick):
     from bench import frame_costs
 
     costs["frame_costs"] = frame_costs.measure(street=g, quick=quick)
+    log("bench: beam footprints and fog against the clear frame (bench/effect_costs.py)")
+    from bench import effect_costs
+
+    costs["effect_costs"] = effect_costs.measure(quick=quick, street=g)
     del g
     gc.collect()
     tri_rows = scaling_triangles(SENSOR_POSE, p64, quick)
