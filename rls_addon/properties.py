@@ -20,18 +20,8 @@ from .blender import preset_catalog
 from .blender.preview import COLOR_ATTRIBUTES
 from .blender.region import is_lob
 from .blender.sensor import DEFAULT_PRESET
-from .core.choices import (
-    BACKENDS,
-    DETECTION,
-    FIELDS,
-    FOOTPRINT,
-    FORMATS,
-    FRAME_SPACES,
-    MOTION,
-    RETURN_MODES,
-    SNOW_TYPES,
-    WEATHER,
-)
+from .core.choices import (BACKENDS, DETECTION, FIELDS, FOOTPRINT, FORMATS, FRAME_SPACES,
+                           MOTION, RETURN_MODES, SNOW_TYPES, WEATHER)
 from .core.errors import RLSError
 from .core.io import DEFAULT_FIELDS
 from .core.io.point_types import POINT_TYPE_CHOICES

@@ -7,16 +7,8 @@ every LiDAR of the run."""
 import json
 import sys
 
-from ..core.choices import (
-    BACKENDS,
-    DETECTION,
-    FIELDS,
-    FOOTPRINT,
-    FORMATS,
-    FRAME_SPACES,
-    MOTION,
-    RETURN_MODES,
-)
+from ..core.choices import (BACKENDS, DETECTION, FIELDS, FOOTPRINT, FORMATS, FRAME_SPACES,
+                            MOTION, RETURN_MODES)
 from ..core.errors import SceneError
 from ..core.io.point_types import POINT_TYPES
 from .distribute import add_arguments as add_cluster_arguments

@@ -129,8 +129,14 @@ def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
     if not effects.plain or len(hits.medium_rows) or len(hits.echo_rows):
         return _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields)
     inten, dot = intensities(hits, rays.dirs, effects.attenuation_per_m)
-    d = hits.dist if draws.noise is None else hits.dist + draws.noise
-    keep = hits.valid.copy()
+    idx, d = _noise_and_dropout(hits.valid.copy(), hits.dist, inten, draws, effects)
+    return _records(hits, rays, idx, d, inten, frame_space, fields), idx, dot[idx] > 0
+
+
+def _noise_and_dropout(keep, dist, inten, draws, effects):
+    """(rays kept, their noisy ranges): ``keep`` (bool per ray, changed here) less the
+    general and the low-intensity dropout and less ranges that noise made <= 0."""
+    d = dist if draws.noise is None else dist + draws.noise
     if draws.general is not None:
         keep &= draws.general >= effects.general_rate
     if draws.low is not None:
@@ -139,7 +145,7 @@ def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
         keep &= ~(inten <= effects.intensity_limit) | (draws.low < p)
     keep &= d > 0
     idx = np.nonzero(keep)[0]
-    return _records(hits, rays, idx, d[idx], inten, frame_space, fields), idx, dot[idx] > 0
+    return idx, d[idx]
 
 
 def _records(hits, rays, idx, d, inten, frame_space, fields, medium=None):
@@ -232,16 +238,8 @@ def _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields):
         inten = model.strength(power)
     else:
         inten = carla * t2
-    d = dist if draws.noise is None else dist + draws.noise
-    if draws.general is not None:
-        keep &= draws.general >= effects.general_rate
-    if draws.low is not None:
-        p = (effects.intensity_zero / effects.intensity_limit) * inten \
-            + (1.0 - effects.intensity_zero)
-        keep &= ~(inten <= effects.intensity_limit) | (draws.low < p)
-    keep &= d > 0
-    idx = np.nonzero(keep)[0]
-    pts = _records(hits, rays, idx, d[idx], inten, frame_space, fields,
+    idx, d = _noise_and_dropout(keep, dist, inten, draws, effects)
+    pts = _records(hits, rays, idx, d, inten, frame_space, fields,
                    None if medium is None else medium[idx])
     return pts, idx, dot[idx] > 0
 

@@ -10,16 +10,8 @@ value is checked against ``choices`` here, so a typo anywhere ends in one
 import dataclasses
 from dataclasses import dataclass, field
 
-from .choices import (
-    BACKENDS,
-    DETECTION,
-    FIELDS,
-    FOOTPRINT,
-    FORMATS,
-    FRAME_SPACES,
-    MOTION,
-    RETURN_MODES,
-)
+from .choices import (BACKENDS, DETECTION, FIELDS, FOOTPRINT, FORMATS, FRAME_SPACES, MOTION,
+                      RETURN_MODES)
 from .errors import SettingsError
 from .io.fields import DEFAULT_FIELDS, resolve_fields
 from .io.point_types import POINT_TYPE_CHOICES

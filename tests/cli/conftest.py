@@ -20,6 +20,23 @@ rls_addon.register()
 bpy.ops.wm.read_factory_settings(use_empty=True)
 if not hasattr(bpy.types.Object, "rls_lidar"):
     rls_addon.register()
+
+def box(name, lo, hi, reflectivity=None, label=None):
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    v = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
+         (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
+    f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(v, [], f)
+    if reflectivity is not None:
+        mat = bpy.data.materials.new(name)
+        mat["rls_reflectivity"] = reflectivity
+        me.materials.append(mat)
+    ob = bpy.data.objects.new(name, me)
+    if label is not None:
+        ob["rls_label"] = label
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
 """
 
 

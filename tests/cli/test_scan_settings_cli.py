@@ -18,23 +18,12 @@ scene = bpy.context.scene
 scene.name = "moving"
 scene.render.fps, scene.render.fps_base = FPS, 1.0
 
-def mesh(name, lo, hi):
-    (x0, y0, z0), (x1, y1, z1) = lo, hi
-    v = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
-         (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
-    f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
-    me = bpy.data.meshes.new(name)
-    me.from_pydata(v, [], f)
-    ob = bpy.data.objects.new(name, me)
-    scene.collection.objects.link(ob)
-    return ob
-
-mesh("Ground", (-40, -40, -1.1), (40, 40, -1.0))["rls_label"] = "road"
-box = mesh("Box", (-1, -1, -1), (1, 1, 1))
+box("Ground", (-40, -40, -1.1), (40, 40, -1.0))["rls_label"] = "road"
+cube = box("Box", (-1, -1, -1), (1, 1, 1))
 for frame, y in ((1, -5.0), (101, -5.0 + SPEED * 100 / FPS)):
-    box.location = (8.0, y, 0.0)
-    box.keyframe_insert("location", frame=frame)
-for layer in box.animation_data.action.layers:
+    cube.location = (8.0, y, 0.0)
+    cube.keyframe_insert("location", frame=frame)
+for layer in cube.animation_data.action.layers:
     for strip in layer.strips:
         for bag in strip.channelbags:
             for fc in bag.fcurves:

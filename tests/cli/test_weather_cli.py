@@ -12,22 +12,8 @@ BUILD = SCENE_SCRIPT_HEAD + r"""
 scene = bpy.context.scene
 scene.name = "foggy"
 
-def slab(name, lo, hi, reflectivity, label):
-    (x0, y0, z0), (x1, y1, z1) = lo, hi
-    v = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0),
-         (x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1)]
-    f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
-    me = bpy.data.meshes.new(name)
-    me.from_pydata(v, [], f)
-    mat = bpy.data.materials.new(name)
-    mat["rls_reflectivity"] = reflectivity
-    me.materials.append(mat)
-    ob = bpy.data.objects.new(name, me)
-    ob["rls_label"] = label
-    scene.collection.objects.link(ob)
-
-slab("Ground", (-10, -40, -1.6), (90, 40, -1.5), 0.2, "road")
-slab("Wall", (60, -40, -1.5), (61, 40, 30), 0.5, "wall")
+box("Ground", (-10, -40, -1.6), (90, 40, -1.5), 0.2, "road")
+box("Wall", (60, -40, -1.5), (61, 40, 30), 0.5, "wall")
 lidar = bpy.data.objects.new("LiDAR", None)
 scene.collection.objects.link(lidar)
 s = lidar.rls_lidar
