@@ -12,6 +12,9 @@ leaves out as traffic, and N mounts 20-28 m from the centre at 4-9 m).
   candidate's cast alone (the pattern's rays from its pose into the prepared triangles
   with the bare backend: no re-check of misses, no refinement, no points), as
   (seconds per candidate, cast alone in seconds, ratio). Target: ratio <= 1.5.
+- ``study_cost_parts``: where a candidate's time goes: its frame (``scan_frame`` with
+  the study's fields), the selection of its points in the region, their counts in the
+  disks (``DiskLayout.counts``), and once per study the disks' grid (``DiskCounter``).
 
 Run alone: ``python bench/study_costs.py [--quick]`` (prints JSON with the load average).
 """
@@ -205,8 +208,11 @@ def study_seconds_per_candidate(candidates=40, device="generic_uniform32", backe
 def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", repeat=3):
     """Where a candidate's time goes, in seconds per candidate (best of ``repeat``):
     ``frame_and_select_s`` (``scan_frame`` with the study's fields, then the points in
-    the region with a counted label), ``disks_s`` (``DiskLayout.counts`` of those) and
-    ``scan_s`` (all of ``StudyScanner.scan``)."""
+    the region with a counted label), ``select_s`` (that selection alone, from the
+    frame's points), ``disks_s`` (``DiskLayout.counts`` of those) and ``scan_s`` (all
+    of ``StudyScanner.scan``); and once per study, ``disk_grid_s`` (the layout's
+    ``DiskCounter``, built while the scanner prepares the scene)."""
+    from rls_addon.core.disk_counter import DiskCounter
     from rls_addon.core.study import StudyScanner, study_inputs
 
     scene = BenchStudyScene(candidates)
@@ -214,8 +220,9 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
     inputs = study_inputs(scene, cfg)
     scanner = StudyScanner(scene, cfg, inputs.preset, inputs.polygon, inputs.layout,
                            inputs.candidates)
-    cands = inputs.candidates
+    cands, layout = inputs.candidates, inputs.layout
     kept = [scanner.kept_xy(c) for c in cands]
+    clouds = [scanner._static(c)[1].points for c in cands]
 
     def each(fn):
         best = float("inf")
@@ -226,11 +233,18 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
             best = min(best, (time.perf_counter() - t) / len(cands))
         return best
 
+    grid = float("inf")
+    for _ in range(repeat):
+        t = time.perf_counter()
+        DiskCounter(layout.centres, layout.radius_m)
+        grid = min(grid, time.perf_counter() - t)
     return {"frame_and_select_s": each(lambda i, c: scanner.kept_xy(c)),
-            "disks_s": each(lambda i, c: inputs.layout.counts(kept[i])),
+            "select_s": each(lambda i, c: layout.select([clouds[i]], scanner.label_ids)),
+            "disks_s": each(lambda i, c: layout.counts(kept[i])),
             "scan_s": each(lambda i, c: scanner.scan(c)),
+            "disk_grid_s": grid,
             "points_in_region": int(np.mean([len(x) for x in kept])),
-            "disks": len(inputs.layout.centres)}
+            "disks": len(layout.centres)}
 
 
 def measure(quick=False):
@@ -261,9 +275,11 @@ def section(res):
             f"| seconds per candidate | {sec['study_s'] * 1e3:.1f} ms, "
             f"**{sec['ratio']:.2f}x** its cast alone ({sec['cast_alone_s'] * 1e3:.1f} ms) | "
             f"<= 1.5x |",
-            f"| of which: frame and selection / disk counts | "
-            f"{parts['frame_and_select_s'] * 1e3:.1f} ms / {parts['disks_s'] * 1e3:.1f} ms "
-            f"({parts['points_in_region']:,} points in the region, {parts['disks']} disks) | |",
+            f"| of which: frame / selection / disk counts | "
+            f"{(parts['frame_and_select_s'] - parts['select_s']) * 1e3:.1f} ms / "
+            f"{parts['select_s'] * 1e3:.1f} ms / {parts['disks_s'] * 1e3:.1f} ms "
+            f"({parts['points_in_region']:,} points in the region, {parts['disks']} disks; "
+            f"their grid, once per study: {parts['disk_grid_s'] * 1e3:.0f} ms) | |",
             f"| memory kept per candidate | **{mem['kept_bytes_per_candidate'] / 1e3:.1f} KB** "
             f"({mem['kept_mb_per_1000']} MB per 1,000) | <= 50 KB |",
             f"| peak while scanning, per 1,000 candidates | {mem['scan_peak_mb_per_1000']} MB "

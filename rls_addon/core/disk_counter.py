@@ -1,99 +1,148 @@
 """Counting points in the same disks again and again: a study counts every candidate's
 points in one fixed set of disks, so what depends on the disks alone is worked out once.
 
-``DiskCounter(centres, radius)`` lays a grid of cells of ``radius / CELLS_PER_RADIUS``
-over the disks and sorts each disk's cells into three kinds, once:
+``DiskCounter(centres, radius)`` lays a grid of square cells of ``radius /
+CELLS_PER_RADIUS`` over the disks and sorts each disk's cells into three kinds, once:
 
 - *inside*: every point of the cell is within the radius (its farthest corner is, with a
-  margin for rounding): the cell's whole count is added, no point is tested;
+  margin for rounding). In a row of the grid a disk's inside cells are one run of
+  columns, kept as the run's first cell and the cell after its last (``span_lo``,
+  ``span_hi``): its points are counted from a prefix sum of the points per cell, two
+  look-ups per row of the disk, however many points;
 - *edge*: the circle crosses the cell: its points are tested one by one, with the very
-  comparison of ``metrics.count_in_disks`` (dx * dx + dy * dy <= r * r);
+  comparison of ``metrics.count_in_disks`` (dx * dx + dy * dy <= r * r). The edge
+  cells are kept per cell (``edge_start``, ``edge_count``, ``edge_disk``: the disks
+  whose circle crosses each cell), so a point goes straight to the disks it must be
+  tested against;
 - out: no point of the cell can be within the radius: nothing to do.
 
-Per call (``counts(xy)``): one bincount of the points' cells, one gather of the inside
-cells' counts, and exact tests of the points in edge cells only. The counts are those
-of ``metrics.count_in_disks`` (the reference), integer for integer
-(tests/core/test_disk_counter.py); about 3x faster for the study's 6,000 disks of
-0.7 m (`make bench`, study section).
+Per call (``counts(xy)``): the points' cells, one bincount and its prefix sum, two
+gathers per (disk, row) for the inside runs, and the exact tests of each point in an
+edge cell. The counts are those of ``metrics.count_in_disks`` (the reference) and of a
+brute-force test of every (point, disk) pair, integer for integer
+(tests/core/test_disk_counter.py). For the bench study (10k points in the region,
+6,000 disks of 0.7 m) a candidate's counts take about 1.2 ms, against 3.5 ms with the
+inside / edge cells listed one by one and 15 ms with the reference
+(bench/study_costs.py).
+
+A point is one complex number x + iy in the per-pair work: numpy is several times
+slower on (n, 2) arrays than on (n,) ones, and a complex difference is the two float
+differences, the same bits.
 """
 
 import numpy as np
 
-CELLS_PER_RADIUS = 2  # measured best between 10k and 100k points in the region
-# The grid is not worth its memory beyond this many cells: count with the reference.
-MAX_CELLS = 8_000_000
+CELLS_PER_RADIUS = 4  # 3 to 5 measure alike (bench study: 10k points, 6,000 disks of 0.7 m)
+# The grid's tables (a prefix sum, an edge count and start per cell) are not worth their
+# memory beyond this many cells: larger cells, and past cells of the radius' size the
+# reference counts.
+MAX_CELLS = 4_000_000
 
 
 class DiskCounter:
     def __init__(self, centres, radius, cells_per_radius=CELLS_PER_RADIUS):
         self.centres = np.asarray(centres, dtype=np.float64).reshape(-1, 2)
+        self.centre_z = np.empty(len(self.centres), np.complex128)  # cx + i cy
+        self.centre_z.real, self.centre_z.imag = self.centres[:, 0], self.centres[:, 1]
         self.radius = r = float(radius)
-        self.h = h = r / int(cells_per_radius)
         n = len(self.centres)
-        self.lo = lo = (self.centres.min(axis=0) - r - h) if n else np.zeros(2)
-        hi = (self.centres.max(axis=0) + r + h) if n else np.zeros(2)
-        self.nx, self.ny = (int(v) + 1 for v in np.ceil((hi - lo) / h))
+        # Coarser cells rather than none for a large region; no grid at all (the
+        # reference counts) beyond MAX_CELLS of the radius' size
+        for k in range(int(cells_per_radius), 0, -1):
+            self.k, self.h = k, r / k
+            h = self.h
+            # k + 3 cells of margin around the disks' box: the cells of the outer ring
+            # (where points beyond the grid are clamped) are farther than the radius from
+            # every centre, and no disk's cells reach them
+            self.lo = lo = (self.centres.min(axis=0) - r - 3 * h) if n else np.zeros(2)
+            hi = self.centres.max(axis=0) if n else np.zeros(2)
+            self.nx, self.ny = (int(v) + k + 4 for v in np.ceil((hi - lo) / h))
+            if self.nx * self.ny <= MAX_CELLS:
+                break
         self.usable = n > 0 and self.nx * self.ny <= MAX_CELLS
         if self.usable:
-            self._classify(int(cells_per_radius))
+            self._classify()
 
-    def _classify(self, k):
-        r, h, lo, c = self.radius, self.h, self.lo, self.centres
-        slack = 1e-9 * max(1.0, r, float(np.abs(lo).max()), float(np.abs(lo + h * np.array(
-            [self.nx, self.ny])).max()))
+    def _classify(self):
+        r, h, k, lo, c = self.radius, self.h, self.k, self.lo, self.centres
+        far_end = lo + h * np.array([self.nx, self.ny])
+        slack = 1e-9 * max(1.0, r, float(np.abs(lo).max()), float(np.abs(far_end).max()))
         home = np.floor((c - lo) / h).astype(np.int64)          # (D, 2) the centre's cell
-        off = np.arange(-k - 1, k + 2)
-        ox, oy = (a.ravel() for a in np.meshgrid(off, off))     # (W,) offsets around it
-        ix = home[:, :1] + ox                                   # (D, W) cell columns
-        iy = home[:, 1:] + oy                                   # (D, W) cell rows
-        x0, y0 = lo[0] + ix * h, lo[1] + iy * h                 # the cells' lower corners
-        cx, cy = c[:, :1], c[:, 1:]
-        near_x = np.maximum(0.0, np.maximum(x0 - cx, cx - (x0 + h)))
-        near_y = np.maximum(0.0, np.maximum(y0 - cy, cy - (y0 + h)))
-        far_x = np.maximum(np.abs(x0 - cx), np.abs(x0 + h - cx))
-        far_y = np.maximum(np.abs(y0 - cy), np.abs(y0 + h - cy))
-        near = np.sqrt(near_x * near_x + near_y * near_y)
-        far = np.sqrt(far_x * far_x + far_y * far_y)
-        valid = (ix >= 0) & (ix < self.nx) & (iy >= 0) & (iy < self.ny)
-        inside = valid & (far <= r - slack)
-        edge = valid & ~inside & (near <= r + slack)
-        cell = iy * self.nx + ix
-        disk = np.broadcast_to(np.arange(len(c))[:, None], cell.shape)
-        self.inside_cell, self.inside_disk = cell[inside], disk[inside]
-        self.edge_cell, self.edge_disk = cell[edge], disk[edge]
+        off = np.arange(-k - 1, k + 2)                          # (W,) cells around it
+        ix = home[:, :1] + off                                  # (D, W) columns
+        iy = home[:, 1:] + off                                  # (D, W) rows
+        assert ix.min() >= 1 and iy.min() >= 1 and ix.max() < self.nx - 1 \
+            and iy.max() < self.ny - 1
+
+        def nearest_farthest(i, cen):
+            """Per axis, the nearest and the farthest distance from the centre to a
+            cell's extent, squared."""
+            x0 = lo[i] + (ix if i == 0 else iy) * h
+            near = np.maximum(0.0, np.maximum(x0 - cen, cen - (x0 + h)))
+            far = np.maximum(np.abs(x0 - cen), np.abs(x0 + h - cen))
+            return near * near, far * far
+
+        near_x, far_x = nearest_farthest(0, c[:, :1])
+        near_y, far_y = nearest_farthest(1, c[:, 1:])
+        # (D, rows, columns); a row's inside cells are one run (the farthest corner's
+        # distance falls then rises along a row)
+        inside = far_y[:, :, None] + far_x[:, None, :] <= max(r - slack, 0.0) ** 2
+        edge = ~inside & (near_y[:, :, None] + near_x[:, None, :] <= (r + slack) ** 2)
+        run = inside.sum(axis=2)                                # (D, W) inside cells per row
+        first = ix[np.arange(len(c))[:, None], np.argmax(inside, axis=2)]
+        rows = np.flatnonzero(run.any(axis=0))                  # rows some disk has a run in
+        base = iy[:, rows] * self.nx + np.where(run[:, rows] > 0, first[:, rows], 0)
+        # (rows, D), row by row: a disk's inside count is the sum down a column
+        self.span_lo = np.ascontiguousarray(base.T)
+        self.span_hi = np.ascontiguousarray((base + run[:, rows]).T)
+        # the edge cells, grouped by cell: edge_disk[edge_start[i]:edge_start[i + 1]]
+        # are the disks whose circle crosses cell i
+        cell = (iy[:, :, None] * self.nx + ix[:, None, :])[edge]
+        disk = np.broadcast_to(np.arange(len(c))[:, None, None], edge.shape)[edge]
+        order = np.argsort(cell, kind="stable")
+        self.edge_disk = disk[order].astype(np.intp)
+        per_cell = np.bincount(cell, minlength=self.nx * self.ny)
+        self.edge_count = per_cell
+        self.edge_start = np.cumsum(per_cell) - per_cell
 
     def counts(self, xy):
         """Points of ``xy`` within the radius (inclusive) of each centre."""
         from .metrics import count_in_disks
 
-        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        xy = np.ascontiguousarray(xy, dtype=np.float64).reshape(-1, 2)
         if not self.usable:
             return count_in_disks(xy, self.centres, self.radius)
         out = np.zeros(len(self.centres), dtype=np.int64)
         if len(xy) == 0:
             return out
-        ij = np.floor((xy - self.lo) / self.h)
-        on = (ij[:, 0] >= 0) & (ij[:, 0] < self.nx) & (ij[:, 1] >= 0) & (ij[:, 1] < self.ny)
-        if not on.all():  # beyond the grid: farther than the radius from every centre
-            xy, ij = xy[on], ij[on]
-        cell = ij[:, 1].astype(np.int64) * self.nx + ij[:, 0].astype(np.int64)
-        per_cell = np.bincount(cell, minlength=self.nx * self.ny)
-        out += np.bincount(self.inside_disk, weights=per_cell[self.inside_cell],
-                           minlength=len(out)).astype(np.int64)
-        # edge cells: each point tested against its disk
-        n_in = per_cell[self.edge_cell]
-        has = n_in > 0
-        ecell, edisk, n_in = self.edge_cell[has], self.edge_disk[has], n_in[has]
-        if len(ecell) == 0:
+        # x + iy: one element per point for the repeats and differences below (numpy's
+        # complex subtraction is the two float subtractions, the same bits)
+        z = xy.view(np.complex128).ravel()
+        fx = (z.real - self.lo[0]) / self.h
+        fy = (z.imag - self.lo[1]) / self.h
+        if not (fx.min() >= 0 and fy.min() >= 0 and fx.max() < self.nx and fy.max() < self.ny):
+            # beyond the grid (or not finite): into the outer ring, which no disk reaches
+            fx = np.where(fx >= 0, np.minimum(fx, self.nx - 1), 0.0)
+            fy = np.where(fy >= 0, np.minimum(fy, self.ny - 1), 0.0)
+        cell = fy.astype(np.int64)
+        cell *= self.nx
+        cell += fx.astype(np.int64)
+        # inside runs: the points in cells [lo, hi) of a row, from the prefix sum per cell
+        before = np.zeros(self.nx * self.ny + 1, np.int64)
+        np.cumsum(np.bincount(cell, minlength=self.nx * self.ny), out=before[1:])
+        out += (before[self.span_hi] - before[self.span_lo]).sum(axis=0)
+        # edge cells: each point against the disks whose circle crosses its cell
+        n_edge = self.edge_count[cell]
+        ends = np.cumsum(n_edge)
+        total = int(ends[-1])
+        if total == 0:
             return out
-        order = np.argsort(cell, kind="stable")
-        first = np.cumsum(per_cell) - per_cell                 # a cell's first sorted point
-        total = int(n_in.sum())
-        step = np.cumsum(n_in) - n_in
-        idx = order[np.arange(total, dtype=np.int64) + np.repeat(first[ecell] - step, n_in)]
-        who = np.repeat(edisk, n_in)
-        ddx = xy[idx, 0] - self.centres[who, 0]
-        ddy = xy[idx, 1] - self.centres[who, 1]
-        hit = ddx * ddx + ddy * ddy <= self.radius * self.radius
-        out += np.bincount(who[hit], minlength=len(out))
+        at = np.repeat(self.edge_start[cell] - (ends - n_edge), n_edge)
+        at += np.arange(total)
+        who = self.edge_disk[at]                   # (pairs,) the disk of each test
+        d = np.repeat(z, n_edge)
+        d -= self.centre_z[who]                    # (dx, dy) of each pair
+        dx, dy = d.real, d.imag
+        hit = dx * dx + dy * dy <= self.radius * self.radius  # as count_in_disks
+        out += np.bincount(np.compress(hit, who), minlength=len(out))
         return out

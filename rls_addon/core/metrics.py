@@ -58,27 +58,55 @@ def resolve_labels(labels):
     return sorted(set(ids))
 
 
-def select_xy(clouds, polygon, label_ids):
+def select_xy(clouds, polygon, label_ids, region=None):
     """(N, 2) xy of the points of all ``clouds`` inside ``polygon`` with a label in ``label_ids``.
 
     ``clouds``: one structured array or a list of them (fields x, y, label),
     already in world coordinates. Returns also the count of points inside the
-    outline regardless of label, for error messages.
+    outline regardless of label, for error messages. ``region``: a
+    ``PreparedPolygon`` of ``polygon``, for many clouds in the same outline.
+
+    Only the points in the outline's bounding box go through the outline test (the
+    test ``points_in_polygon`` starts with), and only their labels are looked at: the
+    same points in the same order as testing every point, for a fraction of the work.
     """
     if isinstance(clouds, np.ndarray):
         clouds = [clouds]
     parts, inside_any = [], 0
-    wanted = np.asarray(label_ids, dtype=np.int64)
+    lo, hi = polygon.min(axis=0), polygon.max(axis=0)
     for pts in clouds:
         if len(pts) == 0:
             continue
-        xy = np.stack([np.asarray(pts["x"], np.float64), np.asarray(pts["y"], np.float64)], axis=1)
-        inside = points_in_polygon(xy, polygon)
-        inside_any += int(inside.sum())
-        keep = inside & np.isin(pts["label"], wanted)
-        parts.append(xy[keep])
+        # contiguous copies: a study's records are packed, and numpy is slow on their
+        # unaligned fields
+        x, y = np.array(pts["x"], np.float64), np.array(pts["y"], np.float64)
+        box = x >= lo[0]
+        box &= x <= hi[0]
+        box &= y >= lo[1]
+        box &= y <= hi[1]
+        idx = np.flatnonzero(box)
+        xy = np.empty((len(idx), 2))
+        xy[:, 0], xy[:, 1] = x.take(idx), y.take(idx)
+        inside = points_in_polygon(xy, polygon) if region is None else region.contains(xy)
+        inside_any += int(np.count_nonzero(inside))
+        inside &= label_mask(pts["label"].take(idx), label_ids)
+        parts.append(np.compress(inside, xy, axis=0))
+    if len(parts) == 1:
+        return parts[0], inside_any
     xy = np.concatenate(parts) if parts else np.empty((0, 2))
     return xy, inside_any
+
+
+def label_mask(labels, label_ids):
+    """``np.isin(labels, label_ids)``; by a look-up table for the usual small ids."""
+    wanted = np.asarray(label_ids, dtype=np.int64)
+    labels = np.asarray(labels)
+    if labels.dtype.kind != "u" or len(wanted) == 0 or wanted.min() < 0 \
+            or wanted.max() >= 65536:
+        return np.isin(labels, wanted)
+    table = np.zeros(int(wanted.max()) + 2, bool)  # the last entry stays False:
+    table[wanted] = True                            # larger labels are clipped onto it
+    return table.take(labels, mode="clip")
 
 
 def count_in_disks(xy, centres, radius, cells_per_radius=4):

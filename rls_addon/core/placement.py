@@ -27,7 +27,7 @@ import numpy as np
 from .disk_counter import DiskCounter
 from .errors import InputError, RegionError, SettingsError
 from .metrics import DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, select_xy
-from .polygon import as_polygon, sample_in_polygon, shoelace_area
+from .polygon import PreparedPolygon, as_polygon, sample_in_polygon, shoelace_area
 
 DEFAULT_WEIGHTS = tuple(np.round(np.linspace(0.0, 1.0, 11), 2))
 DEFAULT_EXHAUSTIVE_LIMIT = 20000
@@ -45,6 +45,7 @@ class DiskLayout:
     seed: int
     disk_placement: str = "inside"
     _counter: object = dataclasses.field(default=None, init=False, repr=False, compare=False)
+    _region: object = dataclasses.field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def make(cls, polygon, disks=DEFAULT_DISKS, radius=DEFAULT_RADIUS_M, seed=DEFAULT_SEED,
@@ -64,16 +65,35 @@ class DiskLayout:
         """Disk area over region area."""
         return math.pi * self.radius_m ** 2 / self.area_m2
 
+    def prepare(self):
+        """Work out what depends on the layout alone (the disks' ``DiskCounter``, the
+        outline's ``PreparedPolygon``); else done on first use. A study's scanner calls
+        this while it prepares the scene, so its first candidate does not pay for it."""
+        self.counter()
+        self.region()
+
+    def region(self):
+        """The outline's ``PreparedPolygon``, made on first use."""
+        if self._region is None:
+            self._region = PreparedPolygon(self.polygon)
+        return self._region
+
     def select(self, clouds, label_ids):
-        """(N, 2) xy of the kept points (inside the outline, wanted labels)."""
-        return select_xy(clouds, self.polygon, label_ids)[0]
+        """(N, 2) xy of the kept points (inside the outline, wanted labels): ``select_xy``'s,
+        with the outline's grid of decided cells worked out once per layout."""
+        return select_xy(clouds, self.polygon, label_ids, self.region())[0]
+
+    def counter(self):
+        """The layout's ``DiskCounter`` (what depends on the disks alone), made on first
+        use."""
+        if self._counter is None:
+            self._counter = DiskCounter(self.centres, self.radius_m)
+        return self._counter
 
     def counts(self, xy):
         """Points of ``xy`` in each disk: ``count_in_disks``'s counts, with what depends on
         the disks alone worked out once per layout (``DiskCounter``)."""
-        if self._counter is None:
-            self._counter = DiskCounter(self.centres, self.radius_m)
-        return self._counter.counts(xy)
+        return self.counter().counts(xy)
 
 
 def set_metrics(n_points, disk_counts, area_m2, p):

@@ -69,6 +69,69 @@ def points_in_polygon(xy, poly):
     return inside
 
 
+class PreparedPolygon:
+    """``points_in_polygon`` for one outline and many point sets (a study's candidates):
+    a grid over the outline's box, one ring of cells wider, whose cells are sorted once
+    into wholly inside, wholly outside (the cell's centre is farther from every edge
+    than its half-diagonal, with a margin for rounding) and crossed by the outline. A
+    point in a decided cell takes the cell's answer; the points of the crossed cells
+    are tested by ``points_in_polygon`` itself. The same answers, point for point: away
+    from the edges by more than the margin, ``points_in_polygon``'s rounding cannot
+    change its answer (tests/core/test_metrics.py)."""
+
+    def __init__(self, poly, cells=128):
+        self.poly = poly
+        lo, hi = poly.min(axis=0), poly.max(axis=0)
+        self.size = size = float((hi - lo).max()) / cells
+        self.lo = lo - size                                  # the ring of cells around
+        self.nx, self.ny = (int(v) + 2 for v in np.ceil((hi - lo) / size))
+        ix, iy = np.meshgrid(np.arange(self.nx), np.arange(self.ny))
+        centres = self.lo + size * (np.stack([ix.ravel(), iy.ravel()], axis=1) + 0.5)
+        slack = 1e-9 * max(1.0, size, float(np.abs(lo).max()), float(np.abs(hi).max()))
+        decided = distance_to_boundary(centres, poly) > size * 0.5 * np.sqrt(2.0) + slack
+        # 0 outside, 1 inside, 2 crossed by the outline: test the points
+        self.state = np.where(decided, points_in_polygon(centres, poly), 2).astype(np.int8)
+        x1, y1 = poly[:, 0], poly[:, 1]
+        x2, y2 = np.roll(x1, -1), np.roll(y1, -1)
+        slanted = y1 != y2  # as points_in_polygon: horizontal edges never cross the ray
+        self.box = lo, hi
+        self.edges = x1[slanted], y1[slanted], x2[slanted], y2[slanted]
+
+    def contains(self, xy):
+        """``points_in_polygon(xy, poly)``."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        fx = (xy[:, 0] - self.lo[0]) / self.size
+        fy = (xy[:, 1] - self.lo[1]) / self.size
+        if len(xy) and not (fx.min() >= 0 and fy.min() >= 0 and fx.max() < self.nx
+                            and fy.max() < self.ny):
+            # beyond the grid (or not finite): into the ring, outside the outline's box
+            fx = np.where(fx >= 0, np.minimum(fx, self.nx - 1), 0.0)
+            fy = np.where(fy >= 0, np.minimum(fy, self.ny - 1), 0.0)
+        cell = fy.astype(np.int64)
+        cell *= self.nx
+        cell += fx.astype(np.int64)
+        state = self.state.take(cell)
+        inside = state == 1
+        test = np.flatnonzero(state == 2)
+        inside[test] = self._exact(xy.take(test, axis=0))
+        return inside
+
+    def _exact(self, xy):
+        """``points_in_polygon`` of a few points, every edge at once: its comparisons
+        and its arithmetic, element for element (its loop over the edges costs more than
+        the tests of the points of the crossed cells)."""
+        if len(xy) * len(self.edges[0]) > 1_000_000:
+            return points_in_polygon(xy, self.poly)
+        (lo, hi), (a, b, c, d) = self.box, self.edges
+        bx, by = xy[:, :1], xy[:, 1:]
+        box = (bx[:, 0] >= lo[0]) & (bx[:, 0] <= hi[0]) & (by[:, 0] >= lo[1]) \
+            & (by[:, 0] <= hi[1])
+        crosses = (b > by) != (d > by)
+        with np.errstate(invalid="ignore", over="ignore"):  # points not finite: off the box
+            xint = a + (by - b) * (c - a) / (d - b)
+        return box & (np.count_nonzero(crosses & (bx < xint), axis=1) % 2 == 1)
+
+
 def distance_to_boundary(xy, poly):
     """Distance from each (N, 2) point to the nearest polygon edge."""
     xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)

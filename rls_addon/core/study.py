@@ -244,6 +244,7 @@ class StudyScanner:
         self.session = ScanSession(self.backend_cls)
         t = time.perf_counter()
         self.prepared = self.session.prepared(geometry, centre, reach)
+        layout.prepare()  # the disks' and the outline's grids, once per study
         self.build_s = time.perf_counter() - t
         if not cfg.traffic_frames:
             # Each candidate casts its rays once: a kept cast would never be asked for

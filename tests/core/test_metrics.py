@@ -12,11 +12,19 @@ from rls_addon.core.metrics import (
     density_map,
     infra_lob_metrics,
     infra_nuc,
+    label_mask,
     resolve_labels,
+    select_xy,
 )
 from rls_addon.core.png import decode_png_rgba
 from rls_addon.core.points import empty_points
-from rls_addon.core.polygon import as_polygon, points_in_polygon, polygon_area, sample_in_polygon
+from rls_addon.core.polygon import (
+    PreparedPolygon,
+    as_polygon,
+    points_in_polygon,
+    polygon_area,
+    sample_in_polygon,
+)
 
 RECT = [[0.0, 0.0], [20.0, 0.0], [20.0, 30.0], [0.0, 30.0]]
 ROAD, SIDEWALK, BUILDING = 1, 2, 3
@@ -177,6 +185,81 @@ def test_count_in_disks_matches_brute_force():
     for r in (0.1, 0.7, 2.5):
         brute = (((xy[None] - c[:, None]) ** 2).sum(-1) <= r * r).sum(1)
         np.testing.assert_array_equal(count_in_disks(xy, c, r), brute)
+
+
+def select_every_point(clouds, polygon, label_ids):
+    """select_xy as it was: every point through the outline test, then the labels."""
+    parts, inside_any = [], 0
+    for pts in clouds:
+        if len(pts) == 0:
+            continue
+        xy = np.stack([np.asarray(pts["x"], np.float64), np.asarray(pts["y"], np.float64)], 1)
+        inside = points_in_polygon(xy, polygon)
+        inside_any += int(inside.sum())
+        parts.append(xy[inside & np.isin(pts["label"], np.asarray(label_ids))])
+    return (np.concatenate(parts) if parts else np.empty((0, 2))), inside_any
+
+
+@pytest.mark.parametrize("fields", [
+    [("x", "<f8"), ("y", "<f8"), ("label", "<u4")],                  # a study's packed records
+    [("label", "<u4"), ("y", "<f4"), ("x", "<f4"), ("z", "<f8")],    # float32, another order
+    [("x", "<f8"), ("y", "<f8"), ("label", "<i8")]])                 # signed labels
+@pytest.mark.parametrize("labels", [[1, 2], [3], [0, 2, 300], [70_000]])
+def test_select_xy_equals_testing_every_point(fields, labels):
+    """The same points, in the same order, and the same count inside the outline, as
+    testing every point: on a concave outline, with points on its edges and vertices, on
+    its bounding box, outside it, and labels from 0 to past the look-up table."""
+    rng = np.random.default_rng(len(fields) + sum(labels))
+    L = as_polygon([[0, 0], [4, 0], [4, 2], [2, 2], [2, 4], [0, 4]])
+    clouds = []
+    for n in (3000, 0, 500):
+        xy = rng.uniform(-1, 5, (n, 2))
+        xy[: n // 4] = np.round(xy[: n // 4] * 2) / 2  # on edges, vertices and the box
+        pts = np.zeros(n, np.dtype(fields))
+        pts["x"], pts["y"] = xy[:, 0], xy[:, 1]
+        pts["label"] = rng.choice([0, 1, 2, 3, 300, 70_000], n)
+        clouds.append(pts)
+    got, got_any = select_xy(clouds, L, labels)
+    want, want_any = select_every_point(clouds, L, labels)
+    assert got_any == want_any and got.dtype == want.dtype and got.shape == want.shape
+    assert np.array_equal(got, want) and len(got) > 0
+    prepared, prepared_any = select_xy(clouds, L, labels, PreparedPolygon(L))
+    assert prepared_any == want_any and np.array_equal(prepared, want)
+    one, _ = select_xy(clouds[0], L, labels)
+    assert np.array_equal(one, select_every_point(clouds[:1], L, labels)[0])
+    lab = clouds[0]["label"]
+    assert np.array_equal(label_mask(lab, labels), np.isin(lab, labels))
+
+
+STAR = [[10 + (9 if i % 2 == 0 else 3) * np.cos(i * np.pi / 7),
+         10 + (9 if i % 2 == 0 else 3) * np.sin(i * np.pi / 7)] for i in range(14)]
+
+
+@pytest.mark.parametrize("offset", [0.0, 3.3e5, -7.1e6])
+@pytest.mark.parametrize("outline", [RECT, [[0, 0], [4, 0], [4, 2], [2, 2], [2, 4], [0, 4]], STAR,
+                                     [[0, 0], [40, 0.5], [0.3, 1]]])  # thin and slanted
+def test_a_prepared_polygon_answers_as_points_in_polygon(outline, offset):
+    """Point for point, on random points, points on the edges and vertices (in or out
+    by a rounding), on the grid's cell borders, far away and not finite."""
+    rng = np.random.default_rng(len(outline))
+    poly = as_polygon(outline) + offset
+    region = PreparedPolygon(poly)
+    lo, hi = poly.min(axis=0), poly.max(axis=0)
+    span = hi - lo
+    a, b = poly, np.roll(poly, -1, axis=0)
+    t = rng.uniform(0, 1, (20_000, 1))
+    k = rng.integers(0, len(poly), 20_000)
+    on_edges = a[k] + t * (b[k] - a[k])
+    nudged = on_edges + rng.choice([-1, 0, 1], (20_000, 2)) * 1e-12 * np.abs(on_edges).max()
+    borders = region.lo + region.size * rng.integers(0, max(region.nx, region.ny), (5000, 2))
+    xy = np.concatenate([rng.uniform(lo - span / 4, hi + span / 4, (30_000, 2)), on_edges,
+                         nudged, borders, poly, [[np.nan, lo[1]], [lo[0], np.inf], [-1e300, 0]]])
+    want = points_in_polygon(xy, poly)
+    assert np.array_equal(region.contains(xy), want)
+    assert want.sum() > 1000 and (region.state != 2).sum() > len(region.state) / 3
+    rows = np.concatenate([xy[:5], xy[-3:]])
+    assert np.array_equal(region.contains(rows), points_in_polygon(rows, poly))
+    assert region.contains(np.empty((0, 2))).shape == (0,)
 
 
 def test_infra_nuc_formula():
