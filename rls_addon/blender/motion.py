@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .extract import GEOMETRY_TYPES, instance_key, read_positions
+from .extract import GEOMETRY_TYPES, instance_key, is_rls_helper, read_positions
 
 
 def _animated(idblock):
@@ -35,6 +35,36 @@ def may_move(obj):
             return True
         o = o.parent
     return False
+
+
+# Modifiers whose result may change from frame to frame with no keyframe or driver:
+# simulations, caches, and those taking the frame or the scene time as an input.
+_CHANGE_BY_THEMSELVES = {"NODES", "ARMATURE", "CLOTH", "SOFT_BODY", "OCEAN", "WAVE",
+                         "DYNAMIC_PAINT", "FLUID", "EXPLODE", "PARTICLE_SYSTEM",
+                         "PARTICLE_INSTANCE", "BUILD", "MESH_CACHE", "MESH_SEQUENCE_CACHE",
+                         "COLLISION", "SURFACE"}
+
+
+def timeless(data, exclude=()):
+    """True when nothing in the file ``data`` (``bpy.data``) but the objects named in
+    ``exclude`` can change from frame to frame: no other object moves or deforms
+    (``may_move``, or a modifier that changes by itself) and no other data-block
+    (mesh, material, node group, texture, world, scene ...) is animated or driven.
+    Then every frame of the scene reads the same, but for those objects."""
+    for obj in data.objects:
+        if obj.name in exclude or is_rls_helper(obj):  # never read
+            continue
+        if may_move(obj) or any(m.type in _CHANGE_BY_THEMSELVES for m in obj.modifiers):
+            return False
+    return not any(_animated(block) or _animated(getattr(block, "node_tree", None))
+                   for block in _data_blocks(data, skip={"objects"}))
+
+
+def _data_blocks(data, skip):
+    """Every data-block of ``data`` (``bpy.data``) outside its collections ``skip``."""
+    for prop in data.bl_rna.properties:
+        if prop.type == "COLLECTION" and prop.identifier not in skip:
+            yield from getattr(data, prop.identifier)
 
 
 def may_deform(obj):

@@ -7,15 +7,21 @@ import numpy as np
 
 from ..core.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh
-from .motion import SweepClock, may_deform, may_move, read_state
+from .motion import SweepClock, may_deform, may_move, read_state, timeless
 
 
 class BlenderScene:
     """``scene`` (a ``bpy.types.Scene``) in ``context`` (default ``bpy.context``). One
     source serves a whole run: its ``MeshReader`` reads a mesh that does not change
-    between frames once."""
+    between frames once.
 
-    def __init__(self, scene, context=None):
+    ``edited=False`` promises that nobody edits the file while the source is used (the
+    command line's background Blender, a worker): then, while nothing but the sensors
+    can change over time (``motion.timeless``), a read is kept and given back for the
+    next read from the same anchor and range, and the scene is not read again each
+    frame. In Blender's interface (the default) every read reads."""
+
+    def __init__(self, scene, context=None, edited=True):
         import bpy
 
         self.scene = scene
@@ -24,6 +30,9 @@ class BlenderScene:
         self.fps = scene.render.fps / scene.render.fps_base
         self.frame_start = scene.frame_start
         self.meshes = MeshReader()
+        self.edited = edited
+        self._kept_read = None  # (key, SceneRead) of the last read, when it may be kept
+        self._timeless = {}     # exclude -> motion.timeless, for an unedited file
 
     def depsgraph(self):
         return self.context.evaluated_depsgraph_get()
@@ -49,10 +58,25 @@ class BlenderScene:
         return obj is not None and may_move(obj)
 
     def read(self, centre, max_range, exclude):
+        key = (np.asarray(centre, np.float64).tobytes(), float(max_range), frozenset(exclude))
+        if self._kept_read is not None and self._kept_read[0] == key:
+            return self._kept_read[1]
         instances, materials, stats = read_instances(
             self.depsgraph(), centre=centre, max_range=max_range, exclude=set(exclude),
             reader=self.meshes)
-        return SceneRead(instances, materials, stats)
+        got = SceneRead(instances, materials, stats)
+        self._kept_read = (key, got) if self._keeps_reads(key[2]) else None
+        return got
+
+    def _keeps_reads(self, exclude):
+        """Whether a read without the objects ``exclude`` may serve every frame."""
+        if self.edited:
+            return False
+        if exclude not in self._timeless:
+            import bpy
+
+            self._timeless[exclude] = timeless(bpy.data, exclude)
+        return self._timeless[exclude]
 
     def mobility(self, instances, sensor):
         objects = self.scene.objects

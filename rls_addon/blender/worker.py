@@ -54,8 +54,8 @@ def _open(blend):
             from .. import register
 
             register()
-        _STATE.update(key=key, source=BlenderScene(bpy.context.scene), sessions={},
-                      studies={})
+        _STATE.update(key=key, source=BlenderScene(bpy.context.scene, edited=False),
+                      sessions={}, studies={})
     return _STATE
 
 

@@ -212,9 +212,10 @@ def scan_run(args):
             settings = absolute_output(settings)
         jobs.append(sensor_job(obj, settings))
     frames = parse_frames(args.frames, scene.frame_current)
-    source = BlenderScene(scene)
+    source = BlenderScene(scene, edited=False)  # a background Blender: nobody edits it
     writer = make_writer(jobs, scene.name, source.fps, source.frame_start,
-                         overwrite=args.overwrite, resume=args.resume, preview=args.preview_png)
+                         overwrite=args.overwrite, resume=args.resume, preview=args.preview_png,
+                         background=True)
     return ScanRun(source, jobs, frames, writer=writer, progress=_print_step)
 
 

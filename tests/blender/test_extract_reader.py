@@ -185,3 +185,43 @@ def test_without_attribute_arrays_every_item_is_read(scene, monkeypatch):
     extract.read_instances(dg, reader=reader)
     extract.read_instances(dg, reader=reader)
     assert reader.reads == 2
+
+
+def test_an_unedited_file_is_read_once_while_nothing_but_the_lidar_moves(scene):
+    """The command line's source (``edited=False``) keeps its read from one anchor and
+    range while nothing in the file but LiDARs can change over time; anything animated
+    (an object, a material) or a modifier that changes by itself means a read per
+    frame, and so does Blender's interface (``edited=True``)."""
+    from rls_addon.blender.motion import timeless
+    from rls_addon.blender.source import BlenderScene
+
+    wall = mesh_object("Wall", [(5, -5, -3), (5, 5, -3), (5, 5, 5), (5, -5, 5)],
+                       [(0, 1, 2, 3)])
+    lidar = add_lidar()
+    lidar.keyframe_insert("location", frame=1)
+    lidar.location.x = 1.0
+    lidar.keyframe_insert("location", frame=5)
+
+    def reads(source, frames=(1, 2, 3)):
+        before, got = source.meshes.reads, []
+        for f in frames:
+            scene.frame_set(f)
+            got.append(source.read(np.zeros(3), 50.0, {lidar.name}))
+        return source.meshes.reads - before, got
+
+    count, got = reads(BlenderScene(scene, edited=False))
+    assert timeless(bpy.data) and got[0] is got[1] is got[2] and count == 1
+    assert reads(BlenderScene(scene))[1][0] is not reads(BlenderScene(scene))[1][0]
+    child = mesh_object("Child", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)])
+    child.parent = lidar  # moves with the lidar
+    assert not timeless(bpy.data)
+    child.parent = None
+    assert timeless(bpy.data)
+    wall.data.materials.append(bpy.data.materials.new("Paint"))
+    wall.data.materials[0].keyframe_insert("diffuse_color", frame=1)
+    assert not timeless(bpy.data)
+    count, got = reads(BlenderScene(scene, edited=False))
+    assert got[0] is not got[1] and count == 2  # read each frame (meshes still reused)
+    wall.data.materials[0].animation_data_clear()
+    wall.modifiers.new("Build", "BUILD")
+    assert not timeless(bpy.data)

@@ -101,3 +101,57 @@ def test_compiled_recheck_matches_the_numpy_reference(kind, backend):
         assert ra == rb
         for x, y in zip(a, b):
             assert x.tobytes() == y.tobytes()
+
+
+def test_bvhtree_refined_cast_matches_cast_then_refine():
+    """BVHCaster.start_refined reads only the triangle of each ray and takes the range
+    from its plane: the same bits as casting and refining (refine_hits), grazing rays
+    (which keep BVHTree's own range) included."""
+    from rls_addon.core.casting import refine_hits
+    from rls_addon.core.casting.base import plane_ranges
+
+    v, f = closed_mesh("grid_cube")
+    planes = triangle_planes(v, f)
+    caster = BVHCaster(v, f)
+    rng = np.random.default_rng(5)
+    # From just above the top face (z = 5), rays aimed at points of the cube, and rays
+    # descending onto the top face at slopes under GRAZING
+    o = np.array([[-5.5, 0.3, 5.0 + 4e-7]])
+    d = np.concatenate([rng.uniform(-5, 5, (3000, 3)) - o,
+                        [[1.0, 0.01 * k, -2e-7 * k] for k in range(1, 40)]])
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    dist, tri = caster.cast(o, d, 100.0)
+    want = (*refine_hits(None, None, o, d, dist, tri, planes), tri)
+    got_dist, got_tri, got_normals = caster.start_refined(o, d, 100.0, planes)()
+    hit = np.nonzero(tri >= 0)[0]
+    usable = plane_ranges(planes[tri[hit]], o, d, hit)[1]
+    assert len(hit) > 2000 and not usable.all()  # grazing hits among them
+    for x, y in zip((got_dist, got_normals, got_tri), want):
+        assert x.tobytes() == y.tobytes()
+
+
+@pytest.mark.parametrize("origin", [(0.0, 0.0, 5.0), (30.0, -20.0, 1.0)])
+def test_bvhtree_skips_only_rays_that_surely_miss(origin):
+    """Behind the watertight wrapper BVHTree casts only the rays that may reach a hull
+    box (from one origin, by the boxes' elevation envelope; per-ray origins, by the
+    octant test): the same hits, bits and re-checks as casting every ray."""
+    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.presets import get_preset
+    from tests.core.test_assemble import open_sky
+
+    preset = get_preset("hesai_pandar64")
+    d = preset.pattern().directions
+    scene = PreparedScene(open_sky(), np.asarray(origin), preset.range.max_m, BVHCaster)
+    caster, o = scene.caster, np.asarray(origin)[None] - scene.centre
+    per_ray = np.repeat(o, len(d), axis=0) + np.linspace(0, 1, len(d))[:, None]
+    for origins in (o, per_ray):
+        assert len(caster.rows_worth_casting(origins, d, 120.0)) < 0.9 * len(d)
+        got = []
+        for skip in (True, False):
+            caster.primary.skip_sure_misses, caster.retried = skip, 0
+            got.append((cast_exact(caster, origins, d, 120.0, scene.planes), caster.retried))
+        del caster.primary.skip_sure_misses
+        (a, ra), (b, rb) = got
+        assert ra == rb
+        for x, y in zip(a, b):
+            assert x.tobytes() == y.tobytes()

@@ -169,6 +169,35 @@ def test_resume_keeps_finished_outputs_and_redoes_broken_ones(tmp_path):
         assert len(read_cloud(p)) == read_sidecar(p)["points"]
 
 
+def test_background_writes_give_the_same_files_and_end_with_the_run(tmp_path):
+    """A writer in the background (rls scan) writes each scan's files while the next
+    scan runs: the same bytes as writing in place, all complete when the run ends (a
+    cancelled run and a piece too), and a failed write fails the run."""
+    import pickle
+
+    scene = street()
+    for background in (False, True):
+        out = tmp_path / str(background)
+        jobs = [job("pole", out), job("mast", out)]
+        run_of(scene, jobs, [1, 2, 3], out, writer_kw={"background": background}).run()
+        cut = out / "cut"
+        run_of(scene, [job("pole", cut)], [1, 2, 3], cut, writer_kw={"background": background},
+               cancelled=lambda: scene.frame == 3).run()
+        assert len(list(cut.glob("*.json"))) == 2
+    for a in (tmp_path / "False").rglob("*.*"):
+        b = tmp_path / "True" / a.relative_to(tmp_path / "False")
+        assert a.read_bytes() == b.read_bytes(), a.name
+    writer = CloudWriter(scene.name, background=True)
+    assert pickle.loads(pickle.dumps(writer)).background  # sent to workers
+    blocked = tmp_path / "blocked"
+    blocked.mkdir()
+    run = run_of(scene, [job("pole", blocked)], [1, 2], blocked,
+                 writer_kw={"background": True})
+    (blocked / "fake_pole_000002.pcd").mkdir()  # in the way of the second cloud
+    with pytest.raises(OutputError, match="directory"):
+        run.run()
+
+
 def test_bad_input_fails_before_anything_is_scanned(tmp_path):
     scene = street()
     blocker = tmp_path / "file"

@@ -51,6 +51,9 @@ class CasterBase:
 
     name = "caster"
     instances = None  # class tracing casters of this backend as moving instances, or None
+    # True where every ray costs a Python call (BVHTree): the watertight wrapper then
+    # casts only the rays that may reach its hull (see WatertightCaster.rows_worth_casting)
+    skip_sure_misses = False
 
     def cast(self, origins, directions, max_dist):
         raise NotImplementedError
@@ -116,21 +119,28 @@ def refine_hits(vertices, triangles, origins, directions, dist, tri, planes=None
     th = tri[hit]
     pl = triangle_planes(vertices, np.asarray(triangles, np.int64)[th]) if planes is None \
         else planes[th]
-    n, off = pl[:, :3], pl[:, 3]
+    exact, use = plane_ranges(pl, origins, directions, hit)
+    # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
+    # where the float64 answer is ill-conditioned anyway.
+    dist[hit[use]] = exact[use]
+    normals[hit] = pl[:, :3]
+    return dist, normals
+
+
+def plane_ranges(planes, origins, directions, rows):
+    """Ranges along rays ``rows`` (of ``origins`` (1, 3) or (N, 3), ``directions``) to
+    their planes (``planes``: a ``triangle_planes`` row per ray), and where they are
+    usable (False where the ray grazes the plane or meets it behind the origin)."""
+    n, off = planes[:, :3], planes[:, 3]
     o = np.asarray(origins, np.float64).reshape(-1, 3)
-    o = o if o.shape[0] == 1 else o[hit]
-    d = directions[hit]
+    o = o if o.shape[0] == 1 else o[rows]
+    d = directions[rows]
     # Summed in the compiled loop's order (native/embree_loop.c), for the same bits.
     denom = n[:, 0] * d[:, 0] + n[:, 1] * d[:, 1] + n[:, 2] * d[:, 2]
     no = n[:, 0] * o[:, 0] + n[:, 1] * o[:, 1] + n[:, 2] * o[:, 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         exact = (off - no) / denom
-    # Keep the backend's value where the plane is nearly parallel to the ray (grazing),
-    # where the float64 answer is ill-conditioned anyway.
-    use = np.isfinite(exact) & (np.abs(denom) > GRAZING) & (exact > 0)
-    dist[hit[use]] = exact[use]
-    normals[hit] = n
-    return dist, normals
+    return exact, np.isfinite(exact) & (np.abs(denom) > GRAZING) & (exact > 0)
 
 
 def cast_exact(caster, origins, directions, max_dist, planes, order=None):

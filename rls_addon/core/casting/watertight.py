@@ -4,6 +4,7 @@ never slip between the triangles (see ``WatertightCaster``)."""
 import numpy as np
 
 from .base import CasterBase, cast_exact, refine_hits
+from .envelope import ElevationEnvelope
 
 
 # Generic (irrational-ish) vectors used to pick a perpendicular nudge for each retry.
@@ -79,6 +80,37 @@ def outside_distance(vertices, triangles, tri, origins, directions):
     return np.where(np.isfinite(out) & (s > 0), out, np.inf)
 
 
+def _clip_slab(lo, hi, d, near, far):
+    """Narrow each ray's span [near, far] (updated in place) to where it lies between
+    ``lo`` and ``hi`` (offsets from its origin) along one axis, ``d`` its direction's
+    component there; a ray parallel to the slab keeps its span inside, loses it
+    outside (embree_loop.c: may_reach_hull)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / d
+        t1, t2 = lo * inv, hi * inv
+    flat = np.nonzero(d == 0)[0]
+    if len(flat):
+        inside = (lo[flat] <= 0) & (hi[flat] >= 0)
+        t1[flat] = np.where(inside, -np.inf, np.inf)
+        t2[flat] = np.where(inside, np.inf, -np.inf)
+    np.maximum(near, np.minimum(t1, t2), out=near)
+    np.minimum(far, np.maximum(t1, t2), out=far)
+
+
+def _take(origins, rows):
+    """The origins of rays ``rows``: the one shared origin, or theirs."""
+    return origins if origins.shape[0] == 1 else origins[rows]
+
+
+def _scatter(n, rows, got):
+    """A cast of rays ``rows`` (dist, tri[, normals]) as a cast of all ``n`` rays, the
+    others missing."""
+    out = [np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))][:len(got)]
+    for full, part in zip(out, got):
+        full[rows] = part
+    return tuple(out)
+
+
 class WatertightCaster(CasterBase):
     """Makes any backend's float32 traversal watertight for rays that miss.
 
@@ -117,8 +149,13 @@ class WatertightCaster(CasterBase):
     def cast(self, origins, directions, max_dist):
         d = np.asarray(directions, np.float64)
         o = np.asarray(origins, np.float64).reshape(-1, 3)
-        dist, tri = self.primary.cast(o, d, max_dist)
-        self._recheck(o, d, max_dist, dist, tri)
+        rows = self.rows_worth_casting(o, d, max_dist)
+        if rows is None:
+            dist, tri = self.primary.cast(o, d, max_dist)
+        else:
+            dist, tri = _scatter(len(d), rows, self.primary.cast(_take(o, rows), d[rows],
+                                                                 max_dist))
+        self._recheck(o, d, max_dist, dist, tri, reach=rows)
         return dist, tri
 
     def start_refined(self, origins, directions, max_dist, planes, order=None):
@@ -130,9 +167,31 @@ class WatertightCaster(CasterBase):
         pending = self._start_compiled(o, d, max_dist, planes, order)
         if pending is not None:
             return pending
-        dist, tri, normals = cast_exact(self.primary, o, d, max_dist, planes, order)
-        self.win_back(o, d, max_dist, planes, dist, tri, normals)
+        rows = self.rows_worth_casting(o, d, max_dist)
+        if rows is None:
+            dist, tri, normals = cast_exact(self.primary, o, d, max_dist, planes, order)
+        else:
+            dist, tri, normals = _scatter(len(d), rows, cast_exact(
+                self.primary, _take(o, rows), d[rows], max_dist, planes))
+        self.win_back(o, d, max_dist, planes, dist, tri, normals, reach=rows)
         return lambda: (dist, tri, normals)
+
+    def rows_worth_casting(self, o, d, max_dist):
+        """The rays the primary build is asked to cast: all (None) for a backend whose
+        rays cost little (Embree traces a sky ray in nanoseconds); for one that pays
+        per ray (``skip_sure_misses``: a Python call each with BVHTree), the indices of
+        the rays that may reach a hull box. Every triangle lies in a padded hull box,
+        so the others surely miss: from a sensor above the ground, the rays to the sky
+        and those passing beyond the ground's edge. From one origin, the boxes'
+        ``ElevationEnvelope`` tells them apart (nearly as well as casting into the
+        hull); from per-ray origins, the octant test (``may_reach_hull``)."""
+        if not getattr(self.primary, "skip_sure_misses", False) or len(d) == 0:
+            return None
+        if o.shape[0] == 1:
+            reach = ElevationEnvelope(o[0], self.box_lo, self.box_hi).may_meet(d)
+        else:
+            reach = self.may_reach_hull(o, d, max_dist, self.octant_boxes(o))
+        return np.nonzero(reach)[0]
 
     # Off: every cast re-checks in numpy (the reference the compiled loop is tested
     # against).
@@ -168,33 +227,30 @@ class WatertightCaster(CasterBase):
     def describe(self):
         return self.primary.describe()
 
-    def win_back(self, o, d, max_dist, planes, dist, tri, normals, limit=None):
+    def win_back(self, o, d, max_dist, planes, dist, tri, normals, limit=None, reach=None):
         """Re-check the misses (``tri`` -1) of a refined cast of the primary build and
         write what they find, refined, into ``dist``, ``tri`` and ``normals``;
         returns the indices of the rays won back. ``limit`` (per ray): only a crack
-        nearer than this matters (a ray that hit something else there)."""
-        got = self._recheck(o, d, max_dist, dist, tri, limit)
+        nearer than this matters (a ray that hit something else there). ``reach``:
+        the indices of the rays that may reach the hull, when known."""
+        got = self._recheck(o, d, max_dist, dist, tri, limit, reach)
         if len(got):
-            dist[got], normals[got] = refine_hits(None, None, o if o.shape[0] == 1 else o[got],
+            dist[got], normals[got] = refine_hits(None, None, _take(o, got),
                                                   d[got], dist[got], tri[got], planes)
         return got
 
-    def _recheck(self, o, d, max_dist, dist, tri, limit=None):
+    def _recheck(self, o, d, max_dist, dist, tri, limit=None, reach=None):
         """Re-cast the misses that may have slipped through a crack (see the class
         docstring), writing what they find into ``dist`` and ``tri``; returns the
         indices of the rays won back. With ``limit`` (per ray), a miss whose path
-        meets no hull box before its limit is not re-cast."""
+        meets no hull box before its limit is not re-cast. ``reach``: the indices of
+        the rays that may reach the hull (``may_reach_hull``) when already known."""
         won = []
-        miss = np.nonzero(tri < 0)[0]
-        if len(miss):
-            # Model no more than the scene needs: a miss that cannot reach any hull
-            # box (e.g. a sky ray over everything) is a real miss, with no hull cast.
-            miss = miss[self.may_reach_hull(o if o.shape[0] == 1 else o[miss], d[miss],
-                                            max_dist, self.octant_boxes(o))]
+        miss = self._misses_near_hull(o, d, max_dist, tri, reach)
         if len(miss) == 0:
             return np.zeros(0, np.int64)
         dm = d[miss]
-        entry, inside = self.hull.cast(o if o.shape[0] == 1 else o[miss], dm, max_dist)
+        entry, inside = self.hull.cast(_take(o, miss), dm, max_dist)
         keep = inside >= 0
         if limit is not None and not self._starts_inside(o):
             keep &= entry <= limit[miss]
@@ -216,6 +272,18 @@ class WatertightCaster(CasterBase):
             won.append(miss[got])
             miss, om = miss[~got], om[~got]
         return np.concatenate(won) if won else np.zeros(0, np.int64)
+
+    def _misses_near_hull(self, o, d, max_dist, tri, reach=None):
+        """The misses worth a hull cast. Model no more than the scene needs: a miss
+        that cannot reach any hull box (e.g. a sky ray over everything) is a real miss,
+        with no hull cast. ``reach``: the rays that may reach the hull, if known."""
+        if reach is not None:
+            return reach[tri[reach] < 0]
+        miss = np.nonzero(tri < 0)[0]
+        if len(miss) == 0:
+            return miss
+        return miss[self.may_reach_hull(_take(o, miss), d[miss], max_dist,
+                                        self.octant_boxes(o))]
 
     def octant_boxes(self, origins):
         """Per octant of directions (bit k set: negative along axis k), the union of the
@@ -248,19 +316,16 @@ class WatertightCaster(CasterBase):
         operation (embree_loop.c: may_reach_hull)."""
         o = np.asarray(origins, np.float64).reshape(-1, 3)
         boxes, has = self.octant_boxes(o) if table is None else table
-        d = np.asarray(directions, np.float64)
-        code = (d[:, 0] < 0).astype(np.int64) | ((d[:, 1] < 0) << 1) | ((d[:, 2] < 0) << 2)
-        lo, hi = boxes[code, :3] - o, boxes[code, 3:] - o
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / d
-            t1, t2 = lo * inv, hi * inv
-        flat = d == 0
-        inside = (lo <= 0) & (hi >= 0)
-        t1 = np.where(flat, np.where(inside, -np.inf, np.inf), t1)
-        t2 = np.where(flat, np.where(inside, np.inf, -np.inf), t2)
-        near = np.minimum(t1, t2).max(axis=1)
-        far = np.maximum(t1, t2).min(axis=1)
-        return (has[code] != 0) & (near <= far) & (far >= 0) & (near <= max_dist)
+        d = np.asarray(directions, np.float64).reshape(-1, 3)
+        neg = d < 0
+        code = neg[:, 0] | (neg[:, 1] << 1) | (neg[:, 2] << 2)
+        near, far = np.full(len(d), -np.inf), np.full(len(d), np.inf)
+        # Axis by axis on columns: reductions over the short axis of an (M, 3) array
+        # are many times slower.
+        for k in range(3):
+            _clip_slab(boxes[:, k].take(code) - o[:, k], boxes[:, 3 + k].take(code) - o[:, k],
+                       d[:, k], near, far)
+        return (has.take(code) != 0) & (near <= far) & (far >= 0) & (near <= max_dist)
 
     def _starts_inside(self, o):
         """True unless ``o`` is one origin outside every hull box (then a ray's first

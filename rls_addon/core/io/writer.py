@@ -30,13 +30,23 @@ class CloudWriter:
 
     shardable = True  # a run's pieces may write on several workers
 
-    def __init__(self, scene_name, overwrite=False, resume=False, sensors=(), preview=False):
+    def __init__(self, scene_name, overwrite=False, resume=False, sensors=(), preview=False,
+                 background=False):
         self.scene_name = scene_name
         self.overwrite, self.resume = bool(overwrite), bool(resume)
         self.preview = bool(preview)  # also a picture of each cloud (pictures.py)
         # LAS point source ids: 1..K in the order of the whole run's sensors (the same
         # in every piece of a run spread over workers)
         self.sensors = tuple(sensors)
+        # background: each scan's files are written on a thread of their own while the
+        # next scan runs (encoding, writing and syncing them to disk cost a driving
+        # lidar's frame about a third of its scan); one write at a time, a failed one
+        # raises at the next write or at ``flush`` (the end of the run, a cancel).
+        self.background = bool(background)
+        self._pending = None  # the background write under way (a Future)
+
+    def __getstate__(self):  # sent to workers without a write under way
+        return dict(self.__dict__, _pending=None)
 
     def path(self, sensor, output, frame):
         return output_path(output.directory, output.template, scene=self.scene_name,
@@ -86,6 +96,12 @@ class CloudWriter:
             return None
         return n if info.get("points") == n else None
 
+    def flush(self):
+        """Wait for the background write under way, if any; raises what it raised."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
+
     def finish(self, run):
         """Write the run's instance table once per output folder:
         ``<scene>_instances.json`` (stable instance id -> object and label), merged
@@ -94,6 +110,7 @@ class CloudWriter:
 
         from .atomic import atomic_write_bytes
 
+        self.flush()
         table = run.instance_table()
         folders = sorted({j.settings.output.directory for j in run.sensors})
         for folder in folders:
@@ -115,8 +132,17 @@ class CloudWriter:
     def write(self, sensor, output, frame, points, info):
         """Write the cloud (only ``output.fields``) and its sidecar; returns the cloud's
         path. Interrupted between the two, the cloud goes again: no cloud is left
-        without its sidecar."""
+        without its sidecar. ``background``: started, after the previous write ended
+        (``points`` and ``info`` must not change meanwhile)."""
         path = self.path(sensor, output, frame)
+        if not self.background:
+            return self._write(path, sensor, output, points, info)
+        self.flush()
+        self._pending = _background_thread().submit(self._write, path, sensor, output, points,
+                                                    info)
+        return path
+
+    def _write(self, path, sensor, output, points, info):
         existed = os.path.exists(path)
         overwrite = self.overwrite or (self.resume and existed)
         fields = list(output.fields)
@@ -161,7 +187,21 @@ class CloudWriter:
         return LasWriter(names, offset=output.las_offset, crs=output.crs, overwrite=overwrite)
 
     def abort(self):
-        """A run ended early: every file written is complete, nothing to drop."""
+        """A run ended early: every file written is complete (the write under way ends
+        first), nothing to drop."""
+        self.flush()
+
+
+_THREAD = []
+
+
+def _background_thread():
+    """The one thread background writes run on (started on first use)."""
+    if not _THREAD:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _THREAD.append(ThreadPoolExecutor(1, thread_name_prefix="rls-writer"))
+    return _THREAD[0]
 
 
 def picture_path(cloud_path):
@@ -252,14 +292,14 @@ class BagWriter:
 
 
 def make_writer(jobs, scene_name, fps, first_frame, overwrite=False, resume=False,
-                preview=False):
+                preview=False, background=False):
     """The writer of a run of ``jobs`` (``run.SensorJob``): a ``BagWriter`` when their
     format is 'mcap' (one bag for all, in the first LiDAR's folder), else a
-    ``CloudWriter``."""
+    ``CloudWriter`` (writing in the ``background``, see there)."""
     bags = [j for j in jobs if j.settings.output.format == "mcap"]
     if not bags:
         return CloudWriter(scene_name, overwrite, resume, sensors=[j.name for j in jobs],
-                           preview=preview)
+                           preview=preview, background=background)
     if len(bags) != len(jobs):
         raise SettingsError("a run writes one bag for all its LiDARs: give every LiDAR the "
                             "format 'mcap' (rls scan --format mcap), or none")
