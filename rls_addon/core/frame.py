@@ -241,6 +241,13 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                                   else sensor_track.matrices[0])
         origins = origin.reshape(1, 3)
         dirs = pattern.rotated(rot)
+    elif sensor_track.linear_is_constant:
+        # Driving without turning: one rotation for the sweep (the pattern turned once,
+        # and kept while it does not turn), an origin per distinct firing time.
+        times, at = distinct_times(tscene)
+        poses = sensor_track.positions_at(times)
+        origins = poses[at]
+        dirs = pattern.rotated(sensor_axes(sensor_track.matrices[0])[1])
     else:
         # One pose per distinct firing time (the channels of a firing share it): a
         # spinning lidar has 64 to 128 times fewer poses to take apart than rays.

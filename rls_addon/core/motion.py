@@ -141,6 +141,14 @@ class Track:
         out[:, :3, :3] = rot @ scale
         return out
 
+    def positions_at(self, t):
+        """(N, 3) translations at times t: ``at(t)[:, :3, 3]`` without the rotations
+        (a track whose ``linear_is_constant`` needs no more)."""
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        if len(self.times) == 1 or self.is_static:
+            return np.repeat(self.matrices[:1, :3, 3], len(t), axis=0)
+        return self._hermite(*self._segments(t))
+
     def _segments(self, t):
         t = np.asarray(t, dtype=np.float64).reshape(-1)
         k = len(self.times)
