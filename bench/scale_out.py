@@ -56,17 +56,11 @@ import rls_addon
 bpy.ops.wm.read_factory_settings(use_empty=True)
 rls_addon.register()
 from rls_addon.blender.scenes import build_scene
-from rls_addon.blender.scenes.build import mount_position
+from rls_addon.blender.scenes.build import lidar_object, mount_position
 build_scene("intersection", bpy.context.scene)
 scene = bpy.context.scene
-def lidar(name, preset, parent=None, location=(0, 0, 0), rotation=(0, 0, 0)):
-    ob = bpy.data.objects.new(name, None)
-    ob.location, ob.rotation_euler = location, rotation
-    scene.collection.objects.link(ob)
-    if parent is not None:
-        ob.parent = parent
-    s = ob.rls_lidar
-    s.is_lidar, s.preset_id, s.seed = True, preset, 7
+def lidar(name, preset, **kw):
+    return lidar_object(scene, name, preset, seed=7, **kw)
 lidar("Pole NE", "hesai_pandar64", location=mount_position(bpy.data.objects["TL NE"]),
       rotation=(0, math.radians(10), math.radians(-135)))
 lidar("Pole SW", "hesai_pandar64", location=mount_position(bpy.data.objects["TL SW"]),

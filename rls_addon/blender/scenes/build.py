@@ -177,6 +177,23 @@ def mount_position(obj):
     return (float((lo[0] + hi[0]) / 2), float((lo[1] + hi[1]) / 2), float(hi[2] + off))
 
 
+def lidar_object(scene, name, preset, parent=None, location=(0, 0, 0), rotation=(0, 0, 0),
+                 seed=None):
+    """An empty in ``scene`` made a LiDAR of device ``preset`` (its ``rls_lidar``
+    settings), at ``location`` with Euler ``rotation`` (radians), relative to ``parent``
+    if given (a car it rides on)."""
+    ob = bpy.data.objects.new(name, None)
+    ob.location, ob.rotation_euler = location, rotation
+    scene.collection.objects.link(ob)
+    if parent is not None:
+        ob.parent = parent
+    s = ob.rls_lidar
+    s.is_lidar, s.preset_id = True, preset
+    if seed is not None:
+        s.seed = seed
+    return ob
+
+
 def is_mount(obj):
     try:
         return bool(obj.get(MOUNT_PROPERTY, False))
