@@ -195,15 +195,17 @@ def _street(detail, seed):
         x = -110 + i * 20.0
         add(f"Pole {i}", "pole", "steel",
             cylinder(max(4, int(8 * d)), 0.12, 7.0, (x, side * 7.6, 0.15), rows=max(1, int(d))))
-    verts, tris, objs, mats, off = [], [], [], [], 0
-    for v, t, o, m in parts:
-        verts.append(v)
-        tris.append(t + off)
-        objs.append(o)
-        mats.append(m)
-        off += len(v)
-    return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(objs),
-                         np.concatenate(mats), objects, list(MATERIALS))
+    return _joined(parts, objects)
+
+
+def _joined(parts, objects):
+    """One SceneGeometry of ``parts`` [(vertices, triangles, object per triangle,
+    material per triangle)], each part's triangles shifted past the vertices before it."""
+    offsets = np.cumsum([0] + [len(v) for v, _, _, _ in parts[:-1]])
+    return SceneGeometry(np.concatenate([v for v, _, _, _ in parts]),
+                         np.concatenate([t + off for (_, t, _, _), off in zip(parts, offsets)]),
+                         np.concatenate([o for _, _, o, _ in parts]),
+                         np.concatenate([m for _, _, _, m in parts]), objects, list(MATERIALS))
 
 
 def open_sky_geometry(seed=11):
@@ -228,15 +230,7 @@ def open_sky_geometry(seed=11):
         h = rng.uniform(0.5, 4.0)
         add(f"Box {i}", "building", "concrete",
             box((*(c - half), 0.0), (*(c + half), h), 2))
-    verts, tris, objs, mats, off = [], [], [], [], 0
-    for v, t, o, m in parts:
-        verts.append(v)
-        tris.append(t + off)
-        objs.append(o)
-        mats.append(m)
-        off += len(v)
-    return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(objs),
-                         np.concatenate(mats), objects, list(MATERIALS))
+    return _joined(parts, objects)
 
 
 OPEN_SKY_POSE = np.array([[1.0, 0, 0, 0.0], [0, 1, 0, 0.0], [0, 0, 1, 5.0], [0, 0, 0, 1]])
