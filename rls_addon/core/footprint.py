@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import weather as wx
+from .depth_edges import candidates
 
 RING = 6                   # sub-rays on the ring at the 1/e^2 radius
 CENTRE_SHARE = 0.5         # the centre ray's share of the beam's energy
@@ -85,84 +86,6 @@ def footprint_info(preset, settings):
     return beam_of(preset, settings).to_dict()
 
 
-# ---- which rays may straddle a depth discontinuity ------------------------------------
-
-def neighbour_pairs(pattern):
-    """(a, b) index arrays of neighbouring rays in ``pattern``: consecutive rays of each
-    channel (a spinning channel's next azimuth, a Risley or MEMS trace's next point);
-    across channels, when every channel fires equally often, the ray of the channel
-    next in elevation nearest in azimuth (a fixed shift in its firing count: channels
-    fire at their own azimuth offsets), else consecutive rays in firing order. Kept on
-    the pattern."""
-    got = pattern.__dict__.get("_neighbour_pairs")
-    if got is not None:
-        return got
-    ch = np.asarray(pattern.channels)
-    n = len(ch)
-    order = np.argsort(ch, kind="stable")
-    same = ch[order[:-1]] == ch[order[1:]]
-    a, b = [order[:-1][same]], [order[1:][same]]
-    counts = np.bincount(ch) if n else np.zeros(0, np.int64)
-    used = np.nonzero(counts)[0]
-    if len(used) > 1 and np.all(counts[used] == counts[used[0]]):
-        grid = order.reshape(len(used), -1)
-        d = np.asarray(pattern.directions)
-        grid = grid[np.argsort(d[grid, 2].mean(axis=1), kind="stable")]
-        # each channel's k-th ray against the next channel's ray nearest in azimuth:
-        # channels fire at their own azimuth offsets (a fixed shift in index)
-        az = np.arctan2(d[grid, 1], d[grid, 0])
-        step = np.median(_wrap(np.diff(az, axis=1)), axis=1) if grid.shape[1] > 1 \
-            else np.zeros(len(grid))
-        shift = np.median(_wrap(az[1:] - az[:-1]), axis=1)
-        k = np.where(step[:-1] != 0, np.rint(shift / np.where(step[:-1] != 0, step[:-1], 1)), 0)
-        for r in range(len(grid) - 1):
-            a.append(grid[r])
-            b.append(np.roll(grid[r + 1], int(k[r])))
-    elif n > 1 and len(used) > 1:
-        a.append(np.arange(n - 1))
-        b.append(np.arange(1, n))
-    got = (np.concatenate(a).astype(np.int64), np.concatenate(b).astype(np.int64))
-    pattern.__dict__["_neighbour_pairs"] = got
-    return got
-
-
-def _wrap(angle):
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def candidates(pattern, hit, dist, normals, dirs, origins, step):
-    """(a, b): the neighbour pairs across a depth discontinuity: a neighbour hits and it does not, or neither
-    lies within ``step`` of the other's plane (the range each ray would have on the
-    plane of the other's hit, along its own direction): a step in depth, not a
-    surface seen at a slant (the ground's neighbouring channels differ by metres in
-    range and lie on one plane)."""
-    a, b = neighbour_pairs(pattern)
-    ha, hb = hit[a], hit[b]
-    edge = ha != hb
-    # a step beyond ``step`` changes the range by about as much: only pairs whose ranges
-    # differ by more are tested against each other's plane (a slanted surface's are)
-    both = np.nonzero(ha & hb & (np.abs(dist[a] - dist[b]) > step))[0]
-    if len(both):
-        i, j = a[both], b[both]
-        di, dj, ni, nj = dirs[i], dirs[j], normals[i], normals[j]
-        ri, rj = dist[i], dist[j]
-
-        def dot(x, y):
-            return x[:, 0] * y[:, 0] + x[:, 1] * y[:, 1] + x[:, 2] * y[:, 2]
-
-        with np.errstate(divide="ignore", invalid="ignore"):
-            if origins.shape[0] == 1:
-                # one origin: ray j on the plane of i's hit, ray i on the plane of j's
-                tj = ri * dot(ni, di) / dot(ni, dj)
-                ti = rj * dot(nj, dj) / dot(nj, di)
-            else:
-                oi, oj = origins[i], origins[j]
-                tj = dot(ni, oi + di * ri[:, None] - oj) / dot(ni, dj)
-                ti = dot(nj, oj + dj * rj[:, None] - oi) / dot(nj, di)
-            edge[both] = ~(np.abs(tj - rj) <= step) & ~(np.abs(ti - ri) <= step)
-    return a[edge], b[edge]
-
-
 def ring_directions(dirs, divergence_rad, k=None):
     """(C, RING, 3) unit sub-ray directions on the ring at the 1/e^2 radius (half the
     divergence) around each of ``dirs`` (C, 3): the first horizontal, then every
@@ -202,8 +125,8 @@ class SubRays:
         hit = tri >= 0
         self.beam = beam
         sep = beam.echo_separation_m
-        a, b = candidates(pattern, hit, np.where(hit, ret.dist, 0.0), ret.normals, dirs,
-                          origins, DEPTH_STEP * sep)
+        a, b = candidates(pattern, hit, ret.dist, ret.normals, dirs, origins,
+                          DEPTH_STEP * sep)
         times = np.asarray(times)
         self.rows = np.zeros(0, np.int64)
         self.count = 0
