@@ -10,10 +10,10 @@ the C code follows operation by operation, so both mark the same pairs
 """
 
 import ctypes
-import os
-import threading
 
 import numpy as np
+
+from .kernels import Kernel, threads
 
 NATIVE_EDGES_ABI = 1
 
@@ -65,7 +65,7 @@ def candidates(pattern, hit, dist, normals, dirs, origins, step):
     """(a, b): the neighbour pairs across a depth discontinuity (see ``edges_numpy``),
     in C where it is built."""
     a, b = neighbour_pairs(pattern)
-    fn = native() if compiled else None
+    fn = KERNEL.get() if compiled else None
     edge = edges_numpy(a, b, hit, dist, normals, dirs, origins, step) if fn is None \
         else _edges_native(fn, a, b, hit, dist, normals, dirs, origins, step)
     return a[edge], b[edge]
@@ -116,54 +116,13 @@ class _EdgesArgs(ctypes.Structure):
                 ("step", ctypes.c_double), ("edge", ctypes.c_void_p)]
 
 
-_LOCK = threading.Lock()
-_NATIVE = None  # the bound function, False when not available
-_NATIVE_ERROR = ""
 # Off: every frame tests its pairs in numpy (the reference the C code is tested against).
 compiled = True
-
-
-def load_native(path):
-    """``rls_depth_edges`` of the library at ``path``, bound for ctypes; OSError when
-    it is missing or of another interface version."""
-    lib = ctypes.CDLL(path)
-    try:
-        abi, fn = lib.rls_edges_abi, lib.rls_depth_edges
-    except AttributeError as exc:
-        raise OSError(f"the compiled library has no depth-edge test ({exc}); rebuild it "
-                      "with tools/build_native.py") from None
-    abi.restype, abi.argtypes = ctypes.c_int, []
-    if abi() != NATIVE_EDGES_ABI:
-        raise OSError(f"stale depth-edge test (interface {abi()}, this RLS needs "
-                      f"{NATIVE_EDGES_ABI}); rebuild it with tools/build_native.py")
-    fn.restype, fn.argtypes = None, [ctypes.POINTER(_EdgesArgs), ctypes.c_int]
-    return fn
-
-
-def native():
-    """The compiled depth-edge test, or None (the reason in ``native_error()``)."""
-    global _NATIVE, _NATIVE_ERROR
-    with _LOCK:
-        if _NATIVE is None:
-            from .casting.embree import native_library_path
-
-            path = native_library_path()
-            try:
-                if not os.path.exists(path):
-                    raise OSError(f"{os.path.basename(path)} is not built")
-                _NATIVE = load_native(path)
-            except OSError as exc:
-                _NATIVE, _NATIVE_ERROR = False, str(exc)
-        return _NATIVE or None
-
-
-def native_error():
-    return _NATIVE_ERROR
+KERNEL = Kernel("rls_depth_edges", "rls_edges_abi", NATIVE_EDGES_ABI,
+                [ctypes.POINTER(_EdgesArgs), ctypes.c_int])
 
 
 def _edges_native(fn, a, b, hit, dist, normals, dirs, origins, step):
-    from .assemble import _threads
-
     def c(x, dtype):
         return np.ascontiguousarray(x, dtype=dtype)
 
@@ -172,5 +131,5 @@ def _edges_native(fn, a, b, hit, dist, normals, dirs, origins, step):
     edge = np.empty(len(a), np.uint8)
     args = _EdgesArgs(len(a), *(x.ctypes.data for x in keep[:6]), keep[6].ctypes.data,
                       int(origins.shape[0] != 1), float(step), edge.ctypes.data)
-    fn(ctypes.byref(args), _threads())
+    fn(ctypes.byref(args), threads())
     return edge.view(bool)

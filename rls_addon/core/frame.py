@@ -165,10 +165,11 @@ def _false_returns(air, draws, block, rmin, rmax):
     r_near = max(float(rmin), weather.OVERLAP_M)
     if r_near >= rmax:
         return np.zeros(0, np.int64), np.zeros(0)
-    ranges = weather.false_return_ranges(draws.medium_range, air.alpha, r_near, rmax)
-    rows = np.nonzero((draws.medium < weather.false_return_probability(air.alpha))
-                      & (ranges < block))[0]
-    return rows, ranges[rows]
+    # the range only of the rays that drew a false return (each ray's on its own)
+    drawn = np.nonzero(draws.medium < weather.false_return_probability(air.alpha))[0]
+    ranges = weather.false_return_ranges(draws.medium_range[drawn], air.alpha, r_near, rmax)
+    near = ranges < block[drawn]
+    return drawn[near], ranges[near]
 
 
 def _inside_warnings(world, obj, back, min_hits=100, share=0.95):

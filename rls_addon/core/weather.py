@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SettingsError
+from .kernels import interp
 
 KOSCHMIEDER = -math.log(0.02)          # 3.912
 RAIN_DB_PER_KM = (1.076, 0.67)         # a R^b, R in mm/h
@@ -171,7 +172,8 @@ def false_return_ranges(u, alpha, r_near, r_far, grid=4097):
     """Ranges of false returns for uniforms ``u`` (N,): the inverse of the distribution
     with density proportional to exp(-2 alpha R) / R^2 on [r_near, r_far]. In x = 1/R
     the density is exp(-2 alpha / x), uniform when alpha = 0: its CDF is tabulated on
-    ``grid`` points of x and inverted by interpolation."""
+    ``grid`` points of x and inverted by interpolation (``kernels.interp``: numpy's
+    values, in C where built)."""
     u = np.asarray(u, np.float64)
     x0, x1 = 1.0 / float(r_far), 1.0 / float(r_near)
     x = np.linspace(x0, x1, grid)
@@ -179,7 +181,7 @@ def false_return_ranges(u, alpha, r_near, r_far, grid=4097):
     cdf = np.concatenate([[0.0], np.cumsum((f[1:] + f[:-1]) * 0.5 * np.diff(x))])
     cdf /= cdf[-1]
     # u = 0 is the far end (x0): ranges fall from r_far to r_near as u grows
-    return 1.0 / np.interp(u, cdf, x)
+    return 1.0 / interp(u, cdf, x)
 
 
 def false_return_pdf(r, alpha, r_near, r_far):

@@ -13,9 +13,9 @@ from tests.core.test_footprint import device, edge_scene, grid, scan
 
 @pytest.fixture(scope="module")
 def native():
-    fn = depth_edges.native()
+    fn = depth_edges.KERNEL.get()
     if fn is None:
-        pytest.fail(f"the compiled depth-edge test is not built ({depth_edges.native_error()})"
+        pytest.fail(f"the compiled depth-edge test is not built ({depth_edges.KERNEL.error})"
                     ": run 'make native' (make test does)")
     return fn
 

@@ -1,0 +1,84 @@
+"""Small compiled kernels of a frame (``native/edges.c``, ``native/interp.c``), in the
+library of the compiled Embree loop: each bound once, on first use, after checking its
+interface version; None where the library is not built or is stale (the caller then
+runs its numpy reference, which gives the same bytes)."""
+
+import ctypes
+import os
+import threading
+
+import numpy as np
+
+
+class Kernel:
+    """One entry point ``name`` of the library, with its interface version function
+    ``abi`` (returning ``version``) and its ctypes ``argtypes``."""
+
+    def __init__(self, name, abi, version, argtypes, restype=None):
+        self.name, self.abi, self.version = name, abi, version
+        self.argtypes, self.restype = argtypes, restype
+        self._fn, self.error = None, ""
+        self._lock = threading.Lock()
+
+    def load(self, path):
+        """The entry point of the library at ``path``, bound; OSError when it is missing
+        or of another interface version."""
+        lib = ctypes.CDLL(path)
+        try:
+            abi, fn = getattr(lib, self.abi), getattr(lib, self.name)
+        except AttributeError as exc:
+            raise OSError(f"the compiled library has no {self.name} ({exc}); rebuild it "
+                          "with tools/build_native.py") from None
+        abi.restype, abi.argtypes = ctypes.c_int, []
+        if abi() != self.version:
+            raise OSError(f"stale {self.name} (interface {abi()}, this RLS needs "
+                          f"{self.version}); rebuild it with tools/build_native.py")
+        fn.restype, fn.argtypes = self.restype, self.argtypes
+        return fn
+
+    def get(self):
+        """The bound function, or None (the reason in ``error``)."""
+        with self._lock:
+            if self._fn is None:
+                from .casting.embree import native_library_path
+
+                path = native_library_path()
+                try:
+                    if not os.path.exists(path):
+                        raise OSError(f"{os.path.basename(path)} is not built")
+                    self._fn = self.load(path)
+                except OSError as exc:
+                    self._fn, self.error = False, str(exc)
+            return self._fn or None
+
+
+def threads():
+    """The threads a kernel may use: the CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:
+        return max(1, os.cpu_count() or 1)
+
+
+NATIVE_INTERP_ABI = 1
+_vp = ctypes.c_void_p
+INTERP = Kernel("rls_interp", "rls_interp_abi", NATIVE_INTERP_ABI,
+                [_vp, ctypes.c_int64, _vp, _vp, ctypes.c_int64, _vp], ctypes.c_int)
+# Off: ``interp`` is numpy's own (the reference the C code is tested against).
+compiled = True
+
+
+def interp(x, xp, fp):
+    """``np.interp(x, xp, fp)`` for ``xp`` that does not decrease, the same values (in C,
+    native/interp.c, where it is built: numpy's bisection is slow for x in random
+    order)."""
+    fn = INTERP.get() if compiled else None
+    xp = np.ascontiguousarray(xp, np.float64)
+    if fn is None or len(xp) < 2 or np.ndim(x) != 1:
+        return np.interp(x, xp, fp)
+    x = np.ascontiguousarray(x, np.float64)
+    fp = np.ascontiguousarray(fp, np.float64)
+    out = np.empty(len(x))
+    if fn(x.ctypes.data, len(x), xp.ctypes.data, fp.ctypes.data, len(xp), out.ctypes.data):
+        return np.interp(x, xp, fp)
+    return out
