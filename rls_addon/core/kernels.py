@@ -1,4 +1,4 @@
-"""Small compiled kernels of a frame (``native/edges.c``, ``native/interp.c``), in the
+"""Small compiled kernels of a frame (``native/edges.c``, ``native/weather.c``), in the
 library of the compiled Embree loop: each bound once, on first use, after checking its
 interface version; None where the library is not built or is stale (the caller then
 runs its numpy reference, which gives the same bytes)."""
@@ -6,8 +6,6 @@ runs its numpy reference, which gives the same bytes)."""
 import ctypes
 import os
 import threading
-
-import numpy as np
 
 
 class Kernel:
@@ -59,26 +57,3 @@ def threads():
     except AttributeError:
         return max(1, os.cpu_count() or 1)
 
-
-NATIVE_INTERP_ABI = 1
-_vp = ctypes.c_void_p
-INTERP = Kernel("rls_interp", "rls_interp_abi", NATIVE_INTERP_ABI,
-                [_vp, ctypes.c_int64, _vp, _vp, ctypes.c_int64, _vp], ctypes.c_int)
-# Off: ``interp`` is numpy's own (the reference the C code is tested against).
-compiled = True
-
-
-def interp(x, xp, fp):
-    """``np.interp(x, xp, fp)`` for ``xp`` that does not decrease, the same values (in C,
-    native/interp.c, where it is built: numpy's bisection is slow for x in random
-    order)."""
-    fn = INTERP.get() if compiled else None
-    xp = np.ascontiguousarray(xp, np.float64)
-    if fn is None or len(xp) < 2 or np.ndim(x) != 1:
-        return np.interp(x, xp, fp)
-    x = np.ascontiguousarray(x, np.float64)
-    fp = np.ascontiguousarray(fp, np.float64)
-    out = np.empty(len(x))
-    if fn(x.ctypes.data, len(x), xp.ctypes.data, fp.ctypes.data, len(xp), out.ctypes.data):
-        return np.interp(x, xp, fp)
-    return out
