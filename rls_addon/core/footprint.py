@@ -339,39 +339,62 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
                   rix, nret, stats), stats
 
 
-def extend(hits, rays, draws, echoes):
-    """The frame's ``Hits``, ``Rays`` and ``Draws`` with the echoes applied: the rows
-    whose return is an echo carry its effective rho |cos| and intensity, and second
-    echoes (``dual``) are extra rows after the frame's own, copies of their pulse's ray
-    and draws. Returns (hits, rays, draws, parent ray of every row)."""
-    n = len(hits.dist)
-    p = echoes.extra_parent
+def split(hits, rays, draws, echoes):
+    """The frame's ``Hits`` with the echoes applied to its own rows (each carries its
+    echo's effective rho |cos| and intensity), and the second echoes (``dual``) as a
+    small frame of their own: (hits, extra), extra = (hits, rays, draws) of one row per
+    second echo, copies of its pulse's ray and draws, or None. Each row is assembled on
+    its own, so the two frames give the points one frame of both would."""
+    n, p = len(hits.dist), echoes.extra_parent
+    main = dataclasses.replace(
+        hits, echo_rows=echoes.rows, echo_rho_cos=echoes.rho_cos, echo_carla=echoes.carla,
+        return_index=echoes.return_index[:n], num_returns=echoes.num_returns[:n])
+    if not len(p):
+        return main, None
     e = len(p)
-    parent = np.concatenate([np.arange(n), p]) if e else np.arange(n)
-    rows = np.concatenate([echoes.rows, n + np.arange(e)]) if e else echoes.rows
-    over = {"echo_rows": rows,
-            "echo_rho_cos": np.concatenate([echoes.rho_cos, echoes.extra_rho_cos]),
-            "echo_carla": np.concatenate([echoes.carla, echoes.extra_carla]),
-            "return_index": echoes.return_index, "num_returns": echoes.num_returns}
-    if not e:
-        return dataclasses.replace(hits, **over), rays, draws, parent
 
-    def grow(a, extra=None):
-        if a is None:
-            return None
-        return np.concatenate([a, a[p] if extra is None else extra])
+    def pick(a):
+        return None if a is None else np.asarray(a).take(p, axis=0)
 
-    hits = dataclasses.replace(
-        hits, dist=grow(hits.dist, echoes.extra_dist),
-        valid=grow(hits.valid, np.ones(e, bool)),
-        surface=grow(hits.surface, echoes.extra_surface.astype(hits.surface.dtype)),
-        normals=grow(hits.normals, echoes.extra_normals),
-        ghost=grow(hits.ghost, np.zeros(e, np.uint8)), **over)
-    rays = dataclasses.replace(
-        rays, dirs=grow(rays.dirs),
-        origins=rays.origins if rays.origins.shape[0] == 1 else grow(rays.origins),
-        columns=tuple(grow(np.asarray(c)) for c in rays.columns),
-        rings=grow(np.asarray(rays.rings)), times=grow(np.asarray(rays.times)))
-    draws = dataclasses.replace(draws, noise=grow(draws.noise), general=grow(draws.general),
-                                low=grow(draws.low), detect=grow(draws.detect))
-    return hits, rays, draws, parent
+    x_hits = dataclasses.replace(
+        hits, dist=echoes.extra_dist, valid=np.ones(e, bool),
+        surface=echoes.extra_surface.astype(hits.surface.dtype),
+        normals=echoes.extra_normals, ghost=None, ghost_rows=np.zeros(0, np.int64),
+        ghost_dot=np.zeros(0), ghost_intensity=np.zeros(0),
+        medium_rows=np.zeros(0, np.int64), medium_dist=np.zeros(0),
+        echo_rows=np.arange(e), echo_rho_cos=echoes.extra_rho_cos,
+        echo_carla=echoes.extra_carla, return_index=echoes.return_index[n:],
+        num_returns=echoes.num_returns[n:])
+    x_rays = dataclasses.replace(
+        rays, dirs=pick(rays.dirs),
+        origins=rays.origins if rays.origins.shape[0] == 1 else pick(rays.origins),
+        columns=tuple(pick(c) for c in rays.columns), rings=pick(rays.rings),
+        times=pick(rays.times))
+    x_draws = dataclasses.replace(draws, noise=pick(draws.noise), general=pick(draws.general),
+                                  low=pick(draws.low), detect=pick(draws.detect))
+    return main, (x_hits, x_rays, x_draws)
+
+
+def merge(main, extra, parent):
+    """The points of a frame (``main``: points, ray index, back flag; in ray order) and
+    of its second echoes (``extra``: the same of the rows of ``split``'s extra frame,
+    whose rays are ``parent``, ascending), each second echo right after its pulse's
+    first: what a stable sort by ray of both would give, in one gather."""
+    pts, idx, back = main
+    x_pts, x_idx, x_back = extra
+    x_idx = parent[x_idx]
+    m, k = len(idx), len(x_idx)
+    at = np.searchsorted(idx, x_idx, side="right") + np.arange(k)
+    order = np.empty(m + k, np.int64)
+    second = np.zeros(m + k, bool)
+    second[at] = True
+    order[~second] = np.arange(m)
+    order[at] = m + np.arange(k)
+    # the records as rows of bytes: numpy gathers structured records one field at a time
+    rows = np.concatenate([_bytes(pts), _bytes(x_pts)]).take(order, axis=0)
+    return (rows.reshape(-1).view(pts.dtype), np.concatenate([idx, x_idx])[order],
+            np.concatenate([back, x_back])[order])
+
+
+def _bytes(records):
+    return records.view(np.uint8).reshape(len(records), records.dtype.itemsize)

@@ -315,19 +315,18 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                 ghost_int, refl, g.object_field("label"), g.object_field("instance"),
                 medium_rows, medium_dist)
     rays = Rays(dirs, origins, pattern.columns, pattern.channels, pattern.times)
-    parent = None
+    extra = None
     if echoes is not None:
-        hits, rays, draws, parent = footprint.extend(hits, rays, draws, echoes)
+        hits, extra = footprint.split(hits, rays, draws, echoes)
     fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
                  preset.dropout.intensity_zero, atten, model,
                  "carla" if model is None else model.intensity,
                  0.0 if air is None else air.alpha)
     pts, idx, back = assemble(hits, rays, draws, fx, s.frame_space, fields)
-    if parent is not None:  # second echoes next to their pulse's first, rows to rays
-        idx = parent[idx]
-        if len(idx) and np.any(idx[1:] < idx[:-1]):
-            order = np.argsort(idx, kind="stable")
-            pts, idx, back = pts[order], idx[order], back[order]
+    if extra is not None:  # second echoes next to their pulse's first
+        pts, idx, back = footprint.merge((pts, idx, back),
+                                         assemble(*extra, fx, s.frame_space, fields),
+                                         echoes.extra_parent)
     surfaces = idx
     if len(medium_rows):  # false returns from the air lie on no object
         medium = np.zeros(n, bool)
