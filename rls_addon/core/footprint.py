@@ -86,13 +86,14 @@ def footprint_info(preset, settings):
     return beam_of(preset, settings).to_dict()
 
 
-def ring_directions(dirs, divergence_rad, k=None):
+def ring_directions(dirs, divergence_rad, k=None, basis=None):
     """(C, RING, 3) unit sub-ray directions on the ring at the 1/e^2 radius (half the
     divergence) around each of ``dirs`` (C, 3): the first horizontal, then every
     360 / RING degrees; an elliptical beam (horizontal != vertical) has an elliptical
-    ring. With ``k`` (C,) ring indices: only those, (C, 3)."""
+    ring. With ``k`` (C,) ring indices: only those, (C, 3). ``basis``: ``_basis(dirs)``
+    if the caller has it already."""
     d = np.asarray(dirs, np.float64)
-    u, v = _basis(d)
+    u, v = _basis(d) if basis is None else basis
     h, vert = (math.tan(0.5 * float(x)) for x in divergence_rad)
     if k is not None:
         phi = 2.0 * np.pi * np.asarray(k) / RING
@@ -107,7 +108,9 @@ def ring_directions(dirs, divergence_rad, k=None):
 def _basis(d):
     """(u, v): unit vectors across each of the unit directions ``d`` (C, 3), u
     horizontal."""
-    up = np.where(np.abs(d[:, 2:3]) > 0.999, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]])
+    up = np.zeros_like(d)
+    up[:, 2] = 1.0
+    up[np.abs(d[:, 2]) > 0.999] = (1.0, 0.0, 0.0)   # a ray along the vertical
     u = np.cross(d, up)
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     return u, np.cross(u, d)
@@ -136,15 +139,17 @@ class SubRays:
         # probes: ray i toward neighbour j, the ring point nearest that direction
         i = np.concatenate([a, b])
         j = np.concatenate([b, a])
-        u, v = _basis(dirs[i])
-        delta = dirs[j] - dirs[i]
+        di = dirs.take(i, axis=0)
+        u, v = _basis(di)
+        delta = dirs.take(j, axis=0) - di
         h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in beam.divergence_rad)
         phi = np.arctan2(np.einsum("ck,ck->c", delta, v) / vert,
                          np.einsum("ck,ck->c", delta, u) / h)
         k = np.rint(phi / (2.0 * np.pi / RING)).astype(np.int64) % RING
-        key = np.unique(i * RING + k)
+        key, first = np.unique(i * RING + k, return_index=True)
         pi, pk = key // RING, key % RING
-        pdir = ring_directions(dirs[pi], beam.divergence_rad, pk)
+        pdir = ring_directions(dirs[pi], beam.divergence_rad, pk,
+                               (u.take(first, axis=0), v.take(first, axis=0)))
         o = origins if origins.shape[0] == 1 else origins[pi]
         dist, body, tri2, _ = world.cast(o, pdir, times[pi], rmax)
         obj = world.surface_ids(body, tri2)[:, 0]
