@@ -6,7 +6,7 @@ an edge in one frame.
 in C (``native/edges.c``, in the library of the compiled Embree loop, on all cores)
 where that library is built, else in numpy (``edges_numpy``): the readable reference
 the C code follows operation by operation, so both mark the same pairs
-(tests/core/test_footprint.py).
+(tests/core/test_footprint_native.py).
 """
 
 import ctypes
