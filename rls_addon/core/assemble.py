@@ -171,15 +171,14 @@ def _records(hits, rays, idx, d, inten, frame_space, fields, medium=None):
                else hits.return_index.take(idx),
                "num_returns": lambda: 1 if hits.num_returns is None
                else hits.num_returns.take(idx)}
-    if medium is not None and medium.any():
-        ghost = columns["ghost"]
-        columns.update(
-            label=lambda: np.where(medium, np.uint32(WEATHER_LABEL), hits.labels[obj]),
-            instance=lambda: np.where(medium, np.uint32(0), hits.instances[obj]),
-            ghost=lambda: np.where(medium, np.uint8(0), ghost()))
     for f, column in columns.items():
         if f in want:
             pts[f] = column()
+    if medium is not None and medium.any():
+        m = np.nonzero(medium)[0]
+        for f, value in (("label", WEATHER_LABEL), ("instance", 0), ("ghost", 0)):
+            if f in want:
+                pts[f][m] = value
     return pts
 
 

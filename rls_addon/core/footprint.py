@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import weather as wx
+from .depth_edges import candidates
 
 RING = 6                   # sub-rays on the ring at the 1/e^2 radius
 CENTRE_SHARE = 0.5         # the centre ray's share of the beam's energy
@@ -85,91 +86,14 @@ def footprint_info(preset, settings):
     return beam_of(preset, settings).to_dict()
 
 
-# ---- which rays may straddle a depth discontinuity ------------------------------------
-
-def neighbour_pairs(pattern):
-    """(a, b) index arrays of neighbouring rays in ``pattern``: consecutive rays of each
-    channel (a spinning channel's next azimuth, a Risley or MEMS trace's next point);
-    across channels, when every channel fires equally often, the ray of the channel
-    next in elevation nearest in azimuth (a fixed shift in its firing count: channels
-    fire at their own azimuth offsets), else consecutive rays in firing order. Kept on
-    the pattern."""
-    got = pattern.__dict__.get("_neighbour_pairs")
-    if got is not None:
-        return got
-    ch = np.asarray(pattern.channels)
-    n = len(ch)
-    order = np.argsort(ch, kind="stable")
-    same = ch[order[:-1]] == ch[order[1:]]
-    a, b = [order[:-1][same]], [order[1:][same]]
-    counts = np.bincount(ch) if n else np.zeros(0, np.int64)
-    used = np.nonzero(counts)[0]
-    if len(used) > 1 and np.all(counts[used] == counts[used[0]]):
-        grid = order.reshape(len(used), -1)
-        d = np.asarray(pattern.directions)
-        grid = grid[np.argsort(d[grid, 2].mean(axis=1), kind="stable")]
-        # each channel's k-th ray against the next channel's ray nearest in azimuth:
-        # channels fire at their own azimuth offsets (a fixed shift in index)
-        az = np.arctan2(d[grid, 1], d[grid, 0])
-        step = np.median(_wrap(np.diff(az, axis=1)), axis=1) if grid.shape[1] > 1 \
-            else np.zeros(len(grid))
-        shift = np.median(_wrap(az[1:] - az[:-1]), axis=1)
-        k = np.where(step[:-1] != 0, np.rint(shift / np.where(step[:-1] != 0, step[:-1], 1)), 0)
-        for r in range(len(grid) - 1):
-            a.append(grid[r])
-            b.append(np.roll(grid[r + 1], int(k[r])))
-    elif n > 1 and len(used) > 1:
-        a.append(np.arange(n - 1))
-        b.append(np.arange(1, n))
-    got = (np.concatenate(a).astype(np.int64), np.concatenate(b).astype(np.int64))
-    pattern.__dict__["_neighbour_pairs"] = got
-    return got
-
-
-def _wrap(angle):
-    return (angle + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def candidates(pattern, hit, dist, normals, dirs, origins, step):
-    """(a, b): the neighbour pairs across a depth discontinuity: a neighbour hits and it does not, or neither
-    lies within ``step`` of the other's plane (the range each ray would have on the
-    plane of the other's hit, along its own direction): a step in depth, not a
-    surface seen at a slant (the ground's neighbouring channels differ by metres in
-    range and lie on one plane)."""
-    a, b = neighbour_pairs(pattern)
-    ha, hb = hit[a], hit[b]
-    edge = ha != hb
-    # a step beyond ``step`` changes the range by about as much: only pairs whose ranges
-    # differ by more are tested against each other's plane (a slanted surface's are)
-    both = np.nonzero(ha & hb & (np.abs(dist[a] - dist[b]) > step))[0]
-    if len(both):
-        i, j = a[both], b[both]
-        di, dj, ni, nj = dirs[i], dirs[j], normals[i], normals[j]
-        ri, rj = dist[i], dist[j]
-
-        def dot(x, y):
-            return x[:, 0] * y[:, 0] + x[:, 1] * y[:, 1] + x[:, 2] * y[:, 2]
-
-        with np.errstate(divide="ignore", invalid="ignore"):
-            if origins.shape[0] == 1:
-                # one origin: ray j on the plane of i's hit, ray i on the plane of j's
-                tj = ri * dot(ni, di) / dot(ni, dj)
-                ti = rj * dot(nj, dj) / dot(nj, di)
-            else:
-                oi, oj = origins[i], origins[j]
-                tj = dot(ni, oi + di * ri[:, None] - oj) / dot(ni, dj)
-                ti = dot(nj, oj + dj * rj[:, None] - oi) / dot(nj, di)
-            edge[both] = ~(np.abs(tj - rj) <= step) & ~(np.abs(ti - ri) <= step)
-    return a[edge], b[edge]
-
-
-def ring_directions(dirs, divergence_rad, k=None):
+def ring_directions(dirs, divergence_rad, k=None, basis=None):
     """(C, RING, 3) unit sub-ray directions on the ring at the 1/e^2 radius (half the
     divergence) around each of ``dirs`` (C, 3): the first horizontal, then every
     360 / RING degrees; an elliptical beam (horizontal != vertical) has an elliptical
-    ring. With ``k`` (C,) ring indices: only those, (C, 3)."""
+    ring. With ``k`` (C,) ring indices: only those, (C, 3). ``basis``: ``_basis(dirs)``
+    if the caller has it already."""
     d = np.asarray(dirs, np.float64)
-    u, v = _basis(d)
+    u, v = _basis(d) if basis is None else basis
     h, vert = (math.tan(0.5 * float(x)) for x in divergence_rad)
     if k is not None:
         phi = 2.0 * np.pi * np.asarray(k) / RING
@@ -184,7 +108,9 @@ def ring_directions(dirs, divergence_rad, k=None):
 def _basis(d):
     """(u, v): unit vectors across each of the unit directions ``d`` (C, 3), u
     horizontal."""
-    up = np.where(np.abs(d[:, 2:3]) > 0.999, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]])
+    up = np.zeros_like(d)
+    up[:, 2] = 1.0
+    up[np.abs(d[:, 2]) > 0.999] = (1.0, 0.0, 0.0)   # a ray along the vertical
     u = np.cross(d, up)
     u /= np.linalg.norm(u, axis=1, keepdims=True)
     return u, np.cross(u, d)
@@ -202,8 +128,8 @@ class SubRays:
         hit = tri >= 0
         self.beam = beam
         sep = beam.echo_separation_m
-        a, b = candidates(pattern, hit, np.where(hit, ret.dist, 0.0), ret.normals, dirs,
-                          origins, DEPTH_STEP * sep)
+        a, b = candidates(pattern, hit, ret.dist, ret.normals, dirs, origins,
+                          DEPTH_STEP * sep)
         times = np.asarray(times)
         self.rows = np.zeros(0, np.int64)
         self.count = 0
@@ -213,15 +139,17 @@ class SubRays:
         # probes: ray i toward neighbour j, the ring point nearest that direction
         i = np.concatenate([a, b])
         j = np.concatenate([b, a])
-        u, v = _basis(dirs[i])
-        delta = dirs[j] - dirs[i]
+        di = dirs.take(i, axis=0)
+        u, v = _basis(di)
+        delta = dirs.take(j, axis=0) - di
         h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in beam.divergence_rad)
         phi = np.arctan2(np.einsum("ck,ck->c", delta, v) / vert,
                          np.einsum("ck,ck->c", delta, u) / h)
         k = np.rint(phi / (2.0 * np.pi / RING)).astype(np.int64) % RING
-        key = np.unique(i * RING + k)
+        key, first = np.unique(i * RING + k, return_index=True)
         pi, pk = key // RING, key % RING
-        pdir = ring_directions(dirs[pi], beam.divergence_rad, pk)
+        pdir = ring_directions(dirs[pi], beam.divergence_rad, pk,
+                               (u.take(first, axis=0), v.take(first, axis=0)))
         o = origins if origins.shape[0] == 1 else origins[pi]
         dist, body, tri2, _ = world.cast(o, pdir, times[pi], rmax)
         obj = world.surface_ids(body, tri2)[:, 0]
@@ -416,39 +344,62 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
                   rix, nret, stats), stats
 
 
-def extend(hits, rays, draws, echoes):
-    """The frame's ``Hits``, ``Rays`` and ``Draws`` with the echoes applied: the rows
-    whose return is an echo carry its effective rho |cos| and intensity, and second
-    echoes (``dual``) are extra rows after the frame's own, copies of their pulse's ray
-    and draws. Returns (hits, rays, draws, parent ray of every row)."""
-    n = len(hits.dist)
-    p = echoes.extra_parent
+def split(hits, rays, draws, echoes):
+    """The frame's ``Hits`` with the echoes applied to its own rows (each carries its
+    echo's effective rho |cos| and intensity), and the second echoes (``dual``) as a
+    small frame of their own: (hits, extra), extra = (hits, rays, draws) of one row per
+    second echo, copies of its pulse's ray and draws, or None. Each row is assembled on
+    its own, so the two frames give the points one frame of both would."""
+    n, p = len(hits.dist), echoes.extra_parent
+    main = dataclasses.replace(
+        hits, echo_rows=echoes.rows, echo_rho_cos=echoes.rho_cos, echo_carla=echoes.carla,
+        return_index=echoes.return_index[:n], num_returns=echoes.num_returns[:n])
+    if not len(p):
+        return main, None
     e = len(p)
-    parent = np.concatenate([np.arange(n), p]) if e else np.arange(n)
-    rows = np.concatenate([echoes.rows, n + np.arange(e)]) if e else echoes.rows
-    over = {"echo_rows": rows,
-            "echo_rho_cos": np.concatenate([echoes.rho_cos, echoes.extra_rho_cos]),
-            "echo_carla": np.concatenate([echoes.carla, echoes.extra_carla]),
-            "return_index": echoes.return_index, "num_returns": echoes.num_returns}
-    if not e:
-        return dataclasses.replace(hits, **over), rays, draws, parent
 
-    def grow(a, extra=None):
-        if a is None:
-            return None
-        return np.concatenate([a, a[p] if extra is None else extra])
+    def pick(a):
+        return None if a is None else np.asarray(a).take(p, axis=0)
 
-    hits = dataclasses.replace(
-        hits, dist=grow(hits.dist, echoes.extra_dist),
-        valid=grow(hits.valid, np.ones(e, bool)),
-        surface=grow(hits.surface, echoes.extra_surface.astype(hits.surface.dtype)),
-        normals=grow(hits.normals, echoes.extra_normals),
-        ghost=grow(hits.ghost, np.zeros(e, np.uint8)), **over)
-    rays = dataclasses.replace(
-        rays, dirs=grow(rays.dirs),
-        origins=rays.origins if rays.origins.shape[0] == 1 else grow(rays.origins),
-        columns=tuple(grow(np.asarray(c)) for c in rays.columns),
-        rings=grow(np.asarray(rays.rings)), times=grow(np.asarray(rays.times)))
-    draws = dataclasses.replace(draws, noise=grow(draws.noise), general=grow(draws.general),
-                                low=grow(draws.low), detect=grow(draws.detect))
-    return hits, rays, draws, parent
+    x_hits = dataclasses.replace(
+        hits, dist=echoes.extra_dist, valid=np.ones(e, bool),
+        surface=echoes.extra_surface.astype(hits.surface.dtype),
+        normals=echoes.extra_normals, ghost=None, ghost_rows=np.zeros(0, np.int64),
+        ghost_dot=np.zeros(0), ghost_intensity=np.zeros(0),
+        medium_rows=np.zeros(0, np.int64), medium_dist=np.zeros(0),
+        echo_rows=np.arange(e), echo_rho_cos=echoes.extra_rho_cos,
+        echo_carla=echoes.extra_carla, return_index=echoes.return_index[n:],
+        num_returns=echoes.num_returns[n:])
+    x_rays = dataclasses.replace(
+        rays, dirs=pick(rays.dirs),
+        origins=rays.origins if rays.origins.shape[0] == 1 else pick(rays.origins),
+        columns=tuple(pick(c) for c in rays.columns), rings=pick(rays.rings),
+        times=pick(rays.times))
+    x_draws = dataclasses.replace(draws, noise=pick(draws.noise), general=pick(draws.general),
+                                  low=pick(draws.low), detect=pick(draws.detect))
+    return main, (x_hits, x_rays, x_draws)
+
+
+def merge(main, extra, parent):
+    """The points of a frame (``main``: points, ray index, back flag; in ray order) and
+    of its second echoes (``extra``: the same of the rows of ``split``'s extra frame,
+    whose rays are ``parent``, ascending), each second echo right after its pulse's
+    first: what a stable sort by ray of both would give, in one gather."""
+    pts, idx, back = main
+    x_pts, x_idx, x_back = extra
+    x_idx = parent[x_idx]
+    m, k = len(idx), len(x_idx)
+    at = np.searchsorted(idx, x_idx, side="right") + np.arange(k)
+    order = np.empty(m + k, np.int64)
+    second = np.zeros(m + k, bool)
+    second[at] = True
+    order[~second] = np.arange(m)
+    order[at] = m + np.arange(k)
+    # the records as rows of bytes: numpy gathers structured records one field at a time
+    rows = np.concatenate([_bytes(pts), _bytes(x_pts)]).take(order, axis=0)
+    return (rows.reshape(-1).view(pts.dtype), np.concatenate([idx, x_idx])[order],
+            np.concatenate([back, x_back])[order])
+
+
+def _bytes(records):
+    return records.view(np.uint8).reshape(len(records), records.dtype.itemsize)

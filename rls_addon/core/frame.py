@@ -157,20 +157,6 @@ class _Bounces:
         return g, self.r.take(fi, axis=0), mirror
 
 
-def _false_returns(air, draws, block, rmin, rmax):
-    """(rows, ranges) of the rays whose return is a false one from the air: drawn with
-    the weather's probability, at a range from its distribution between the blind zone
-    (at least ``weather.OVERLAP_M``) and the maximum range, and only where that is
-    nearer than the first surface the ray meets."""
-    r_near = max(float(rmin), weather.OVERLAP_M)
-    if r_near >= rmax:
-        return np.zeros(0, np.int64), np.zeros(0)
-    ranges = weather.false_return_ranges(draws.medium_range, air.alpha, r_near, rmax)
-    rows = np.nonzero((draws.medium < weather.false_return_probability(air.alpha))
-                      & (ranges < block))[0]
-    return rows, ranges[rows]
-
-
 def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
     """Warn when nearly all points on an object land on the back of its faces: the
     sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
@@ -277,9 +263,6 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     reused = scene.reused > reused
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
-    # Where each ray meets its first surface (a mirror, not its ghost): the air beyond
-    # it sends nothing back
-    block = np.where(tri >= 0, dist, np.inf) if air is not None else None
     first_hit = None
     if keep_rays:  # before ghosts relabel the glossy rays
         hit = (tri >= 0) & (dist <= rmax)
@@ -307,7 +290,12 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     medium_rows, medium_dist = np.zeros(0, np.int64), np.zeros(0)
     if air is not None:
         draws.medium, draws.medium_range = rng.random(n), rng.random(n)
-        medium_rows, medium_dist = _false_returns(air, draws, block, rmin, rmax)
+        # beyond the blind zone (at least weather.OVERLAP_M), nearer than the first
+        # surface the ray meets (a mirror, not its ghost): the air beyond sends nothing
+        r_near = max(float(rmin), weather.OVERLAP_M)
+        if r_near < rmax:
+            medium_rows, medium_dist = weather.false_returns(
+                air.alpha, draws.medium, draws.medium_range, tri >= 0, dist, r_near, rmax)
     refl = g.material_field("reflectivity").astype(np.float64)
     stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
     rows, ghost_dot, ghost_int = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
@@ -334,22 +322,23 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                 ghost_int, refl, g.object_field("label"), g.object_field("instance"),
                 medium_rows, medium_dist)
     rays = Rays(dirs, origins, pattern.columns, pattern.channels, pattern.times)
-    parent = None
+    extra = None
     if echoes is not None:
-        hits, rays, draws, parent = footprint.extend(hits, rays, draws, echoes)
+        hits, extra = footprint.split(hits, rays, draws, echoes)
     fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
                  preset.dropout.intensity_zero, atten, model,
                  "carla" if model is None else model.intensity,
                  0.0 if air is None else air.alpha)
     pts, idx, back = assemble(hits, rays, draws, fx, s.frame_space, fields)
-    if parent is not None:  # second echoes next to their pulse's first, rows to rays
-        idx = parent[idx]
-        if len(idx) and np.any(idx[1:] < idx[:-1]):
-            order = np.argsort(idx, kind="stable")
-            pts, idx, back = pts[order], idx[order], back[order]
+    if extra is not None:  # second echoes next to their pulse's first
+        pts, idx, back = footprint.merge((pts, idx, back),
+                                         assemble(*extra, fx, s.frame_space, fields),
+                                         echoes.extra_parent)
     surfaces = idx
     if len(medium_rows):  # false returns from the air lie on no object
-        real = ~np.isin(idx, medium_rows, assume_unique=parent is None)
+        medium = np.zeros(n, bool)
+        medium[medium_rows] = True
+        real = ~medium[idx]
         stats["weather_returns"] = int(len(idx) - np.count_nonzero(real))
         surfaces, back = idx[real], back[real]
     elif air is not None:

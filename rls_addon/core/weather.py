@@ -28,12 +28,14 @@ drawn from the shape of the medium's return in the LiDAR equation, exp(-2 alpha 
 replaces the ray's return only when nearer than the first surface the ray meets.
 """
 
+import ctypes
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .errors import SettingsError
+from .kernels import Kernel
 
 KOSCHMIEDER = -math.log(0.02)          # 3.912
 RAIN_DB_PER_KM = (1.076, 0.67)         # a R^b, R in mm/h
@@ -167,19 +169,77 @@ def medium_reflectivity(alpha):
     return min(1.0, math.pi * beta * LIGHT_M_S * PULSE_S / 2.0)
 
 
-def false_return_ranges(u, alpha, r_near, r_far, grid=4097):
-    """Ranges of false returns for uniforms ``u`` (N,): the inverse of the distribution
-    with density proportional to exp(-2 alpha R) / R^2 on [r_near, r_far]. In x = 1/R
-    the density is exp(-2 alpha / x), uniform when alpha = 0: its CDF is tabulated on
-    ``grid`` points of x and inverted by interpolation."""
-    u = np.asarray(u, np.float64)
+def false_return_table(alpha, r_near, r_far, grid=4097):
+    """(cdf, x): the CDF of the distribution of ``false_return_ranges`` in x = 1 / R,
+    tabulated on ``grid`` points of x from 1 / r_far to 1 / r_near. In x the density is
+    exp(-2 alpha / x) (uniform when alpha = 0)."""
     x0, x1 = 1.0 / float(r_far), 1.0 / float(r_near)
     x = np.linspace(x0, x1, grid)
     f = np.exp(-2.0 * float(alpha) / x)
     cdf = np.concatenate([[0.0], np.cumsum((f[1:] + f[:-1]) * 0.5 * np.diff(x))])
     cdf /= cdf[-1]
+    return cdf, x
+
+
+def false_return_ranges(u, alpha, r_near, r_far, grid=4097):
+    """Ranges of false returns for uniforms ``u`` (N,): the inverse of the distribution
+    with density proportional to exp(-2 alpha R) / R^2 on [r_near, r_far], by
+    interpolation in its tabulated CDF (``false_return_table``)."""
+    cdf, x = false_return_table(alpha, r_near, r_far, grid)
     # u = 0 is the far end (x0): ranges fall from r_far to r_near as u grows
-    return 1.0 / np.interp(u, cdf, x)
+    return 1.0 / np.interp(np.asarray(u, np.float64), cdf, x)
+
+
+def false_returns(alpha, u_medium, u_range, hit, dist, r_near, r_far):
+    """(rows, ranges) of the rays whose return is a false one from the air: drawn with
+    probability ``false_return_probability`` (uniforms ``u_medium``), at a range from
+    ``false_return_ranges`` (uniforms ``u_range``), and only where that is nearer than
+    the first surface the ray meets (``hit``, at ``dist``). In C (native/weather.c)
+    where it is built, else ``false_returns_numpy``: the same bytes."""
+    fn = FALSE_RETURNS.get() if compiled else None
+    if fn is None:
+        return false_returns_numpy(alpha, u_medium, u_range, hit, dist, r_near, r_far)
+    cdf, x = false_return_table(alpha, r_near, r_far)
+    keep = [np.ascontiguousarray(a, t) for a, t in
+            ((u_medium, np.float64), (u_range, np.float64), (hit, np.uint8),
+             (dist, np.float64), (cdf, np.float64), (x, np.float64))]
+    n = len(keep[0])
+    rows, ranges = np.empty(n, np.int64), np.empty(n)  # pages touched only as written
+    args = _AirArgs(n, keep[0].ctypes.data, keep[1].ctypes.data,
+                    false_return_probability(alpha), keep[2].ctypes.data,
+                    keep[3].ctypes.data, keep[4].ctypes.data, keep[5].ctypes.data, len(x),
+                    rows.ctypes.data, ranges.ctypes.data)
+    got = fn(ctypes.byref(args))
+    if got < 0:
+        return false_returns_numpy(alpha, u_medium, u_range, hit, dist, r_near, r_far)
+    return rows[:got], ranges[:got]
+
+
+def false_returns_numpy(alpha, u_medium, u_range, hit, dist, r_near, r_far):
+    """The reference of ``false_returns``; the range only of the rays that drew a
+    false return (each ray's on its own)."""
+    drawn = np.nonzero(u_medium < false_return_probability(alpha))[0]
+    ranges = false_return_ranges(u_range[drawn], alpha, r_near, r_far)
+    near = ranges < np.where(hit[drawn], dist[drawn], np.inf)
+    return drawn[near], ranges[near]
+
+
+class _AirArgs(ctypes.Structure):
+    """``air_t`` of native/weather.c."""
+
+    _fields_ = [("n", ctypes.c_int64), ("u_medium", ctypes.c_void_p),
+                ("u_range", ctypes.c_void_p), ("p", ctypes.c_double),
+                ("hit", ctypes.c_void_p), ("dist", ctypes.c_void_p),
+                ("cdf", ctypes.c_void_p), ("x", ctypes.c_void_p), ("len", ctypes.c_int64),
+                ("rows", ctypes.c_void_p), ("ranges", ctypes.c_void_p)]
+
+
+NATIVE_WEATHER_ABI = 1
+FALSE_RETURNS = Kernel("rls_false_returns", "rls_weather_abi", NATIVE_WEATHER_ABI,
+                       [ctypes.POINTER(_AirArgs)], ctypes.c_int64)
+# Off: every frame draws its false returns in numpy (the reference the C code is
+# tested against).
+compiled = True
 
 
 def false_return_pdf(r, alpha, r_near, r_far):

@@ -213,3 +213,22 @@ def test_sky_rays_are_not_rechecked():
     far = np.nanmin(np.maximum(t1, t2), axis=2)
     enters = ((near <= far) & (far >= 0) & (near <= preset.range.max_m)).any(axis=1)
     assert enters.sum() > 1000 and np.all(reach[enters])
+
+
+def test_octant_boxes_are_the_union_of_the_boxes_ahead():
+    """Per octant, the union of the hull boxes ahead of the origins along each of its
+    axes (one octant at a time, as the table is defined)."""
+    preset = get_preset("hesai_pandar64")
+    scene = PreparedScene(open_sky(), np.array([0.3, -0.2, 4.0]), preset.range.max_m,
+                          embree.EmbreeCaster)
+    w = scene.caster
+    for o in (np.array([[0.3, -0.2, 4.0]]), np.random.default_rng(3).normal(size=(50, 3)) * 20):
+        boxes, has = w.octant_boxes(o)
+        for code in range(8):
+            neg = np.array([(code >> k) & 1 for k in range(3)], bool)
+            sel = np.all(np.where(neg, w.box_lo < o.max(axis=0), w.box_hi > o.min(axis=0)),
+                         axis=1)
+            assert has[code] == sel.any()
+            want = np.r_[w.box_lo[sel].min(axis=0), w.box_hi[sel].max(axis=0)] \
+                if sel.any() else np.zeros(6)
+            np.testing.assert_array_equal(boxes[code], want)

@@ -11,7 +11,8 @@ import pytest
 from rls_addon.core.casting import NumpyCaster
 from rls_addon.core.detection import DetectionModel
 from rls_addon.core.errors import PresetError, SettingsError
-from rls_addon.core.footprint import RING, Beam, neighbour_pairs, ring_directions
+from rls_addon.core.depth_edges import neighbour_pairs
+from rls_addon.core.footprint import RING, Beam, ring_directions
 from rls_addon.core.frame import scan_frame
 from rls_addon.core.geometry import MaterialInfo
 from rls_addon.core.patterns.base import ScanPattern

@@ -12,6 +12,8 @@ _NUDGE_AXES = np.array([[0.7548776662, 0.5698402910, 0.3247179572],
                         [-0.2306, 0.8715, -0.4330],
                         [0.5773, -0.2113, 0.7887]])
 _NUDGE_SCALES = (64.0,)  # in units of 1e-6 x (scene extent); the compiled loop nudges once
+# (8, 3): per octant code, whether it moves negative along each axis (bit k)
+_OCTANT_NEG = np.array([[(code >> k) & 1 for k in range(3)] for code in range(8)], bool)
 
 
 def box_triangles(lo, hi):
@@ -294,16 +296,17 @@ class WatertightCaster(CasterBase):
         # per column: numpy's min over axis 0 of an (N, 3) array is ~25x slower
         lo_o = np.array([o[:, k].min() for k in range(3)])
         hi_o = np.array([o[:, k].max() for k in range(3)])
-        ahead_lo = self.box_hi > lo_o   # reachable moving + along the axis
-        ahead_hi = self.box_lo < hi_o   # reachable moving - along the axis
-        boxes, has = np.zeros((8, 6)), np.zeros(8, np.int32)
-        for code in range(8):
-            neg = np.array([(code >> k) & 1 for k in range(3)], bool)
-            sel = np.all(np.where(neg, ahead_hi, ahead_lo), axis=1)
-            if sel.any():
-                has[code] = 1
-                boxes[code, :3] = self.box_lo[sel].min(axis=0)
-                boxes[code, 3:] = self.box_hi[sel].max(axis=0)
+        # (3, B) per axis, so that every reduction below runs along contiguous rows
+        box_lo, box_hi = np.ascontiguousarray(self.box_lo.T), np.ascontiguousarray(self.box_hi.T)
+        ahead_lo = box_hi > lo_o[:, None]   # reachable moving + along the axis
+        ahead_hi = box_lo < hi_o[:, None]   # reachable moving - along the axis
+        # (8, B): box b lies ahead along every axis of octant code (all octants at once:
+        # a loop over them took half a millisecond a cast)
+        sel = np.where(_OCTANT_NEG[:, :, None], ahead_hi[None], ahead_lo[None]).all(axis=1)
+        has = sel.any(axis=1).astype(np.int32)
+        lo = np.where(sel[:, None, :], box_lo[None], np.inf).min(axis=2)
+        hi = np.where(sel[:, None, :], box_hi[None], -np.inf).max(axis=2)
+        boxes = np.where(has[:, None] != 0, np.concatenate([lo, hi], axis=1), 0.0)
         return boxes, has
 
     def may_reach_hull(self, origins, directions, max_dist, table=None):

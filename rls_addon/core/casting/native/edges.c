@@ -1,0 +1,105 @@
+/* Which neighbouring rays of a frame straddle a depth discontinuity, in C: one pass
+ * over the pattern's neighbour pairs on a few threads (rls_depth_edges).
+ *
+ * rls_addon/core/depth_edges.py (edges_numpy) is the readable reference this follows
+ * operation by operation (the same sums in the same order, no fused multiply-add), so
+ * both mark the same pairs: a pair is an edge when one ray hits and the other does
+ * not, or when both hit, their ranges differ by more than the step and neither lies
+ * within the step of the other's plane (the range each ray would have on the plane of
+ * the other's hit, along its own direction). */
+#include <math.h>
+#include <stdint.h>
+
+#include "rls_threads.h"
+
+#define RLS_EDGES_ABI 1
+
+typedef struct {
+    int64_t n;                /* pairs */
+    const int64_t *a, *b;     /* per pair: its two rays */
+    const uint8_t *hit;       /* per ray: it hit something */
+    const double *dist;       /* per ray: range (read only where it hit) */
+    const double *normal;     /* per ray: 3 doubles */
+    const double *dir;        /* per ray: 3 doubles, unit, world */
+    const double *origin;     /* 3 doubles, or 3 per ray when origin_per_ray */
+    int origin_per_ray;
+    double step;              /* the depth step worth sampling (m) */
+    uint8_t *edge;            /* per pair, written: 1 across a discontinuity */
+} edges_t;
+
+typedef struct {
+    const edges_t *e;
+    int64_t lo, hi;
+} share_t;
+
+static double dot3(const double *x, const double *y) {
+    return x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+}
+
+/* The range along d from o to the plane through o_p + d_p r_p with normal n
+ * (edges_numpy's tj with several origins): dot(n, o_p + d_p r_p - o) / dot(n, d). */
+static double on_plane(const double *n, const double *op, const double *dp, double rp,
+                       const double *o, const double *d) {
+    double v[3];
+    for (int k = 0; k < 3; k++) v[k] = op[k] + dp[k] * rp - o[k];
+    return dot3(n, v) / dot3(n, d);
+}
+
+static uint8_t is_edge(const edges_t *e, int64_t i, int64_t j) {
+    if (e->hit[i] != e->hit[j]) return 1;
+    if (!e->hit[i]) return 0;
+    double ri = e->dist[i], rj = e->dist[j], step = e->step;
+    if (!(fabs(ri - rj) > step)) return 0;
+    const double *ni = e->normal + 3 * i, *nj = e->normal + 3 * j;
+    const double *di = e->dir + 3 * i, *dj = e->dir + 3 * j;
+    double ti, tj;
+    if (!e->origin_per_ray) {
+        tj = ri * dot3(ni, di) / dot3(ni, dj);
+        ti = rj * dot3(nj, dj) / dot3(nj, di);
+    } else {
+        const double *oi = e->origin + 3 * i, *oj = e->origin + 3 * j;
+        tj = on_plane(ni, oi, di, ri, oj, dj);
+        ti = on_plane(nj, oj, dj, rj, oi, di);
+    }
+    return !(fabs(tj - rj) <= step) && !(fabs(ti - ri) <= step);
+}
+
+static void run_share(share_t *s) {
+    const edges_t *e = s->e;
+    for (int64_t k = s->lo; k < s->hi; k++) e->edge[k] = is_edge(e, e->a[k], e->b[k]);
+}
+
+RLS_THREAD_ENTRY(edges_worker, arg) {
+    run_share((share_t *)arg);
+    RLS_THREAD_RETURN;
+}
+
+#define MAX_SHARES 64
+/* Below this many pairs per share a thread costs more than it saves. */
+#define MIN_SHARE 65536
+
+/* Marks every pair (e->edge), on up to ``threads`` threads (the caller's among them). */
+RLS_EXPORT void rls_depth_edges(const edges_t *e, int threads) {
+    int shares = threads < 1 ? 1 : (threads > MAX_SHARES ? MAX_SHARES : threads);
+    if (shares > 1 && e->n / shares < MIN_SHARE) shares = (int)(e->n / MIN_SHARE) + 1;
+    if (shares > MAX_SHARES) shares = MAX_SHARES;
+    share_t s[MAX_SHARES];
+    rls_thread ids[MAX_SHARES];
+    int started[MAX_SHARES] = {0};
+    int64_t step = (e->n + shares - 1) / shares;
+    for (int k = 0; k < shares; k++) {
+        int64_t lo = k * step < e->n ? k * step : e->n;
+        s[k] = (share_t){e, lo, lo + step < e->n ? lo + step : e->n};
+    }
+    for (int k = 1; k < shares; k++) started[k] = rls_thread_start(&ids[k], edges_worker, &s[k]);
+    run_share(&s[0]);
+    for (int k = 1; k < shares; k++) {
+        if (started[k]) rls_thread_join(ids[k]);
+        else run_share(&s[k]);
+    }
+}
+
+/* The interface version of the depth-edge test (RLS_EDGES_ABI). */
+RLS_EXPORT int rls_edges_abi(void) {
+    return RLS_EDGES_ABI;
+}

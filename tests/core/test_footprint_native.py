@@ -1,0 +1,69 @@
+"""The footprint's compiled stages (native/edges.c) give what their numpy references
+give: the same depth-edge pairs, and whole frames byte-identical either way."""
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from rls_addon.core import depth_edges
+from rls_addon.core.depth_edges import edges_numpy
+from tests.core.test_footprint import device, edge_scene, grid, scan
+
+
+@pytest.fixture(scope="module")
+def native():
+    fn = depth_edges.KERNEL.get()
+    if fn is None:
+        pytest.fail(f"the compiled depth-edge test is not built ({depth_edges.KERNEL.error})"
+                    ": run 'make native' (make test does)")
+    return fn
+
+
+def random_pairs(n, seed, per_ray_origins):
+    """Rays on a few planes (so many pairs lie near the step, on either side of it),
+    some misses, some grazing or zero normals, and random neighbour pairs."""
+    rng = np.random.default_rng(seed)
+    dirs = rng.normal(size=(n, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    plane = rng.integers(0, 4, n)
+    normals = rng.normal(size=(4, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = normals[plane]
+    normals[rng.random(n) < 0.05] = 0.0
+    grazing = rng.random(n) < 0.05
+    normals[grazing] = np.cross(dirs[grazing], [0.0, 0.0, 1.0])
+    dist = rng.uniform(0.5, 80.0, n)
+    near = rng.random(n) < 0.3
+    dist[near] += rng.choice([-0.1, 0.1, 0.05, 1e-9], size=np.count_nonzero(near))
+    hit = rng.random(n) < 0.85
+    dist[~hit] = np.inf
+    origins = rng.normal(size=(n, 3)) * 5 if per_ray_origins else rng.normal(size=(1, 3))
+    a = rng.integers(0, n, 4 * n)
+    b = np.where(rng.random(4 * n) < 0.5, (a + 1) % n, rng.integers(0, n, 4 * n))
+    return a, b, hit, dist, normals, dirs, origins
+
+
+@pytest.mark.parametrize("per_ray_origins", [False, True])
+@pytest.mark.parametrize("step", [0.1, 0.0, 5.0])
+def test_compiled_edges_are_the_reference_edges(native, per_ray_origins, step):
+    args = random_pairs(50_000, 7, per_ray_origins)
+    want = edges_numpy(*args, step)
+    got = depth_edges._edges_native(native, *args, step)
+    assert 0 < np.count_nonzero(want) < len(want)
+    np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize("mode", ["strongest", "dual"])
+def test_frames_are_byte_identical_with_compiled_or_numpy_edges(native, monkeypatch, mode):
+    pattern, _, _ = grid(rows=300)
+    g = edge_scene()
+    figures = ((0.10, 90.0), (0.80, 260.0))
+    got = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(depth_edges, "compiled", compiled)
+        res = scan(g, pattern, device(mode=mode, figures=figures), noise=True, seed=4,
+                   weather="fog:visibility=80")
+        got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
+        assert res.stats["footprint_rays"] > 0
+    assert got[True] == got[False]

@@ -1,0 +1,89 @@
+"""The weather's compiled false returns (native/weather.c) are their numpy reference's
+(``weather.false_returns_numpy``) to the bit, its inversion of the CDF is numpy's own
+np.interp, and weather frames are byte-identical with it or without it."""
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from rls_addon.core import depth_edges, weather
+from tests.core.test_footprint import device, edge_scene, grid, scan
+
+
+@pytest.fixture(scope="module")
+def native():
+    fn = weather.FALSE_RETURNS.get()
+    if fn is None:
+        pytest.fail(f"the compiled false returns are not built ({weather.FALSE_RETURNS.error})"
+                    ": run 'make native' (make test does)")
+    return fn
+
+
+def same_bits(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    return a.dtype == b.dtype and np.array_equal(a.view(np.uint8), b.view(np.uint8))
+
+
+def both(monkeypatch, *args):
+    got = weather.false_returns(*args)
+    monkeypatch.setattr(weather, "compiled", False)
+    want = weather.false_returns(*args)
+    monkeypatch.setattr(weather, "compiled", True)
+    return got, want
+
+
+@pytest.mark.parametrize("spec", ["fog:visibility=1", "fog:visibility=50", "rain:rate=10",
+                                  "snow:rate=2"])
+def test_compiled_false_returns_are_the_reference(native, monkeypatch, spec):
+    alpha = weather.parse_weather(spec).alpha
+    rng = np.random.default_rng(1)
+    n = 100_000
+    u_medium, u_range = rng.random(n), rng.random(n)
+    u_range[:3] = [0.0, 0.5, np.nextafter(1.0, 0.0)]
+    u_medium[:3] = 0.0
+    hit = rng.random(n) < 0.7
+    dist = np.where(hit, rng.uniform(0.5, 130.0, n), np.inf)
+    got, want = both(monkeypatch, alpha, u_medium, u_range, hit, dist, 1.0, 120.0)
+    assert 0 < len(want[0]) < n
+    assert same_bits(got[0], want[0]) and same_bits(got[1], want[1])
+
+
+def test_the_inversion_is_numpys_interp(native, monkeypatch):
+    """Every ray drawn and nothing in the way: the ranges are 1 / np.interp(u, cdf, x),
+    for tables with ties, flat and steep stretches, infinities, and u on the table's
+    points, between them and outside it."""
+    rng = np.random.default_rng(2)
+    cdf = np.sort(np.concatenate([rng.random(300), np.repeat(rng.random(20), 5),
+                                  [0.0, 0.0, 1.0, 1.0]]))
+    x = np.cumsum(rng.random(len(cdf)) * (rng.random(len(cdf)) < 0.7)) + 0.01
+    x[10:14] = np.inf
+    u = np.concatenate([rng.uniform(-0.2, 1.2, 50_000), cdf, np.nextafter(cdf, 2),
+                        np.nextafter(cdf, -1), [np.inf, -np.inf]])
+    monkeypatch.setattr(weather, "false_return_table", lambda *a: (cdf, x))
+    monkeypatch.setattr(weather, "false_return_probability", lambda a: 2.0)
+    n = len(u)
+    args = (0.1, np.zeros(n), u, np.zeros(n, bool), np.zeros(n), 1.0, 120.0)
+    (rows, ranges), (want_rows, want) = both(monkeypatch, *args)
+    with np.errstate(divide="ignore"):
+        assert same_bits(want, 1.0 / np.interp(u, cdf, x))
+    assert same_bits(rows, want_rows) and same_bits(ranges, want)
+    for table in (([0.2, 0.6], [1.0, 3.0]), ([0.5, 0.5], [1.0, 3.0])):
+        monkeypatch.setattr(weather, "false_return_table", lambda *a, t=table: np.array(t))
+        (_, got), (_, want) = both(monkeypatch, *args)
+        assert same_bits(got, want)
+
+
+@pytest.mark.parametrize("spec", ["fog:visibility=30", "rain:rate=20"])
+def test_weather_frames_are_byte_identical_with_or_without_the_kernels(monkeypatch, spec):
+    pattern, _, _ = grid(rows=300)
+    figures = ((0.10, 90.0), (0.80, 260.0))
+    got = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(weather, "compiled", compiled)
+        monkeypatch.setattr(depth_edges, "compiled", compiled)
+        res = scan(edge_scene(gap=60.0), pattern, device(mode="dual", figures=figures),
+                   noise=True, seed=9, weather=spec)
+        got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
+        assert res.stats["weather_returns"] > 0
+    assert got[True] == got[False]
