@@ -2,7 +2,8 @@
 against the reference ``metrics.count_in_disks``: the same integer counts for random
 points, points on the circles (in or out by a rounding, and exactly on them), on the
 grid's cell borders, far from the origin, beyond the grid, and with no points, a
-coarser grid or no grid at all."""
+coarser grid or no grid at all. Every test runs twice: with the compiled counts
+(native/disks.c) and with their numpy reference (``DiskCounter.counts_numpy``)."""
 
 import numpy as np
 import pytest
@@ -10,6 +11,17 @@ import pytest
 from rls_addon.core import disk_counter
 from rls_addon.core.disk_counter import DiskCounter
 from rls_addon.core.metrics import count_in_disks
+
+
+@pytest.fixture(autouse=True, params=["compiled", "numpy"])
+def path(request, monkeypatch):
+    """Each test with the compiled counts (which must be built: make test builds them)
+    and with the numpy reference."""
+    if request.param == "compiled" and disk_counter.KERNEL.get() is None:
+        pytest.fail(f"the compiled disk counts are not built ({disk_counter.KERNEL.error}): "
+                    "run 'make native' (make test does)")
+    monkeypatch.setattr(disk_counter, "compiled", request.param == "compiled")
+    return request.param
 
 
 def brute_force(xy, centres, r):
@@ -158,3 +170,20 @@ def test_input_layouts():
     assert np.array_equal(c.counts(xy.tolist()), want)
     f32 = xy.astype(np.float32)
     assert np.array_equal(c.counts(f32), brute_force(f32.astype(np.float64), centres, 0.7))
+
+
+def test_one_counter_over_many_calls_and_in_another_process():
+    """A study counts every candidate with one counter: calls of growing and shrinking
+    size give the reference's counts each time (the compiled path keeps its scratch
+    between calls), and a counter sent to a worker (pickled) counts the same."""
+    import pickle
+
+    rng = np.random.default_rng(9)
+    centres = rng.uniform(-10, 10, (300, 2))
+    c = DiskCounter(centres, 0.7)
+    for n in (10, 5000, 3, 20_000, 0, 700):
+        xy = rng.uniform(-12, 12, (n, 2))
+        assert np.array_equal(c.counts(xy), count_in_disks(xy, centres, 0.7)), n
+    xy = rng.uniform(-12, 12, (4000, 2))
+    assert np.array_equal(pickle.loads(pickle.dumps(c)).counts(xy),
+                          count_in_disks(xy, centres, 0.7))
