@@ -144,12 +144,8 @@ def street_geometry(target_triangles=1_000_000, seed=7):
 
 def _street(detail, seed):
     rng = np.random.default_rng(seed)
-    parts, objects = [], []
-
-    def add(name, label, material, vt):
-        v, t = vt
-        objects.append(ObjectInfo(name, NAME_TO_ID[label], len(objects) + 1))
-        parts.append((v, t, np.full(len(t), len(objects) - 1), np.full(len(t), MAT[material])))
+    parts = _Parts()
+    add = parts.add
 
     d = detail
     n = max(1, int(round(16 * d)))
@@ -195,17 +191,31 @@ def _street(detail, seed):
         x = -110 + i * 20.0
         add(f"Pole {i}", "pole", "steel",
             cylinder(max(4, int(8 * d)), 0.12, 7.0, (x, side * 7.6, 0.15), rows=max(1, int(d))))
-    return _joined(parts, objects)
+    return parts.geometry()
 
 
-def _joined(parts, objects):
-    """One SceneGeometry of ``parts`` [(vertices, triangles, object per triangle,
-    material per triangle)], each part's triangles shifted past the vertices before it."""
-    offsets = np.cumsum([0] + [len(v) for v, _, _, _ in parts[:-1]])
-    return SceneGeometry(np.concatenate([v for v, _, _, _ in parts]),
-                         np.concatenate([t + off for (_, t, _, _), off in zip(parts, offsets)]),
-                         np.concatenate([o for _, _, o, _ in parts]),
-                         np.concatenate([m for _, _, _, m in parts]), objects, list(MATERIALS))
+class _Parts:
+    """A bench scene's objects as they are added: ``add`` one (its triangles labelled and
+    given a material), ``geometry`` joins them into one SceneGeometry."""
+
+    def __init__(self):
+        self.parts, self.objects = [], []
+
+    def add(self, name, label, material, vt):
+        v, t = vt
+        self.objects.append(ObjectInfo(name, NAME_TO_ID[label], len(self.objects) + 1))
+        self.parts.append((v, t, np.full(len(t), len(self.objects) - 1),
+                           np.full(len(t), MAT[material])))
+
+    def geometry(self):
+        """One SceneGeometry, each part's triangles shifted past the vertices before it."""
+        parts = self.parts
+        offsets = np.cumsum([0] + [len(v) for v, _, _, _ in parts[:-1]])
+        return SceneGeometry(np.concatenate([v for v, _, _, _ in parts]),
+                             np.concatenate([t + off for (_, t, _, _), off in zip(parts, offsets)]),
+                             np.concatenate([o for _, _, o, _ in parts]),
+                             np.concatenate([m for _, _, _, m in parts]), self.objects,
+                             list(MATERIALS))
 
 
 def open_sky_geometry(seed=11):
@@ -214,12 +224,8 @@ def open_sky_geometry(seed=11):
     (``OPEN_SKY_POSE``) about half the rays of a spinning device go to the sky and miss,
     the case where a frame costs most beyond its cast (issue 18)."""
     rng = np.random.default_rng(seed)
-    parts, objects = [], []
-
-    def add(name, label, material, vt):
-        v, t = vt
-        objects.append(ObjectInfo(name, NAME_TO_ID[label], len(objects) + 1))
-        parts.append((v, t, np.full(len(t), len(objects) - 1), np.full(len(t), MAT[material])))
+    parts = _Parts()
+    add = parts.add
 
     add("Ground", "road", "asphalt", grid((-100, -100, 0), (200, 0, 0), (0, 200, 0), 100, 100))
     add("Sphere", "static", "paint", uv_sphere(16, 32, (3.0, 3.0, 3.0), (12.0, 6.0, 3.0)))
@@ -230,7 +236,7 @@ def open_sky_geometry(seed=11):
         h = rng.uniform(0.5, 4.0)
         add(f"Box {i}", "building", "concrete",
             box((*(c - half), 0.0), (*(c + half), h), 2))
-    return _joined(parts, objects)
+    return parts.geometry()
 
 
 OPEN_SKY_POSE = np.array([[1.0, 0, 0, 0.0], [0, 1, 0, 0.0], [0, 0, 1, 5.0], [0, 0, 0, 1]])
