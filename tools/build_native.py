@@ -38,9 +38,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
 # One library: the Embree loop, the per-hit stage of a frame (points.c), the
-# footprint's depth-edge test (edges.c) and the weather's false returns (weather.c).
+# footprint's depth-edge test (edges.c) and probe sub-rays (probes.c), and the
+# weather's false returns (weather.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
-           NATIVE / "weather.c"]
+           NATIVE / "weather.c", NATIVE / "probes.c"]
 HEADERS = [NATIVE / "rls_threads.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
@@ -56,7 +57,8 @@ FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
          "-Wall", "-Werror=implicit-function-declaration"]
 EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_points_count", "rls_points_write", "rls_points_abi",
-           "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi")
+           "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
+           "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi")
 
 
 def library_name(sys_platform):
