@@ -38,10 +38,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
 # One library: the Embree loop, the per-hit stage of a frame (points.c), the
-# footprint's depth-edge test (edges.c), the weather's false returns (weather.c) and a
-# study candidate's disk counts (disks.c).
+# footprint's depth-edge test (edges.c) and probe sub-rays (probes.c), the weather's
+# false returns (weather.c) and a study candidate's disk counts (disks.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
-           NATIVE / "weather.c", NATIVE / "disks.c"]
+           NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c"]
 HEADERS = [NATIVE / "rls_threads.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
@@ -58,6 +58,7 @@ FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
 EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_points_count", "rls_points_write", "rls_points_abi",
            "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
+           "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
            "rls_disk_counts", "rls_disks_abi")
 
 

@@ -21,6 +21,7 @@ as ``detection`` says (presets with datasheet figures), or always (CARLA's model
 device reports the strongest, the last, or both (``dual``) of the detected echoes.
 """
 
+import ctypes
 import dataclasses
 import math
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ import numpy as np
 
 from . import weather as wx
 from .depth_edges import candidates
+from .kernels import Kernel
 
 RING = 6                   # sub-rays on the ring at the 1/e^2 radius
 CENTRE_SHARE = 0.5         # the centre ray's share of the beam's energy
@@ -116,6 +118,109 @@ def _basis(d):
     return u, np.cross(u, d)
 
 
+def _sectors(dirs, i, j, di, u, v, divergence_rad):
+    """(C,) the ring sector of each ray i (direction ``di``, basis ``u``, ``v``) nearest
+    the direction of its neighbour j."""
+    delta = dirs.take(j, axis=0) - di
+    h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in divergence_rad)
+    phi = np.arctan2(np.einsum("ck,ck->c", delta, v) / vert,
+                     np.einsum("ck,ck->c", delta, u) / h)
+    return np.rint(phi / (2.0 * np.pi / RING)).astype(np.int64) % RING
+
+
+def probe_rays_numpy(a, b, dirs, divergence_rad):
+    """The reference: (pi, pk, pdir), the probes of the pairs (a, b) across a depth
+    edge: for each ray and each neighbour across an edge, the ring sub-ray (sector pk)
+    nearest the neighbour's direction, each (ray, sector) once, in (ray, sector)
+    order."""
+    i = np.concatenate([a, b])
+    j = np.concatenate([b, a])
+    di = dirs.take(i, axis=0)
+    u, v = _basis(di)
+    k = _sectors(dirs, i, j, di, u, v, divergence_rad)
+    key, first = np.unique(i * RING + k, return_index=True)
+    pi, pk = key // RING, key % RING
+    pdir = ring_directions(dirs[pi], divergence_rad, pk,
+                           (u.take(first, axis=0), v.take(first, axis=0)))
+    return pi, pk, pdir
+
+
+def probe_rays(a, b, dirs, divergence_rad):
+    """``probe_rays_numpy``'s (pi, pk, pdir), in C where it is built (native/probes.c)."""
+    if not compiled or PROBE_SECTORS.get() is None or RING_RAYS.get() is None:
+        return probe_rays_numpy(a, b, dirs, divergence_rad)
+    dirs = np.ascontiguousarray(dirs, np.float64)
+    a, b = np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64)
+    mask = np.zeros(len(dirs), np.uint8)
+    amb = np.empty(2 * len(a), np.int64)
+    h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in divergence_rad)
+    args = _SectorsArgs(len(a), a.ctypes.data, b.ctypes.data, dirs.ctypes.data, h, vert,
+                        2.0 * np.pi / RING, mask.ctypes.data, amb.ctypes.data)
+    n_amb = PROBE_SECTORS.get()(ctypes.byref(args))
+    if n_amb:  # sectors on a boundary (to the last bits of atan2): numpy's
+        t = amb[:n_amb]
+        i = np.concatenate([a, b])[t]
+        j = np.concatenate([b, a])[t]
+        di = dirs.take(i, axis=0)
+        u, v = _basis(di)
+        k = _sectors(dirs, i, j, di, u, v, divergence_rad)
+        np.bitwise_or.at(mask, i, (1 << k).astype(np.uint8))
+    rows = np.flatnonzero(mask)
+    return _ring_rays(rows, mask[rows], dirs, divergence_rad)
+
+
+def whole_rings(rows, dirs, divergence_rad):
+    """(len(rows) * RING, 3): ``ring_directions(dirs[rows])``, in C where it is built."""
+    if not compiled or RING_RAYS.get() is None:
+        return ring_directions(dirs[rows], divergence_rad).reshape(-1, 3)
+    return _ring_rays(np.ascontiguousarray(rows, np.int64),
+                      np.full(len(rows), (1 << RING) - 1, np.uint8),
+                      np.ascontiguousarray(dirs, np.float64), divergence_rad)[2]
+
+
+def _ring_rays(rows, mask, dirs, divergence_rad):
+    h, vert = (math.tan(0.5 * float(x)) for x in divergence_rad)
+    phi = 2.0 * np.pi * np.arange(RING) / RING     # as ring_directions has them
+    hc, vs = np.ascontiguousarray(h * np.cos(phi)), np.ascontiguousarray(vert * np.sin(phi))
+    total = int(np.unpackbits(mask).sum())
+    ray, sector = np.empty(total, np.int64), np.empty(total, np.int64)
+    out = np.empty((total, 3), np.float64)
+    mask = np.ascontiguousarray(mask, np.uint8)
+    args = _RingArgs(len(rows), rows.ctypes.data, mask.ctypes.data, dirs.ctypes.data,
+                     hc.ctypes.data, vs.ctypes.data, ray.ctypes.data, sector.ctypes.data,
+                     out.ctypes.data)
+    RING_RAYS.get()(ctypes.byref(args))
+    return ray, sector, out
+
+
+class _SectorsArgs(ctypes.Structure):
+    """``sectors_t`` of native/probes.c."""
+
+    _fields_ = [("n", ctypes.c_int64), ("a", ctypes.c_void_p), ("b", ctypes.c_void_p),
+                ("dir", ctypes.c_void_p), ("h", ctypes.c_double), ("vert", ctypes.c_double),
+                ("sector", ctypes.c_double), ("mask", ctypes.c_void_p),
+                ("ambiguous", ctypes.c_void_p)]
+
+
+class _RingArgs(ctypes.Structure):
+    """``ring_t`` of native/probes.c."""
+
+    _fields_ = [("n", ctypes.c_int64), ("rows", ctypes.c_void_p), ("mask", ctypes.c_void_p),
+                ("dir", ctypes.c_void_p), ("hc", ctypes.c_void_p), ("vs", ctypes.c_void_p),
+                ("ray", ctypes.c_void_p), ("sector", ctypes.c_void_p),
+                ("out", ctypes.c_void_p)]
+
+
+# Off: every frame works out its probes and rings in numpy (the reference the C code is
+# tested against).
+compiled = True
+NATIVE_PROBES_ABI = 1
+PROBE_SECTORS = Kernel("rls_probe_sectors", "rls_probes_abi", NATIVE_PROBES_ABI,
+                       [ctypes.POINTER(_SectorsArgs)], ctypes.c_int64)
+RING_RAYS = Kernel("rls_ring_rays", "rls_probes_abi", NATIVE_PROBES_ABI,
+                   [ctypes.POINTER(_RingArgs)], ctypes.c_int64)
+
+
 class SubRays:
     """The sub-rays of one frame's rays next to a depth edge, cast in two steps: first,
     for each ray and each neighbour across an edge, the one ring sub-ray nearest the
@@ -136,20 +241,7 @@ class SubRays:
         self.probes = 0
         if not len(a):
             return
-        # probes: ray i toward neighbour j, the ring point nearest that direction
-        i = np.concatenate([a, b])
-        j = np.concatenate([b, a])
-        di = dirs.take(i, axis=0)
-        u, v = _basis(di)
-        delta = dirs.take(j, axis=0) - di
-        h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in beam.divergence_rad)
-        phi = np.arctan2(np.einsum("ck,ck->c", delta, v) / vert,
-                         np.einsum("ck,ck->c", delta, u) / h)
-        k = np.rint(phi / (2.0 * np.pi / RING)).astype(np.int64) % RING
-        key, first = np.unique(i * RING + k, return_index=True)
-        pi, pk = key // RING, key % RING
-        pdir = ring_directions(dirs[pi], beam.divergence_rad, pk,
-                               (u.take(first, axis=0), v.take(first, axis=0)))
+        pi, pk, pdir = probe_rays(a, b, dirs, beam.divergence_rad)
         o = origins if origins.shape[0] == 1 else origins[pi]
         dist, body, tri2, _ = world.cast(o, pdir, times[pi], rmax)
         obj = world.surface_ids(body, tri2)[:, 0]
@@ -164,7 +256,7 @@ class SubRays:
         self.count = len(c)
         if not len(c):
             return
-        sub = ring_directions(dirs[c], beam.divergence_rad).reshape(-1, 3)
+        sub = whole_rings(c, dirs, beam.divergence_rad)
         o = origins if origins.shape[0] == 1 else np.repeat(origins[c], RING, axis=0)
         t = np.repeat(times[c], RING)
         dist, body, tri2, normals = world.cast(o, sub, t, rmax)

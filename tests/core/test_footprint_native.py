@@ -6,7 +6,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from rls_addon.core import depth_edges
+from rls_addon.core import depth_edges, footprint
 from rls_addon.core.depth_edges import edges_numpy
 from tests.core.test_footprint import device, edge_scene, grid, scan
 
@@ -64,6 +64,61 @@ def test_frames_are_byte_identical_with_compiled_or_numpy_edges(native, monkeypa
         monkeypatch.setattr(depth_edges, "compiled", compiled)
         res = scan(g, pattern, device(mode=mode, figures=figures), noise=True, seed=4,
                    weather="fog:visibility=80")
+        got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
+        assert res.stats["footprint_rays"] > 0
+    assert got[True] == got[False]
+
+
+@pytest.fixture(scope="module")
+def native_probes():
+    if footprint.PROBE_SECTORS.get() is None or footprint.RING_RAYS.get() is None:
+        pytest.fail("the compiled probe kernels are not built "
+                    f"({footprint.PROBE_SECTORS.error or footprint.RING_RAYS.error}): run "
+                    "'make native' (make test does)")
+
+
+@pytest.mark.parametrize("divergence", [(3e-3, 1.5e-3), (2e-3, 2e-3), (0.0, 1e-3)])
+def test_compiled_probes_are_the_reference_probes(native_probes, monkeypatch, divergence):
+    """Random directions (some vertical, some repeated, some neighbours straight above
+    or beside: sectors on a boundary), random pairs."""
+    rng = np.random.default_rng(11)
+    n = 40_000
+    dirs = rng.normal(size=(n, 3))
+    dirs[rng.random(n) < 0.02] = (0.0, 0.0, 1.0)
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    a = rng.integers(0, n, 3 * n)
+    b = np.where(rng.random(3 * n) < 0.5, (a + 1) % n, rng.integers(0, n, 3 * n))
+    same = rng.random(3 * n) < 0.01
+    b[same] = a[same]
+    # a grid: neighbours straight above and beside each other
+    az, el = np.meshgrid(np.linspace(-1, 1, 50), np.linspace(-0.3, 0.3, 20))
+    g = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], -1)
+    g = g.reshape(-1, 3)
+    dirs = np.concatenate([dirs, g])
+    idx = np.arange(n, n + len(g)).reshape(20, 50)
+    a = np.concatenate([a, idx[:, :-1].ravel(), idx[:-1].ravel()])
+    b = np.concatenate([b, idx[:, 1:].ravel(), idx[1:].ravel()])
+    want = footprint.probe_rays_numpy(a, b, dirs, divergence)
+    got = footprint.probe_rays(a, b, dirs, divergence)
+    for w, x in zip(want, got):
+        assert w.dtype == x.dtype
+        np.testing.assert_array_equal(x, w)
+    rows = np.unique(a[::7])
+    np.testing.assert_array_equal(footprint.whole_rings(rows, dirs, divergence),
+                                  footprint.ring_directions(dirs[rows], divergence)
+                                  .reshape(-1, 3))
+
+
+@pytest.mark.parametrize("mode", ["strongest", "dual"])
+def test_frames_are_byte_identical_with_compiled_or_numpy_probes(native_probes, monkeypatch,
+                                                                  mode):
+    pattern, _, _ = grid(rows=300)
+    g = edge_scene()
+    figures = ((0.10, 90.0), (0.80, 260.0))
+    got = {}
+    for compiled in (True, False):
+        monkeypatch.setattr(footprint, "compiled", compiled)
+        res = scan(g, pattern, device(mode=mode, figures=figures), noise=True, seed=4)
         got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
         assert res.stats["footprint_rays"] > 0
     assert got[True] == got[False]
