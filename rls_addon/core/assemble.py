@@ -17,13 +17,13 @@ there, second echoes as extra rows).
 """
 
 import ctypes
-import os
-import threading
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import kernels
 from . import weather as wx
+from .kernels import Kernel
 from .labels import WEATHER_LABEL
 from .points import point_dtype
 
@@ -262,56 +262,21 @@ class _PointsArgs(ctypes.Structure):
                 ("index", ctypes.c_void_p), ("back", ctypes.c_void_p)]
 
 
-_LOCK = threading.Lock()
-_NATIVE = None  # the bound function, False when not available
-_NATIVE_ERROR = ""
-
-
-def load_native(path):
-    """(count, write) of the per-hit stage in the library at ``path``, bound for
-    ctypes; OSError when they are missing or of another interface version."""
-    lib = ctypes.CDLL(path)
-    try:
-        abi, count, write = lib.rls_points_abi, lib.rls_points_count, lib.rls_points_write
-    except AttributeError as exc:
-        raise OSError(f"the compiled library has no per-hit stage ({exc}); rebuild it "
-                      "with tools/build_native.py") from None
-    abi.restype, abi.argtypes = ctypes.c_int, []
-    if abi() != NATIVE_POINTS_ABI:
-        raise OSError(f"stale per-hit stage (interface {abi()}, this RLS needs "
-                      f"{NATIVE_POINTS_ABI}); rebuild it with tools/build_native.py")
-    args = [ctypes.POINTER(_PointsArgs), ctypes.c_void_p, ctypes.c_int]
-    count.restype, count.argtypes = ctypes.c_int64, args
-    write.restype, write.argtypes = None, args
-    return count, write
+_ARGS = [ctypes.POINTER(_PointsArgs), ctypes.c_void_p, ctypes.c_int]
+POINTS_COUNT = Kernel("rls_points_count", "rls_points_abi", NATIVE_POINTS_ABI, _ARGS,
+                      ctypes.c_int64)
+POINTS_WRITE = Kernel("rls_points_write", "rls_points_abi", NATIVE_POINTS_ABI, _ARGS)
 
 
 def native():
-    """The compiled per-hit stage, or None (the reason in ``native_error()``)."""
-    global _NATIVE, _NATIVE_ERROR
-    with _LOCK:
-        if _NATIVE is None:
-            from .casting.embree import native_library_path
-
-            path = native_library_path()
-            try:
-                if not os.path.exists(path):
-                    raise OSError(f"{os.path.basename(path)} is not built")
-                _NATIVE = load_native(path)
-            except OSError as exc:
-                _NATIVE, _NATIVE_ERROR = False, str(exc)
-        return _NATIVE or None
+    """The compiled per-hit stage (count, write), or None (the reason in
+    ``native_error()``)."""
+    count, write = POINTS_COUNT.get(), POINTS_WRITE.get()
+    return (count, write) if count is not None and write is not None else None
 
 
 def native_error():
-    return _NATIVE_ERROR
-
-
-def _threads():
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:
-        return max(1, os.cpu_count() or 1)
+    return POINTS_COUNT.error or POINTS_WRITE.error
 
 
 # Off: every frame assembles in numpy (the reference the C code is tested against).
@@ -370,7 +335,7 @@ def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
     for k, f in enumerate(FIELD_ORDER):
         args.offsets[k] = dtype.fields[f][1] if f in dtype.names else -1
     count, write = fn
-    threads = _threads()
+    threads = kernels.threads()
     keep_rays = np.empty(n, np.uint8)
     got = count(ctypes.byref(args), keep_rays.ctypes.data, threads)
     out = np.empty(got, dtype=dtype)

@@ -1,7 +1,9 @@
-"""Small compiled kernels of a frame (``native/edges.c``, ``native/weather.c``), in the
-library of the compiled Embree loop: each bound once, on first use, after checking its
-interface version; None where the library is not built or is stale (the caller then
-runs its numpy reference, which gives the same bytes)."""
+"""The compiled kernels beside the Embree loop, in its library: the per-hit stage
+(``native/points.c``), the footprint's edges and probes (``edges.c``, ``probes.c``),
+the weather's false returns (``weather.c``) and a study's disk counts (``disks.c``).
+Each entry point is bound once, on first use, after checking its interface version;
+None where the library is not built or is stale (the caller then runs its numpy
+reference, which gives the same bytes)."""
 
 import ctypes
 import os
@@ -51,9 +53,9 @@ class Kernel:
 
 
 def threads():
-    """The threads a kernel may use: the CPUs this process may run on."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:
-        return max(1, os.cpu_count() or 1)
+    """The threads a kernel may use: the Embree loop's (the CPUs this process may run
+    on, or a cluster worker's share of them, ``embree.default_threads``)."""
+    from .casting.embree import default_threads
+
+    return default_threads()
 
