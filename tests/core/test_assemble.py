@@ -15,15 +15,12 @@ from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 from rls_addon.core.points import POINT_DTYPE
 from rls_addon.core.presets import get_preset
 from rls_addon.core.settings import ScanSettings
+from tests.core.built import require_built
 
 
 @pytest.fixture(scope="module")
 def native():
-    fn = assemble.native()
-    if fn is None:
-        pytest.fail(f"the compiled per-hit stage is not built ({assemble.native_error()}): "
-                    "run 'make native' (make test does)")
-    return fn
+    return require_built(assemble.POINTS_COUNT, assemble.POINTS_WRITE)
 
 
 def random_frame(n, seed, ghosts=True, per_ray_origins=False):

@@ -11,15 +11,15 @@ import pytest
 from rls_addon.core import disk_counter
 from rls_addon.core.disk_counter import DiskCounter
 from rls_addon.core.metrics import count_in_disks
+from tests.core.built import require_built
 
 
 @pytest.fixture(autouse=True, params=["compiled", "numpy"])
 def path(request, monkeypatch):
     """Each test with the compiled counts (which must be built: make test builds them)
     and with the numpy reference."""
-    if request.param == "compiled" and disk_counter.KERNEL.get() is None:
-        pytest.fail(f"the compiled disk counts are not built ({disk_counter.KERNEL.error}): "
-                    "run 'make native' (make test does)")
+    if request.param == "compiled":
+        require_built(disk_counter.KERNEL)
     monkeypatch.setattr(disk_counter, "compiled", request.param == "compiled")
     return request.param
 

@@ -8,16 +8,13 @@ import pytest
 
 from rls_addon.core import depth_edges, footprint
 from rls_addon.core.depth_edges import edges_numpy
+from tests.core.built import require_built
 from tests.core.test_footprint import device, edge_scene, grid, scan
 
 
 @pytest.fixture(scope="module")
 def native():
-    fn = depth_edges.KERNEL.get()
-    if fn is None:
-        pytest.fail(f"the compiled depth-edge test is not built ({depth_edges.KERNEL.error})"
-                    ": run 'make native' (make test does)")
-    return fn
+    return require_built(depth_edges.KERNEL)[0]
 
 
 def random_pairs(n, seed, per_ray_origins):
@@ -54,27 +51,32 @@ def test_compiled_edges_are_the_reference_edges(native, per_ray_origins, step):
     np.testing.assert_array_equal(got, want)
 
 
-@pytest.mark.parametrize("mode", ["strongest", "dual"])
-def test_frames_are_byte_identical_with_compiled_or_numpy_edges(native, monkeypatch, mode):
+def frame_digests(monkeypatch, modules, scene, mode, stat, **settings):
+    """{compiled: sha256 of a footprint frame's points} with the compiled kernels of
+    ``modules`` on and off (the Mid-40's figures, noise on); each frame must have some
+    ``stat``."""
     pattern, _, _ = grid(rows=300)
-    g = edge_scene()
-    figures = ((0.10, 90.0), (0.80, 260.0))
     got = {}
     for compiled in (True, False):
-        monkeypatch.setattr(depth_edges, "compiled", compiled)
-        res = scan(g, pattern, device(mode=mode, figures=figures), noise=True, seed=4,
-                   weather="fog:visibility=80")
+        for module in modules:
+            monkeypatch.setattr(module, "compiled", compiled)
+        res = scan(scene, pattern, device(mode=mode, figures=((0.10, 90.0), (0.80, 260.0))),
+                   noise=True, **settings)
         got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
-        assert res.stats["footprint_rays"] > 0
+        assert res.stats[stat] > 0
+    return got
+
+
+@pytest.mark.parametrize("mode", ["strongest", "dual"])
+def test_frames_are_byte_identical_with_compiled_or_numpy_edges(native, monkeypatch, mode):
+    got = frame_digests(monkeypatch, [depth_edges], edge_scene(), mode, "footprint_rays",
+                        seed=4, weather="fog:visibility=80")
     assert got[True] == got[False]
 
 
 @pytest.fixture(scope="module")
 def native_probes():
-    if footprint.PROBE_SECTORS.get() is None or footprint.RING_RAYS.get() is None:
-        pytest.fail("the compiled probe kernels are not built "
-                    f"({footprint.PROBE_SECTORS.error or footprint.RING_RAYS.error}): run "
-                    "'make native' (make test does)")
+    return require_built(footprint.PROBE_SECTORS, footprint.RING_RAYS)
 
 
 @pytest.mark.parametrize("divergence", [(3e-3, 1.5e-3), (2e-3, 2e-3), (0.0, 1e-3)])
@@ -112,13 +114,5 @@ def test_compiled_probes_are_the_reference_probes(native_probes, monkeypatch, di
 @pytest.mark.parametrize("mode", ["strongest", "dual"])
 def test_frames_are_byte_identical_with_compiled_or_numpy_probes(native_probes, monkeypatch,
                                                                   mode):
-    pattern, _, _ = grid(rows=300)
-    g = edge_scene()
-    figures = ((0.10, 90.0), (0.80, 260.0))
-    got = {}
-    for compiled in (True, False):
-        monkeypatch.setattr(footprint, "compiled", compiled)
-        res = scan(g, pattern, device(mode=mode, figures=figures), noise=True, seed=4)
-        got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
-        assert res.stats["footprint_rays"] > 0
+    got = frame_digests(monkeypatch, [footprint], edge_scene(), mode, "footprint_rays", seed=4)
     assert got[True] == got[False]

@@ -2,22 +2,18 @@
 (``weather.false_returns_numpy``) to the bit, its inversion of the CDF is numpy's own
 np.interp, and weather frames are byte-identical with it or without it."""
 
-import hashlib
-
 import numpy as np
 import pytest
 
 from rls_addon.core import depth_edges, weather
-from tests.core.test_footprint import device, edge_scene, grid, scan
+from tests.core.built import require_built
+from tests.core.test_footprint import edge_scene
+from tests.core.test_footprint_native import frame_digests
 
 
 @pytest.fixture(scope="module")
 def native():
-    fn = weather.FALSE_RETURNS.get()
-    if fn is None:
-        pytest.fail(f"the compiled false returns are not built ({weather.FALSE_RETURNS.error})"
-                    ": run 'make native' (make test does)")
-    return fn
+    return require_built(weather.FALSE_RETURNS)[0]
 
 
 def same_bits(a, b):
@@ -76,14 +72,6 @@ def test_the_inversion_is_numpys_interp(native, monkeypatch):
 
 @pytest.mark.parametrize("spec", ["fog:visibility=30", "rain:rate=20"])
 def test_weather_frames_are_byte_identical_with_or_without_the_kernels(monkeypatch, spec):
-    pattern, _, _ = grid(rows=300)
-    figures = ((0.10, 90.0), (0.80, 260.0))
-    got = {}
-    for compiled in (True, False):
-        monkeypatch.setattr(weather, "compiled", compiled)
-        monkeypatch.setattr(depth_edges, "compiled", compiled)
-        res = scan(edge_scene(gap=60.0), pattern, device(mode="dual", figures=figures),
-                   noise=True, seed=9, weather=spec)
-        got[compiled] = hashlib.sha256(res.points.tobytes()).hexdigest()
-        assert res.stats["weather_returns"] > 0
+    got = frame_digests(monkeypatch, [weather, depth_edges], edge_scene(gap=60.0), "dual",
+                        "weather_returns", seed=9, weather=spec)
     assert got[True] == got[False]
