@@ -71,8 +71,9 @@ class Writer(Protocol):
     def abort(self) -> None:
         """The run ended early: drop what only a complete run may leave."""
 
-    # Optional: ``flush()``, wait for files still being written (a writer that writes
-    # in the background); called when a run or a piece of one ends.
+    def flush(self) -> None:
+        """Wait for files still being written (a writer that writes in the background);
+        called when a run or a piece of one ends."""
 
 
 class ScanRun:
@@ -296,7 +297,7 @@ class ScanRun:
         complete run may leave (a bag)."""
         if self.index < len(self.plan) and self.writer is not None and not self.piece:
             self.writer.abort()
-        if getattr(self.writer, "flush", None) is not None:  # a piece's files, complete
+        if self.writer is not None:  # a piece's files, complete
             self.writer.flush()
         if self.source.current_frame() != self.original_frame:
             self.source.set_frame(self.original_frame)

@@ -171,6 +171,9 @@ class KittiWriter:
     def abort(self):
         """Frames already written are complete (a later --resume keeps them)."""
 
+    def flush(self):
+        """Files are written in place: nothing to wait for."""
+
     def finish(self, run):
         """Splits and the dataset description, per sensor root, over every frame there
         (earlier runs' too)."""

@@ -183,6 +183,9 @@ class Opv2vWriter:
         """Frames whose YAML files are written are complete; a frame cut short keeps its
         point files without YAML, which OpenCOOD does not list (--resume redoes it)."""
 
+    def flush(self):
+        """Files are written in place: nothing to wait for."""
+
     def finish(self, run):
         """A description of the scenario beside its agent folders."""
         write_text(self.root / f"{sanitize_name(self.scene_name)}.rls.json", json.dumps({

@@ -290,6 +290,9 @@ class BagWriter:
         if self.bag is not None:
             self.bag.abort()
 
+    def flush(self):
+        """Every message is in the bag as it is written: nothing to wait for."""
+
 
 def make_writer(jobs, scene_name, fps, first_frame, overwrite=False, resume=False,
                 preview=False, background=False):
