@@ -26,6 +26,8 @@ def best(fn, repeat=3):
 class _Recorder:
     """Wraps a caster; records every batch of rays it is asked to cast."""
 
+    skip_sure_misses = False  # the watertight wrapper asks it for every ray
+
     def __init__(self, inner, log):
         self.inner, self.log, self.name = inner, log, getattr(inner, "name", "caster")
 

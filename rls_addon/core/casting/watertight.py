@@ -187,7 +187,7 @@ class WatertightCaster(CasterBase):
         and those passing beyond the ground's edge. From one origin, the boxes'
         ``ElevationEnvelope`` tells them apart (nearly as well as casting into the
         hull); from per-ray origins, the octant test (``may_reach_hull``)."""
-        if not getattr(self.primary, "skip_sure_misses", False) or len(d) == 0:
+        if not self.primary.skip_sure_misses or len(d) == 0:
             return None
         if o.shape[0] == 1:
             reach = ElevationEnvelope(o[0], self.box_lo, self.box_hi).may_meet(d)
