@@ -69,6 +69,22 @@ def points_in_polygon(xy, poly):
     return inside
 
 
+def grid_cells(x, y, lo, size, nx, ny):
+    """(N,) int64 row-major cell of each point (``x``, ``y``) on a grid of ``nx`` x ``ny``
+    square cells of ``size`` from corner ``lo``. Points beyond the grid, or not finite,
+    are put in its outer ring of cells (the nearest border cell; a NaN coordinate in the
+    first), which the callers keep free of anything to find."""
+    fx = (x - lo[0]) / size
+    fy = (y - lo[1]) / size
+    if len(fx) and not (fx.min() >= 0 and fy.min() >= 0 and fx.max() < nx and fy.max() < ny):
+        fx = np.where(fx >= 0, np.minimum(fx, nx - 1), 0.0)
+        fy = np.where(fy >= 0, np.minimum(fy, ny - 1), 0.0)
+    cell = fy.astype(np.int64)
+    cell *= nx
+    cell += fx.astype(np.int64)
+    return cell
+
+
 class PreparedPolygon:
     """``points_in_polygon`` for one outline and many point sets (a study's candidates):
     a grid over the outline's box, one ring of cells wider, whose cells are sorted once
@@ -100,16 +116,8 @@ class PreparedPolygon:
     def contains(self, xy):
         """``points_in_polygon(xy, poly)``."""
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        fx = (xy[:, 0] - self.lo[0]) / self.size
-        fy = (xy[:, 1] - self.lo[1]) / self.size
-        if len(xy) and not (fx.min() >= 0 and fy.min() >= 0 and fx.max() < self.nx
-                            and fy.max() < self.ny):
-            # beyond the grid (or not finite): into the ring, outside the outline's box
-            fx = np.where(fx >= 0, np.minimum(fx, self.nx - 1), 0.0)
-            fy = np.where(fy >= 0, np.minimum(fy, self.ny - 1), 0.0)
-        cell = fy.astype(np.int64)
-        cell *= self.nx
-        cell += fx.astype(np.int64)
+        # beyond the grid (or not finite): into the ring, outside the outline's box
+        cell = grid_cells(xy[:, 0], xy[:, 1], self.lo, self.size, self.nx, self.ny)
         state = self.state.take(cell)
         inside = state == 1
         test = np.flatnonzero(state == 2)
