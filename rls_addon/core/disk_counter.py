@@ -144,9 +144,8 @@ class DiskCounter:
             # than the counting (the C code clears the prefix sum)
             if self._before is None:
                 self._before = np.empty(self.nx * self.ny + 1, np.int64)
-            if self._cell is None or len(self._cell) < len(xy):
-                self._cell = np.empty(max(len(xy), 2 * (0 if self._cell is None else len(self._cell))),
-                                      np.int64)
+            if self._cell is None or len(self._cell) < len(xy):  # grows to the largest
+                self._cell = np.empty(len(xy), np.int64)
             self._call(fn, xy, self._cell, self._before, out)
         return out
 
