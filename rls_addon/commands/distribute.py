@@ -92,27 +92,30 @@ def run_scan(args, run, blend, by_sensor=True):
 
     jobs = {j.name: j for j in run.sensors}
     notices = []
-    with cluster_client(workers, args.scheduler) as client:
-        size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
-        pieces = run.pieces(size * PIECES_PER_WORKER, by_sensor)
-        print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
-              + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
-              file=sys.stderr, flush=True)
+    try:
+        with cluster_client(workers, args.scheduler) as client:
+            size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
+            pieces = run.pieces(size * PIECES_PER_WORKER, by_sensor)
+            print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
+                  + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
+                  file=sys.stderr, flush=True)
 
-        def absorb(i, got):
-            run.absorb(got.steps, got.id_map, got.warnings)
-            notices.extend(n for n in got.notices if n not in notices)
-            names, frames = pieces[i]
-            pts = sum(s.points for s in got.steps)
-            print(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
-                  f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
-                  "left", file=sys.stderr, flush=True)
+            def absorb(i, got):
+                run.absorb(got.steps, got.id_map, got.warnings)
+                notices.extend(n for n in got.notices if n not in notices)
+                names, frames = pieces[i]
+                pts = sum(s.points for s in got.steps)
+                print(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
+                      f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
+                      "left", file=sys.stderr, flush=True)
 
-        try:
             run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer))
                                for names, frames in pieces], absorb)
-        finally:
-            remove_temporaries(run)
+    finally:
+        # Once the cluster is closed: a local cluster's workers are stopped then, so a
+        # write still under way on one of them cannot leave a sidecar after its cloud
+        # was removed here
+        remove_temporaries(run)
     if hasattr(writer, "notices"):
         writer.notices[:] = notices + [n for n in writer.notices if n not in notices]
     return run
