@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import blas, effects, footprint, ghost, weather
+from . import allocator, blas, effects, footprint, ghost, weather
 from .assemble import Draws, Effects, Hits, Rays, _dot, assemble
 from .bodies import PreparedScene
 from .detection import detection_of
@@ -197,6 +197,7 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
+    allocator.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
     with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
         return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
                            frame, sensor, sensor_track, moving, keep_rays, fields)
