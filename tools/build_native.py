@@ -56,7 +56,7 @@ TARGETS = {
 FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
          "-Wall", "-Werror=implicit-function-declaration"]
 EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
-           "rls_points_count", "rls_points_write", "rls_points_abi",
+           "rls_points_assemble", "rls_points_abi",
            "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
            "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
            "rls_disk_counts", "rls_disks_abi")

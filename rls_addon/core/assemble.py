@@ -29,8 +29,8 @@ from .points import point_dtype
 
 # The fields points.c knows, in its enum's order.
 FIELD_ORDER = ("x", "y", "z", "range", "intensity", "ring", "time", "label", "instance",
-               "ghost")
-NATIVE_POINTS_ABI = 2
+               "ghost", "return_index", "num_returns")
+NATIVE_POINTS_ABI = 3
 
 
 @dataclass
@@ -262,21 +262,17 @@ class _PointsArgs(ctypes.Structure):
                 ("index", ctypes.c_void_p), ("back", ctypes.c_void_p)]
 
 
-_ARGS = [ctypes.POINTER(_PointsArgs), ctypes.c_void_p, ctypes.c_int]
-POINTS_COUNT = Kernel("rls_points_count", "rls_points_abi", NATIVE_POINTS_ABI, _ARGS,
-                      ctypes.c_int64)
-POINTS_WRITE = Kernel("rls_points_write", "rls_points_abi", NATIVE_POINTS_ABI, _ARGS)
+POINTS = Kernel("rls_points_assemble", "rls_points_abi", NATIVE_POINTS_ABI,
+                [ctypes.POINTER(_PointsArgs), ctypes.c_int], ctypes.c_int64)
 
 
 def native():
-    """The compiled per-hit stage (count, write), or None (the reason in
-    ``native_error()``)."""
-    count, write = POINTS_COUNT.get(), POINTS_WRITE.get()
-    return (count, write) if count is not None and write is not None else None
+    """The compiled per-hit stage, or None (the reason in ``native_error()``)."""
+    return POINTS.get()
 
 
 def native_error():
-    return POINTS_COUNT.error or POINTS_WRITE.error
+    return POINTS.error
 
 
 # Off: every frame assembles in numpy (the reference the C code is tested against).
@@ -334,16 +330,11 @@ def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
             args.cols[k] = ptr(rays.columns[k], np.float64)
     for k, f in enumerate(FIELD_ORDER):
         args.offsets[k] = dtype.fields[f][1] if f in dtype.names else -1
-    count, write = fn
-    threads = kernels.threads()
-    keep_rays = np.empty(n, np.uint8)
-    got = count(ctypes.byref(args), keep_rays.ctypes.data, threads)
-    out = np.empty(got, dtype=dtype)
-    index = np.empty(got, np.int64)
-    back = np.empty(got, np.uint8)
+    # Room for a point per ray, shrunk in place to the points written (realloc keeps
+    # the start; pages past the points are never touched).
+    out, index, back = np.empty(n, dtype=dtype), np.empty(n, np.int64), np.empty(n, np.uint8)
     args.out, args.index, args.back = out.ctypes.data, index.ctypes.data, back.ctypes.data
-    write(ctypes.byref(args), keep_rays.ctypes.data, threads)
-    for f in ("return_index", "num_returns"):  # fields points.c does not know: one echo
-        if f in dtype.names:
-            out[f] = 1
+    got = fn(ctypes.byref(args), kernels.threads())
+    for a in (out, index, back):
+        a.resize(got, refcheck=False)
     return out, index, back.view(bool)

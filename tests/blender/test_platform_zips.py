@@ -28,7 +28,7 @@ from rls_addon.core.casting import embree  # noqa: E402
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
 ENTRY_POINTS = {"rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
-                "rls_points_count", "rls_points_write", "rls_points_abi",
+                "rls_points_assemble", "rls_points_abi",
                 "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
                 "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
                 "rls_disk_counts", "rls_disks_abi"}

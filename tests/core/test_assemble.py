@@ -20,7 +20,7 @@ from tests.core.built import require_built
 
 @pytest.fixture(scope="module")
 def native():
-    return require_built(assemble.POINTS_COUNT, assemble.POINTS_WRITE)
+    return require_built(assemble.POINTS)[0]
 
 
 def random_frame(n, seed, ghosts=True, per_ray_origins=False):
@@ -84,6 +84,20 @@ def test_compiled_assembly_edge_cases(native):
     hits.valid[:] = False  # nothing returned
     got = assemble._assemble_native(native, hits, rays, draws, EFFECTS, "sensor", None)
     assert len(got[0]) == 0 and got[0].dtype == POINT_DTYPE
+
+
+@pytest.mark.parametrize("threads", [1, 3, 5])
+def test_compiled_assembly_joins_its_shares_in_ray_order(native, monkeypatch, threads):
+    # each thread writes its share's points from the share's first ray on; the shares
+    # are then moved down to follow each other (some shares with no point at all)
+    monkeypatch.setattr(assemble.kernels, "threads", lambda: threads)
+    hits, rays, draws = random_frame(90_000, 11)
+    hits.valid[20_000:40_000] = False
+    want = assemble_numpy(hits, rays, draws, EFFECTS, "sensor")
+    got = assemble._assemble_native(native, hits, rays, draws, EFFECTS, "sensor", None)
+    assert got[0].tobytes() == want[0].tobytes()
+    np.testing.assert_array_equal(got[1], want[1])
+    np.testing.assert_array_equal(got[2], want[2])
 
 
 def test_the_reference_is_what_the_frame_used_to_compute():
