@@ -77,6 +77,12 @@ class PreparedScene:
         kept result is given back (as copies, so the caller may change them) instead
         of casting: a static sensor's frames see the same static scene every time. One
         cast is kept, about 40 bytes per ray (4.6 MB for a Pandar64 frame)."""
+        return self.start(origins, directions, max_range, watertight, order, reuse)()
+
+    def start(self, origins, directions, max_range, watertight=True, order=None, reuse=False):
+        """``cast``, started: returns a function that gives its result. With the
+        compiled Embree loop the rays are cast meanwhile, so the caller's own work
+        (a frame's random draws) overlaps the cast; other backends cast right here."""
         key = None
         if reuse and watertight and self.reusable(origins, directions):
             key = (np.asarray(origins, np.float64).tobytes(), directions,
@@ -85,40 +91,36 @@ class PreparedScene:
             if kept is not None and kept[0][0] == key[0] and kept[0][1] is directions \
                     and kept[0][2] == key[2] and kept[0][3] is order:
                 self.reused += 1
-                return tuple(a.copy() for a in kept[1])
-        got = self._cast(origins, directions, max_range, watertight, order)
-        if key is not None:
+                got = tuple(a.copy() for a in kept[1])
+                return lambda: got
+        pending = self._start(origins, directions, max_range, watertight, order)
+        if key is None:
+            return pending
+
+        def kept_result():
+            got = pending()
             self._kept_cast = (key, got)
             return tuple(a.copy() for a in got)
-        return got
 
-    def _cast(self, origins, directions, max_range, watertight, order):
+        return kept_result
+
+    def _start(self, origins, directions, max_range, watertight, order):
         n = directions.shape[0]
         if self.caster is None or n == 0:
-            return np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
+            got = np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
+            return lambda: got
         o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
         caster = self.caster if watertight else self.primary
-        dist, tri, normals = cast_exact(caster, o, directions, max_range, self.planes, order)
-        return dist, self._to_geometry.take(tri), normals
-
-    def start_cast(self, origins, directions, max_range):
-        """Start ``cast(..., watertight=False)`` and return a function that gives its
-        result. Backends that cast without Python (the compiled Embree loop) run
-        meanwhile, so the caller can do other work; the others cast right here."""
-        pending = None
-        if self.primary is not None and len(directions):
-            o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
-            pending = self.primary.start_refined(o, directions, max_range, self.planes)
-        if pending is None:
-            got = self.cast(origins, directions, max_range, watertight=False)
-            return lambda: got
+        pending = caster.start_refined(o, directions, max_range, self.planes, order)
+        if pending is None:  # a backend that casts from Python: here, refined after
+            got = cast_exact(caster, o, directions, max_range, self.planes, order)
+            pending = lambda: got  # noqa: E731
 
         def result():
             dist, tri, normals = pending()
             return dist, self._to_geometry.take(tri), normals
 
         return result
-
 
 class RigidBodies:
     """Rigidly moving objects, cast together.

@@ -94,26 +94,31 @@ class Returns:
 class _Bounces:
     """Ghost points from glossy surfaces, in two steps around the frame's other work.
 
-    ``__init__`` picks a seeded share of the glossy returns (drawn per ray, so one
-    ray's fate never depends on which other rays returned) and starts casting their
-    reflected beams (see ``World.start_cast``: with the compiled Embree loop the
-    frame's per-ray shading goes on meanwhile).
+    ``__init__`` picks a seeded share of the glossy returns (``uniforms``: one per ray
+    from the ghost generator, so one ray's fate never depends on which other rays
+    returned) and starts casting their reflected beams (see ``World.start``: with the
+    compiled Embree loop the frame's other work goes on meanwhile).
     ``finish`` turns the beams that found something into ghost points at total path
     a + b along the original beam, labelled as what the reflected beam found; glossy
     returns whose reflected beam finds nothing return nothing."""
 
-    def __init__(self, world, rng, origins, dirs, times, ret, rmax):
+    @staticmethod
+    def any_glossy(world):
+        """Whether anything in the world is glossy (a material, or an object's label)."""
+        obj_glossy, mat_glossy, _ = ghost.glossy_tables(world.geometry, ghost.glossy_labels())
+        return bool(obj_glossy.any() or mat_glossy.any())
+
+    def __init__(self, world, uniforms, origins, dirs, times, ret, rmax):
         self.world, self.rmax = world, rmax
         obj_glossy, mat_glossy, mat_ratio = ghost.glossy_tables(world.geometry,
                                                                 ghost.glossy_labels())
         obj, mat = ret.surface[:, 0], ret.surface[:, 1]
-        glossy = mat_glossy[mat]
+        glossy = mat_glossy.take(mat)  # take: a third of fancy indexing's time
         if obj_glossy.any():
-            glossy |= obj_glossy[obj]
+            glossy |= obj_glossy.take(obj)
         cand = np.nonzero(glossy & ret.valid)[0]
         self.stats = {"glossy_hits": len(cand), "ghosts": 0, "bounce_rays": 0}
-        self.chosen = cand[rng.random(len(ret.dist))[cand] < mat_ratio[mat[cand]]] \
-            if len(cand) else cand
+        self.chosen = cand[uniforms[cand] < mat_ratio[mat[cand]]] if len(cand) else cand
         self.stats["bounce_rays"] = len(self.chosen)
         self.pending = None
         if len(self.chosen) == 0:
@@ -128,7 +133,7 @@ class _Bounces:
         # re-check would re-cast every one that escapes to the sky. A crack missed by a
         # ghost ray only loses one ghost point, so they are cast once.
         self.start = ghost.bounce_origins(self.p, uc, nc, self.a)
-        self.pending = world.start_cast(self.start, self.r, times[c], rmax)
+        self.pending = world.start(self.start, self.r, times[c], rmax, watertight=False)
 
     def finish(self, ret):
         """Apply the bounces to ``ret``; returns (ghost rows, their last-leg
@@ -259,8 +264,28 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     # A sensor that does not move casts the same rays into the same static scene every
     # frame: the static part is cast once and reused (see PreparedScene.cast).
     reused = scene.reused
-    dist, body, tri, normals = world.cast(origins, dirs, tscene, rmax,
-                                         order=pattern.trace_order, reuse=True)
+    pending = world.start(origins, dirs, tscene, rmax, order=pattern.trace_order, reuse=True)
+
+    # Every random number of the effects is drawn per ray, not per hit, so a ray's
+    # draws never depend on which other rays returned (ghosting or moving objects
+    # change only their own rays); drawn while the rays are cast (the compiled loop's
+    # threads cast meanwhile).
+    draws = Draws(noise=effects.range_noise(rng, n, sigma) if s.noise else None)
+    if s.dropout:
+        draws.general, draws.low = effects.dropout_draws(rng, n, preset.dropout.general_rate,
+                                                         preset.dropout.intensity_limit,
+                                                         preset.dropout.intensity_zero)
+    # Drawn after noise and dropout, and only when used: a frame without datasheet
+    # figures and weather draws what it drew before the LiDAR equation.
+    if model is not None:
+        draws.detect = rng.random(n)
+    if air is not None:
+        draws.medium, draws.medium_range = rng.random(n), rng.random(n)
+    # Which glossy returns send a ghost: the ghost generator's own uniforms, drawn only
+    # where something is glossy.
+    glossy_u = ghost_rng.random(n) if s.ghosting and _Bounces.any_glossy(world) else None
+
+    dist, body, tri, normals = pending()
     reused = scene.reused > reused
     ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
                   world.surface_ids(body, tri), normals)
@@ -272,25 +297,12 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     # Rays next to a depth edge cast their beam's sub-rays (before ghosts change rows)
     sub = footprint.SubRays(beam, world, pattern, origins, dirs, tscene, ret, tri, rmax) \
         if beam is not None else None
-    bounces = _Bounces(world, ghost_rng, origins, dirs, tscene, ret, rmax) \
-        if s.ghosting and ret.valid.any() else None
+    bounces = _Bounces(world, glossy_u, origins, dirs, tscene, ret, rmax) \
+        if glossy_u is not None and ret.valid.any() else None
 
-    # Every random number of the effects is drawn per ray, not per hit, so a ray's
-    # draws never depend on which other rays returned (ghosting or moving objects
-    # change only their own rays); drawn while the reflected beams are cast.
     g = world.geometry
-    draws = Draws(noise=effects.range_noise(rng, n, sigma) if s.noise else None)
-    if s.dropout:
-        draws.general, draws.low = effects.dropout_draws(rng, n, preset.dropout.general_rate,
-                                                         preset.dropout.intensity_limit,
-                                                         preset.dropout.intensity_zero)
-    # Drawn after noise and dropout, and only when used: a frame without datasheet
-    # figures and weather draws what it drew before the LiDAR equation.
-    if model is not None:
-        draws.detect = rng.random(n)
     medium_rows, medium_dist = np.zeros(0, np.int64), np.zeros(0)
     if air is not None:
-        draws.medium, draws.medium_range = rng.random(n), rng.random(n)
         # beyond the blind zone (at least weather.OVERLAP_M), nearer than the first
         # surface the ray meets (a mirror, not its ghost): the air beyond sends nothing
         r_near = max(float(rmin), weather.OVERLAP_M)

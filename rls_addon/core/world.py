@@ -52,15 +52,14 @@ class World:
         ``order``: a trace order for the static scene (see ``casting.cast_exact``).
         ``reuse``: the static scene's part may come from its previous cast of the same
         rays (see ``PreparedScene.cast``); only the moving bodies are cast then."""
-        return self._start(origins, directions, times, max_range, watertight, order, reuse)()
+        return self.start(origins, directions, times, max_range, watertight, order, reuse)()
 
-    def start_cast(self, origins, directions, times, max_range):
-        """Start ``cast(..., watertight=False)``; returns a function giving its result.
-        With the compiled Embree loop the cast runs meanwhile (see
-        ``PreparedScene.start_cast``); bodies cast on their own are cast right here."""
-        return self._start(origins, directions, times, max_range, False, None)
-
-    def _start(self, origins, directions, times, max_range, watertight, order, reuse=False):
+    def start(self, origins, directions, times, max_range, watertight=True, order=None,
+              reuse=False):
+        """``cast``, started; returns a function giving its result. With the compiled
+        Embree loop the static scene (or all, as instances) is cast meanwhile, so the
+        caller's own work overlaps it (see ``PreparedScene.start``); bodies cast on
+        their own are cast right here."""
         rest = list(enumerate(self.moving, start=1))
         reuse = reuse and watertight and self.static.reusable(origins, directions)
         if reuse:
@@ -75,8 +74,9 @@ class World:
             rest = [(k, b) for k, b in rest if k not in inst.traced]
         if inst is not None and not reuse:  # the static scene among the instances
             pending = inst.start(origins, directions, times, max_range, order, watertight)
-        elif not rest and not watertight:  # (reuse is watertight)
-            started = self.static.start_cast(origins, directions, max_range)
+        elif not rest and inst is None:
+            started = self.static.start(origins, directions, max_range, watertight, order,
+                                        reuse)
             pending = lambda: _static_hits(*started())  # noqa: E731
         else:
             got = _static_hits(*self.static.cast(origins, directions, max_range, watertight,

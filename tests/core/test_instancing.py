@@ -210,7 +210,7 @@ def test_started_casts_equal_blocking_casts():
     world = World(PreparedScene(g, np.zeros(3), 100.0, Embree), [rb])
     pat = pattern()
     o = np.zeros((1, 3))
-    got = world.start_cast(o, pat.directions, pat.times, 100.0)()
+    got = world.start(o, pat.directions, pat.times, 100.0, watertight=False)()
     want = world.cast(o, pat.directions, pat.times, 100.0, watertight=False)
     for x, y in zip(got, want):
         assert np.array_equal(x, y)

@@ -51,14 +51,14 @@ def counted(monkeypatch):
     """Records the scenes whose watertight casts ran (what reuse saves): ``count(scene)``
     gives how many were the given scene's."""
     calls = []
-    cast = PreparedScene._cast
+    cast = PreparedScene._start
 
     def counting(self, origins, directions, max_range, watertight, order):
         if watertight:
             calls.append(self)
         return cast(self, origins, directions, max_range, watertight, order)
 
-    monkeypatch.setattr(PreparedScene, "_cast", counting)
+    monkeypatch.setattr(PreparedScene, "_start", counting)
 
     def count(scene):
         return sum(1 for s in calls if s is scene)
