@@ -321,7 +321,9 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
         & (np.abs(np.where(hit, dist, 0.0) - dist[:, :1]) <= sep).all(axis=1)
     act = ~agree
     if skip is not None and len(skip):
-        act &= ~np.isin(c, skip)
+        skipped = np.zeros(len(ret.dist), bool)  # a mask: np.isin sorts both
+        skipped[skip] = True
+        act &= ~skipped[c]
     stats = {"footprint_rays": int(n_c), "footprint_sub_rays": int(n_c * RING + sub.probes)}
     if not act.any():
         return None, stats
@@ -361,13 +363,15 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
     with np.errstate(invalid="ignore", divide="ignore"):
         R = np.where(E > 0, RE / np.where(E > 0, E, 1.0), RW / np.where(W > 0, W, 1.0))
     CA = np.bincount(fk, carla[hit], n_keys)
-    # the sample that sent the most of each echo: its surface and normal
+    # the sample that sent the most of each echo (the first such, on a tie): its
+    # surface and normal
     samples = np.nonzero(hit.ravel())[0]
-    best = np.lexsort((-energy.ravel()[samples], fk))
-    first = np.ones(len(best), bool)
-    first[1:] = fk[best][1:] != fk[best][:-1]
-    dom = np.zeros(n_keys, np.int64)
-    dom[fk[best][first]] = samples[best][first]
+    top = np.full(n_keys, -np.inf)
+    np.maximum.at(top, fk, e_w)
+    at_top = np.nonzero(e_w == top[fk])[0]
+    dom = np.full(n_keys, np.iinfo(np.int64).max)
+    np.minimum.at(dom, fk[at_top], samples[at_top])
+    dom[dom == np.iinfo(np.int64).max] = 0
     centre_key = flat[:, 0]
     contains_centre = np.zeros(n_keys, bool)
     contains_centre[centre_key[hit[:, 0]]] = True
@@ -426,8 +430,9 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
     # mixed points: a reported echo made of more than one object's light
     lo = np.full(n_keys, np.iinfo(np.int64).max)
     hi = np.full(n_keys, -1)
-    np.minimum.at(lo, fk, obj[k][hit])
-    np.maximum.at(hi, fk, obj[k][hit])
+    objects = obj[k][hit].astype(np.int64)  # ufunc.at is ~40x slower when it must cast
+    np.minimum.at(lo, fk, objects)
+    np.maximum.at(hi, fk, objects)
     stats.update(footprint_changed_rays=int(m), multi_echo_rays=int(np.count_nonzero(num > 1)),
                  mixed_points=int(np.count_nonzero(lo[pk[sel]] != hi[pk[sel]])),
                  second_returns=len(extra))
