@@ -3,17 +3,18 @@
 Per ray: the intensity (reflectivity x |cos incidence|, CARLA's attenuation when set;
 ghosts bring their own), the range with its noise, CARLA's dropout, and for the rays
 kept their point records. ``assemble`` runs it in C (``native/points.c``, in the
-library of the compiled Embree loop, on all cores) where that library is built and
-the frame has no atmospheric attenuation, else in numpy (``assemble_numpy``): the
-readable reference the C code follows operation by operation, so both write the same
-bytes (tests/core/test_assemble.py). Every random number is drawn before, in numpy,
-from the scan's seeded generator (``Draws``): the bytes never depend on the path.
+library of the compiled Embree loop, on all cores) where that library is built, else
+in numpy (``assemble_numpy``): the readable reference the C code follows operation by
+operation, so both write the same bytes (tests/core/test_assemble.py). Every random
+number is drawn before, in numpy, from the scan's seeded generator (``Draws``): the
+bytes never depend on the path.
 
-Frames with detection by the LiDAR equation (``detection``), weather (its two-way
-transmission and false returns from the air, ``weather``) or another reported
-intensity than CARLA's are assembled in numpy only (``_assemble_lidar_equation``), and
-so are frames whose beam footprints changed a return (``footprint``: echoes detected
-there, second echoes as extra rows).
+Frames with CARLA's attenuation, detection by the LiDAR equation (``detection``),
+weather (its two-way transmission and false returns from the air, ``weather``),
+another reported intensity than CARLA's, or beam footprints that changed a return
+(``footprint``: echoes detected there, second echoes as extra rows) work out each
+ray's intensity and detection in numpy (``_assemble_lidar_equation``: exp, log and
+tanh are numpy's), and the noise, dropout and records in C like any frame.
 """
 
 import ctypes
@@ -30,7 +31,7 @@ from .points import point_dtype
 # The fields points.c knows, in its enum's order.
 FIELD_ORDER = ("x", "y", "z", "range", "intensity", "ring", "time", "label", "instance",
                "ghost", "return_index", "num_returns")
-NATIVE_POINTS_ABI = 3
+NATIVE_POINTS_ABI = 4
 
 
 @dataclass
@@ -126,11 +127,32 @@ def intensities(hits, dirs, attenuation_per_m=0.0):
 
 def assemble_numpy(hits, rays, draws, effects, frame_space, fields=None):
     """The reference: (points, index of each point's ray, back-face flag per point)."""
+    return _assemble(None, hits, rays, draws, effects, frame_space, fields)
+
+
+def _assemble(fn, hits, rays, draws, effects, frame_space, fields):
+    """``assemble`` with the compiled per-hit stage ``fn`` (None: numpy)."""
     if not effects.plain or len(hits.medium_rows) or len(hits.echo_rows):
-        return _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields)
+        return _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields)
+    if fn is not None and not effects.attenuation_per_m:
+        return _assemble_native(fn, hits, rays, draws, effects, frame_space, fields)
     inten, dot = intensities(hits, rays.dirs, effects.attenuation_per_m)
-    idx, d = _noise_and_dropout(hits.valid.copy(), hits.dist, inten, draws, effects)
-    return _records(hits, rays, idx, d, inten, frame_space, fields), idx, dot[idx] > 0
+    return _kept_points(fn, hits, rays, draws, effects, frame_space, fields,
+                        hits.valid.copy(), hits.dist, inten, dot, None)
+
+
+def _kept_points(fn, hits, rays, draws, effects, frame_space, fields, keep, dist, inten,
+                 dot, medium):
+    """The noise, the dropout and the records of the rays ``keep`` (bool per ray), from
+    per-ray ranges, intensities and cosines worked out already; ``medium`` (bool per
+    ray or None): false returns from the air. In C with ``fn``, else numpy."""
+    if fn is not None:
+        return _assemble_native(fn, hits, rays, draws, effects, frame_space, fields,
+                                given=(keep, dist, inten, dot, medium))
+    idx, d = _noise_and_dropout(keep, dist, inten, draws, effects)
+    pts = _records(hits, rays, idx, d, inten, frame_space, fields,
+                   None if medium is None else medium[idx])
+    return pts, idx, dot[idx] > 0
 
 
 def _noise_and_dropout(keep, dist, inten, draws, effects):
@@ -182,7 +204,7 @@ def _records(hits, rays, idx, d, inten, frame_space, fields, medium=None):
     return pts
 
 
-def _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields):
+def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields):
     """``assemble_numpy`` with detection by the LiDAR equation, weather or a device's
     own intensity (see ``detection``, ``weather``). Per ray, with T^2 = exp(-2 alpha R):
     a false return from the air replaces the ray's return where one was drawn (frame
@@ -237,10 +259,8 @@ def _assemble_lidar_equation(hits, rays, draws, effects, frame_space, fields):
         inten = model.strength(power)
     else:
         inten = carla * t2
-    idx, d = _noise_and_dropout(keep, dist, inten, draws, effects)
-    pts = _records(hits, rays, idx, d, inten, frame_space, fields,
-                   None if medium is None else medium[idx])
-    return pts, idx, dot[idx] > 0
+    return _kept_points(fn, hits, rays, draws, effects, frame_space, fields, keep, dist,
+                        inten, dot, medium)
 
 
 class _PointsArgs(ctypes.Structure):
@@ -258,7 +278,10 @@ class _PointsArgs(ctypes.Structure):
                 ("origin", ctypes.c_void_p), ("origin_per_ray", ctypes.c_int),
                 ("cols", ctypes.c_void_p * 3), ("ring", ctypes.c_void_p),
                 ("time", ctypes.c_void_p), ("offsets", ctypes.c_int64 * len(FIELD_ORDER)),
-                ("itemsize", ctypes.c_int64), ("out", ctypes.c_void_p),
+                ("itemsize", ctypes.c_int64), ("inten_in", ctypes.c_void_p),
+                ("dot_in", ctypes.c_void_p), ("medium", ctypes.c_void_p),
+                ("medium_label", ctypes.c_uint32), ("ret_index", ctypes.c_void_p),
+                ("num_ret", ctypes.c_void_p), ("out", ctypes.c_void_p),
                 ("index", ctypes.c_void_p), ("back", ctypes.c_void_p)]
 
 
@@ -280,20 +303,19 @@ compiled = True
 
 
 def assemble(hits, rays, draws, effects, frame_space, fields=None):
-    """(points, ray index per point, back-face flag per point): in C where it can,
+    """(points, ray index per point, back-face flag per point): in C where it is built,
     else ``assemble_numpy``; the same bytes either way."""
-    fn = native() if compiled and not effects.attenuation_per_m and effects.plain \
-        and not len(hits.medium_rows) and not len(hits.echo_rows) else None
-    if fn is None:
-        return assemble_numpy(hits, rays, draws, effects, frame_space, fields)
-    return _assemble_native(fn, hits, rays, draws, effects, frame_space, fields)
+    return _assemble(native() if compiled else None, hits, rays, draws, effects, frame_space,
+                     fields)
 
 
 def _c(a, dtype):
     return np.ascontiguousarray(a, dtype=dtype)
 
 
-def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
+def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields, given=None):
+    """The C per-hit stage; ``given``: (keep, dist, intensity, cos, medium or None) per
+    ray, worked out in numpy (``_kept_points``), else points.c shades the hits."""
     n = len(hits.dist)
     dtype = point_dtype(fields)
     keep = []  # every array the C code reads, alive until it returns
@@ -305,14 +327,16 @@ def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
         keep.append(a)
         return a.ctypes.data
 
+    valid, dist, inten, dot, medium = (hits.valid, hits.dist, None, None, None) \
+        if given is None else given
     ghost_dot = ghost_int = None
-    if len(hits.ghost_rows):
+    if given is None and len(hits.ghost_rows):
         ghost_dot, ghost_int = np.zeros(n), np.zeros(n)
         ghost_dot[hits.ghost_rows] = hits.ghost_dot
         ghost_int[hits.ghost_rows] = hits.ghost_intensity
     world = frame_space == "world"
     args = _PointsArgs(
-        n=n, dist=ptr(hits.dist, np.float64), valid=ptr(hits.valid, np.uint8),
+        n=n, dist=ptr(dist, np.float64), valid=ptr(valid, np.uint8),
         surface=ptr(hits.surface, np.int32), normal=ptr(hits.normals, np.float64),
         dir=ptr(rays.dirs, np.float64), ghost=ptr(hits.ghost, np.uint8),
         ghost_dot=ptr(ghost_dot, np.float64), ghost_int=ptr(ghost_int, np.float64),
@@ -324,7 +348,9 @@ def _assemble_native(fn, hits, rays, draws, effects, frame_space, fields):
         origin=ptr(rays.origins, np.float64),
         origin_per_ray=int(rays.origins.shape[0] != 1),
         ring=ptr(rays.rings, np.uint16), time=ptr(rays.times, np.float64),
-        itemsize=dtype.itemsize)
+        itemsize=dtype.itemsize, inten_in=ptr(inten, np.float64), dot_in=ptr(dot, np.float64),
+        medium=ptr(medium, np.uint8), medium_label=WEATHER_LABEL,
+        ret_index=ptr(hits.return_index, np.uint8), num_ret=ptr(hits.num_returns, np.uint8))
     if not world:
         for k in range(3):
             args.cols[k] = ptr(rays.columns[k], np.float64)

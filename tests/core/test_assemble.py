@@ -100,6 +100,64 @@ def test_compiled_assembly_joins_its_shares_in_ray_order(native, monkeypatch, th
     np.testing.assert_array_equal(got[2], want[2])
 
 
+def _with_effects(hits, n, rng, medium, echoes):
+    """``hits`` with false returns from the air on some rays and footprint echoes (with
+    return numbers) on others, as frame.py hands them over."""
+    import dataclasses
+
+    changes = {}
+    if medium:
+        rows = np.sort(rng.choice(n, n // 20, replace=False))
+        changes.update(medium_rows=rows, medium_dist=rng.uniform(2.0, 40.0, len(rows)))
+    if echoes:
+        rows = np.sort(rng.choice(n, n // 30, replace=False))
+        changes.update(echo_rows=rows, echo_rho_cos=rng.uniform(0, 1, len(rows)),
+                       echo_carla=rng.uniform(0, 1, len(rows)),
+                       return_index=rng.integers(1, 3, n).astype(np.uint8),
+                       num_returns=rng.integers(1, 3, n).astype(np.uint8))
+    return dataclasses.replace(hits, **changes)
+
+
+@pytest.mark.parametrize("space", ["sensor", "world"])
+@pytest.mark.parametrize("case", ["equation", "strength", "carla_weather", "fog_echoes",
+                                  "attenuation", "attenuation_echoes"])
+@pytest.mark.parametrize("fields", [None, ("x", "label", "instance", "ghost", "num_returns")])
+def test_compiled_records_of_the_lidar_equation_write_the_reference_bytes(native, space,
+                                                                          case, fields):
+    # intensity and detection in numpy (exp, log, tanh), noise, dropout and records in C
+    from rls_addon.core.detection import detection_of
+
+    n = 60_000
+    hits, rays, draws = random_frame(n, 21, per_ray_origins=space == "world")
+    rng = np.random.default_rng(22)
+    model = detection_of(get_preset("livox_mid40"), ScanSettings())
+    alpha = 0.06 if case in ("carla_weather", "fog_echoes") else 0.0
+    effects = {
+        "equation": Effects(0.05, 0.3, 0.4, 0.0, model, "reflectivity"),
+        "strength": Effects(0.0, 0.0, 0.0, 0.0, model, "strength"),
+        "carla_weather": Effects(0.05, 0.3, 0.4, 0.0, None, "carla", alpha),
+        "fog_echoes": Effects(0.0, 0.0, 0.0, 0.0, model, "reflectivity", alpha),
+        "attenuation": Effects(0.05, 0.3, 0.4, 0.004),
+        "attenuation_echoes": Effects(0.0, 0.0, 0.0, 0.004),
+    }[case]
+    hits = _with_effects(hits, n, rng, medium=alpha > 0, echoes="echoes" in case)
+    hits.dist[hits.valid] *= 3.0  # ranges out to the model's limits
+    draws.detect = rng.random(n)
+    if not effects.general_rate:  # as effects.dropout_draws: drawn only when used
+        draws.general = draws.low = None
+    want = assemble_numpy(hits, rays, draws, effects, space, fields)
+    got = assemble._assemble(native, hits, rays, draws, effects, space, fields)
+    assert len(want[0]) > 1000
+    if effects.general_rate or effects.detection is not None:  # something was dropped
+        assert len(want[0]) < 0.95 * np.count_nonzero(hits.valid)
+    assert got[0].dtype == want[0].dtype
+    assert got[0].tobytes() == want[0].tobytes()
+    np.testing.assert_array_equal(got[1], want[1])
+    np.testing.assert_array_equal(got[2], want[2])
+    if alpha and (fields is None or "label" in fields):
+        assert (got[0]["label"] == assemble.WEATHER_LABEL).any()
+
+
 def test_the_reference_is_what_the_frame_used_to_compute():
     """The reference's intensity and dropout, checked against their definitions."""
     hits, rays, draws = random_frame(5000, 8, ghosts=False)

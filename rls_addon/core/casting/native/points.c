@@ -7,9 +7,15 @@
  * range with its noise, CARLA's dropout from the uniforms the scan's generator drew
  * for every ray, and for each ray kept its point record written straight into the
  * output array (fields at the offsets the caller's dtype gives, -1: not written).
- * Random draws stay in numpy: the bytes do not depend on this file. Intensity with
- * atmospheric attenuation (exp) stays in numpy too (libm's exp and numpy's differ in
- * the last bit), so the caller only comes here without it.
+ * Random draws stay in numpy: the bytes do not depend on this file.
+ *
+ * Frames whose intensity needs exp, log or tanh (CARLA's attenuation, detection by the
+ * LiDAR equation, weather, footprint echoes: libm's and numpy's differ in the last
+ * bit) give their per-ray intensity, cosine and detection from numpy (inten_in,
+ * dot_in, valid: assemble.py, _assemble_lidar_equation); the noise, the dropout and
+ * the records are done here as for any frame, with the rows of false returns from the
+ * air (medium) and each point's echo numbers (ret_index, num_ret) written as numpy's
+ * _records writes them.
  *
  * One pass: the caller gives room for a record per ray; each thread takes a contiguous
  * share of the rays and writes its points from its share's first record on; then the
@@ -23,7 +29,7 @@
 
 #include "rls_threads.h"
 
-#define RLS_POINTS_ABI 3
+#define RLS_POINTS_ABI 4
 
 enum { F_X, F_Y, F_Z, F_RANGE, F_INTENSITY, F_RING, F_TIME, F_LABEL, F_INSTANCE, F_GHOST,
        F_RETURN_INDEX, F_NUM_RETURNS, N_FIELDS };
@@ -54,6 +60,12 @@ typedef struct {
     const double *time;       /* per ray */
     int64_t offsets[N_FIELDS];  /* byte offset of each field in a record, -1: absent */
     int64_t itemsize;
+    const double *inten_in;   /* per ray: the intensity, given (with dot_in), or NULL */
+    const double *dot_in;     /* per ray: cos between normal and ray, given, or NULL */
+    const uint8_t *medium;    /* per ray: 1 for a false return from the air, or NULL */
+    uint32_t medium_label;    /* the label of those (instance 0, no ghost) */
+    const uint8_t *ret_index; /* per ray: the point's return index, or NULL (1) */
+    const uint8_t *num_ret;   /* per ray: its pulse's number of returns, or NULL (1) */
     uint8_t *out;             /* records, room for n */
     int64_t *index;           /* per point: its ray (room for n) */
     uint8_t *back;            /* per point: 1 when it lies on the back of its face (room
@@ -65,16 +77,20 @@ typedef struct {
     int64_t lo, hi, count;
 } share_t;
 
-/* Whether ray i returns a point, with its range and intensity (frame.py:
- * _assemble_numpy). */
+/* Whether ray i returns a point, with its range and intensity (assemble.py:
+ * assemble_numpy, _noise_and_dropout). */
 static int shade(const points_t *a, int64_t i, double *range, double *inten, double *dot) {
     const double *nrm = a->normal + 3 * i, *d = a->dir + 3 * i;
     int g = a->ghost && a->ghost[i];
-    double c = g ? a->ghost_dot[i] : nrm[0] * d[0] + nrm[1] * d[1] + nrm[2] * d[2];
-    double v;
-    if (g) {
+    double c, v;
+    if (a->inten_in) {
+        c = a->dot_in[i];
+        v = a->inten_in[i];
+    } else if (g) {
+        c = a->ghost_dot[i];
         v = a->ghost_int[i];
     } else {
+        c = nrm[0] * d[0] + nrm[1] * d[1] + nrm[2] * d[2];
         v = a->refl[a->surface[2 * i + 1]] * fabs(c);
         v = v < 0.0 ? 0.0 : (v > 1.0 ? 1.0 : v);
     }
@@ -123,11 +139,12 @@ static void write_share(share_t *s) {
         PUT(F_INTENSITY, float, (float)v);
         PUT(F_RING, uint16_t, a->ring[i]);
         PUT(F_TIME, double, a->time[i]);
-        PUT(F_LABEL, uint32_t, a->label[obj]);
-        PUT(F_INSTANCE, uint32_t, a->instance[obj]);
-        PUT(F_GHOST, uint8_t, a->ghost ? a->ghost[i] : 0);
-        PUT(F_RETURN_INDEX, uint8_t, 1);  /* thin rays: one return each */
-        PUT(F_NUM_RETURNS, uint8_t, 1);
+        int air = a->medium && a->medium[i];
+        PUT(F_LABEL, uint32_t, air ? a->medium_label : a->label[obj]);
+        PUT(F_INSTANCE, uint32_t, air ? 0u : a->instance[obj]);
+        PUT(F_GHOST, uint8_t, (!air && a->ghost) ? a->ghost[i] : 0);
+        PUT(F_RETURN_INDEX, uint8_t, a->ret_index ? a->ret_index[i] : 1);
+        PUT(F_NUM_RETURNS, uint8_t, a->num_ret ? a->num_ret[i] : 1);
         a->index[p] = i;
         a->back[p] = dot > 0;
         p++;
