@@ -42,6 +42,19 @@ def core_cases():
     return out
 
 
+def effect_cases():
+    """Frames with the LiDAR equation, footprints and weather (``scenes.effect_scan``)."""
+    from rls_addon.core.io import encode_cloud
+    from tests.golden.scenes import EFFECT_CASES, effect_scan
+
+    out = {}
+    for case in EFFECT_CASES:
+        for space in ("sensor", "world"):
+            pts = effect_scan(case, space)
+            out[f"effects/{case}/{space}"] = sha(encode_cloud(pts, "pcd_binary"))
+    return out
+
+
 # ---- Blender: the demo street through a scan session --------------------------------------
 
 def blender_cases():
@@ -70,6 +83,7 @@ def study_cases():
 def compute():
     got = {}
     got.update(core_cases())
+    got.update(effect_cases())
     got.update(blender_cases())
     got.update(study_cases())
     return got

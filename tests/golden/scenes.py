@@ -47,6 +47,43 @@ def core_scan(mode, substeps, space):
                       moving=[body]).points
 
 
+EFFECT_CASES = {
+    "equation": {},
+    "footprint_dual": {"footprint": "auto", "return_mode": "dual"},
+    "fog50": {"weather": "fog:visibility=50"},
+    "rain_footprint": {"weather": "rain:rate=30", "footprint": "auto",
+                       "return_mode": "dual"},
+}
+
+
+def effect_scan(case, space):
+    """The still sensor of ``core_scan`` over its static scene, as a Velodyne HDL-64E
+    (datasheet figures: the LiDAR equation) with a wide 10 mrad beam (so that the box's
+    and the wall's edges split many footprints: ~950 rays changed, 16 with two echoes)
+    on a 16-channel pattern, with the effects of issue 21 (``EFFECT_CASES``). Recorded
+    2026-11-23 with the code of e0fd755 (before the per-hit stage of these frames moved
+    to C) and checked against the code of 7bb9e5b."""
+    import dataclasses
+
+    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.footprint import Beam
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.patterns.spinning import spinning_pattern
+    from rls_addon.core.presets import get_preset
+    from rls_addon.core.settings import ScanSettings
+
+    preset = dataclasses.replace(get_preset("velodyne_hdl64e"),
+                                 beam=Beam((0.01, 0.01), "strongest", 1.0))
+    pattern = spinning_pattern(np.linspace(-15, 10, 16), 10.0, 16 * 1200 * 10)
+    static, _ = core_scene()
+    pose = np.eye(4)
+    pose[:3, 3] = (0.5, -0.3, 0.2)
+    scene = PreparedScene(static, pose[:3, 3], preset.range.max_m, NumpyCaster)
+    settings = ScanSettings(seed=5, frame_space=space, **EFFECT_CASES[case])
+    return scan_frame(scene, pattern, pose, preset, settings, frame=2, sensor="golden").points
+
+
 def _street():
     import bpy
 
