@@ -122,6 +122,7 @@ class PreparedScene:
 
         return result
 
+
 class RigidBodies:
     """Rigidly moving objects, cast together.
 
