@@ -162,6 +162,31 @@ class _Bounces:
         return g, self.r.take(fi, axis=0), mirror
 
 
+class _Subset:
+    """The rays a frame casts (``scan_frame``'s ``rays``): ``self(a)`` takes them from a
+    per-ray array of the whole pattern (a no-op when every ray is cast); ``order`` the
+    pattern's trace order restricted to them."""
+
+    def __init__(self, n, rows, order):
+        self.rows, self.order = None, order
+        if rows is None:
+            return
+        self.rows = np.asarray(rows, np.int64)
+        if self.rows.ndim != 1 or (len(self.rows) and (self.rows.min() < 0
+                                                        or self.rows.max() >= n)):
+            raise ValueError(f"rays must be indices of the pattern's {n} rays")
+        if order is not None:
+            at = np.full(n, -1, np.int64)
+            at[self.rows] = np.arange(len(self.rows))
+            self.order = at[order]
+            self.order = self.order[self.order >= 0]
+
+    def __call__(self, a):
+        if self.rows is None or a is None:
+            return a
+        return np.asarray(a).take(self.rows, axis=0)
+
+
 def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
     """Warn when nearly all points on an object land on the back of its faces: the
     sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
@@ -185,7 +210,7 @@ def _inside_warnings(world, obj, back, min_hits=100, share=0.95):
 
 def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
                frame=0, sensor="sensor", sensor_track=None, moving=(), keep_rays=False,
-               fields=None):
+               fields=None, rays=None):
     """Scan one frame.
 
     scene            PreparedScene covering the sensor, or a SceneGeometry (world
@@ -199,17 +224,23 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     fields           the ``POINT_DTYPE`` fields to assemble (None: all); a study that
                      only counts points asks for x, y and label, and the other
                      columns are never gathered (the points are the same)
+    rays             indices of the pattern's rays to cast (None: all), for a still
+                     sensor without footprints (a footprint needs its neighbours): each
+                     ray returns what it returns in the whole frame (its random draws
+                     are taken from the whole frame's), so the points are the whole
+                     frame's points of those rays, in the same order. A study casts
+                     only the rays whose points may fall in its region.
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
     allocator.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
     with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
         return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
-                           frame, sensor, sensor_track, moving, keep_rays, fields)
+                           frame, sensor, sensor_track, moving, keep_rays, fields, rays)
 
 
 def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
-                sensor, sensor_track, moving, keep_rays=False, fields=None):
+                sensor, sensor_track, moving, keep_rays=False, fields=None, ray_rows=None):
     t0 = time.perf_counter()
     s = settings
     rmin, rmax = resolve_range(preset, s)
@@ -220,7 +251,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     air = weather.parse_weather(s.weather)   # None: clear
     beam = footprint.beam_of(preset, s)      # None: thin rays, one return each
 
-    n = len(pattern)
+    n = len(pattern)  # every ray of the pattern draws its numbers (see ``rays``)
     substeps_used = None
     if s.motion == "substeps":
         substeps_used = s.substeps or adaptive_substeps(
@@ -247,6 +278,16 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         poses, rots = sensor_axes(sensor_track.at(times))
         origins = poses[at]
         dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
+    order, columns, channels, ray_times = (pattern.trace_order, pattern.columns,
+                                           pattern.channels, pattern.times)
+    pick = _Subset(n, ray_rows, order)
+    if pick.rows is not None:
+        if beam is not None or origins.shape[0] != 1:
+            raise ValueError("scan_frame(rays=...) is for a still sensor without beam "
+                             "footprints (a footprint needs its neighbours' rays)")
+        dirs, tscene, order = pick(dirs), pick(tscene), pick.order
+        columns = tuple(pick(c) for c in columns)
+        channels, ray_times = pick(channels), pick(ray_times)
     poses = origins if origins.shape[0] == 1 else poses  # one per distinct time
     if not isinstance(scene, PreparedScene):
         scene = PreparedScene(scene, poses.mean(axis=0),
@@ -264,26 +305,27 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     # A sensor that does not move casts the same rays into the same static scene every
     # frame: the static part is cast once and reused (see PreparedScene.cast).
     reused = scene.reused
-    pending = world.start(origins, dirs, tscene, rmax, order=pattern.trace_order, reuse=True)
+    pending = world.start(origins, dirs, tscene, rmax, order=order, reuse=pick.rows is None)
 
     # Every random number of the effects is drawn per ray, not per hit, so a ray's
     # draws never depend on which other rays returned (ghosting or moving objects
     # change only their own rays); drawn while the rays are cast (the compiled loop's
     # threads cast meanwhile).
-    draws = Draws(noise=effects.range_noise(rng, n, sigma) if s.noise else None)
+    draws = Draws(noise=pick(effects.range_noise(rng, n, sigma)) if s.noise else None)
     if s.dropout:
-        draws.general, draws.low = effects.dropout_draws(rng, n, preset.dropout.general_rate,
-                                                         preset.dropout.intensity_limit,
-                                                         preset.dropout.intensity_zero)
+        draws.general, draws.low = (pick(u) for u in effects.dropout_draws(
+            rng, n, preset.dropout.general_rate, preset.dropout.intensity_limit,
+            preset.dropout.intensity_zero))
     # Drawn after noise and dropout, and only when used: a frame without datasheet
     # figures and weather draws what it drew before the LiDAR equation.
     if model is not None:
-        draws.detect = rng.random(n)
+        draws.detect = pick(rng.random(n))
     if air is not None:
-        draws.medium, draws.medium_range = rng.random(n), rng.random(n)
+        draws.medium, draws.medium_range = pick(rng.random(n)), pick(rng.random(n))
     # Which glossy returns send a ghost: the ghost generator's own uniforms, drawn only
     # where something is glossy.
-    glossy_u = ghost_rng.random(n) if s.ghosting and _Bounces.any_glossy(world) else None
+    glossy_u = pick(ghost_rng.random(n)) if s.ghosting and _Bounces.any_glossy(world) \
+        else None
 
     dist, body, tri, normals = pending()
     reused = scene.reused > reused
@@ -334,7 +376,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
                 ghost_int, refl, g.object_field("label"), g.object_field("instance"),
                 medium_rows, medium_dist)
-    rays = Rays(dirs, origins, pattern.columns, pattern.channels, pattern.times)
+    rays = Rays(dirs, origins, columns, channels, ray_times)
     extra = None
     if echoes is not None:
         hits, extra = footprint.split(hits, rays, draws, echoes)
@@ -349,7 +391,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                                          echoes.extra_parent)
     surfaces = idx
     if len(medium_rows):  # false returns from the air lie on no object
-        medium = np.zeros(n, bool)
+        medium = np.zeros(len(dirs), bool)
         medium[medium_rows] = True
         real = ~medium[idx]
         stats["weather_returns"] = int(len(idx) - np.count_nonzero(real))
@@ -362,7 +404,8 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     stats["static_cast_reused"] = reused
     rays = None
     if keep_rays:
-        rays = RayRecord(origins, dirs, pattern.times, first_hit[0], first_hit[1], idx,
+        rays = RayRecord(origins, dirs, ray_times, first_hit[0], first_hit[1], idx,
                          list(g.objects))
-    return ScanResult(pts, n, len(scene.triangles), time.perf_counter() - t0, warnings, stats,
+    return ScanResult(pts, len(dirs), len(scene.triangles), time.perf_counter() - t0, warnings,
+                      stats,
                       rays)

@@ -155,6 +155,63 @@ def distance_to_boundary(xy, poly):
     return best
 
 
+# Widening of the arc ``toward_polygon`` keeps (radians): rays within float noise of its
+# edge are kept, never dropped.
+ARC_MARGIN_RAD = 1e-3
+
+
+def polygon_arc(poly, origin, margin_rad=ARC_MARGIN_RAD):
+    """The directions (azimuths) in which the polygon lies as seen from ``origin`` (xy):
+    (start, extent) in radians, counter-clockwise, widened by ``margin_rad`` on each
+    side; None when it lies in every direction (``origin`` inside the polygon, on its
+    outline, or the outline winds around it). Walking the outline, the direction to
+    the walker turns continuously (an edge that does not pass through the origin turns
+    it by less than half a turn, one way), so the directions met form one arc: from the
+    least to the greatest of that turning angle at the vertices."""
+    poly = np.asarray(poly, np.float64)
+    o = np.asarray(origin, np.float64).reshape(2)
+    v = poly - o
+    if points_in_polygon(o[None], poly)[0] or distance_to_boundary(o[None], poly)[0] <= 1e-9:
+        return None
+    theta = np.arctan2(v[:, 1], v[:, 0])
+    step = np.diff(np.append(theta, theta[0]))
+    step = (step + np.pi) % (2.0 * np.pi) - np.pi   # each edge's turn, in (-pi, pi]
+    walk = theta[0] + np.concatenate([[0.0], np.cumsum(step[:-1])])
+    lo, hi = float(walk.min()) - margin_rad, float(walk.max()) + margin_rad
+    if hi - lo >= 2.0 * np.pi:
+        return None
+    return lo, hi - lo
+
+
+def toward_polygon(poly, origin, directions):
+    """Indices of the ``directions`` ((N, 3) or (N, 2); only x and y are read) whose
+    half-line from ``origin`` (xy) may cross the polygon: its azimuth is in
+    ``polygon_arc`` (a direction with no horizontal part is kept). None: every one
+    may (the arc is every direction). A point along a ray lies on its half-line, so
+    the others cannot put a point inside."""
+    return in_arc(polygon_arc(poly, origin), directions)
+
+
+def in_arc(arc, directions):
+    """Indices of the ``directions`` whose azimuth lies in ``arc`` ((start, extent) as
+    ``polygon_arc`` gives it; None: all, and None is returned). Sign tests of cross
+    products, no angle per direction."""
+    if arc is None:
+        return None
+    start, extent = arc
+    d = np.asarray(directions, np.float64)
+    x, y = d[:, 0], d[:, 1]
+    s = np.array([np.cos(start), np.sin(start)])
+    e = np.array([np.cos(start + extent), np.sin(start + extent)])
+    after_start = s[0] * y - s[1] * x    # cross(s, u): u counter-clockwise of s
+    before_end = x * e[1] - y * e[0]     # cross(u, e): u clockwise of e
+    if extent <= np.pi:
+        inside = (after_start >= 0) & (before_end >= 0)
+    else:  # not in the gap from e round to s (less than half a turn)
+        inside = ~((after_start < 0) & (before_end < 0))
+    return np.flatnonzero(inside)
+
+
 def sample_in_polygon(poly, count, rng, margin=0.0, max_rounds=1000):
     """``count`` points uniform in ``poly`` by rejection sampling from its bounding box.
 

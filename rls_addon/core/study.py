@@ -22,14 +22,15 @@ import numpy as np
 from .bodies import RigidBodies
 from .casting import caster_factory
 from .errors import RegionError, SceneError, SettingsError
-from .frame import scan_frame
+from .footprint import beam_of
+from .frame import scan_frame, sensor_axes
 from .instances import object_table, world_geometry
 from .labels import label_id
 from .motion import Track
 from .metrics import (DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED,
                       density_map, resolve_labels)
 from .placement import DEFAULT_EXHAUSTIVE_LIMIT, CandidateCounts, DiskLayout
-from .polygon import as_polygon, points_in_polygon
+from .polygon import as_polygon, in_arc, points_in_polygon, polygon_arc
 from .presets import get_preset
 from .session import ScanSession
 from .settings import ScanSettings, resolve_range
@@ -252,6 +253,7 @@ class StudyScanner:
             # reuse theirs: the static scene seen from the same pose).
             self.prepared.reuse_casts = False
         self.traffic, self.vehicle_frames = [], []
+        self._arcs = {}  # the region's arc of directions from each mount
         if cfg.traffic_frames:
             self._traffic(scene)
             scene.set_frame(self.frame)
@@ -280,11 +282,32 @@ class StudyScanner:
 
     def _static(self, cand):
         """(xy of the kept points, the frame's ``ScanResult``) of candidate ``cand``
-        over the static scene: only x, y and label are gathered."""
+        over the static scene: only x, y and label are gathered, and only the rays that
+        may put a point in the region are cast (``rays_toward_region``)."""
         result = scan_frame(self.prepared, self.preset.pattern(self.frame), cand.pose,
                             self.preset, self.settings, frame=self.frame, sensor=cand.name,
-                            fields=STUDY_FIELDS)
+                            fields=STUDY_FIELDS, rays=self.rays_toward_region(cand))
         return self.layout.select([result.points], self.label_ids), result
+
+    def rays_toward_region(self, cand):
+        """Indices of candidate ``cand``'s rays whose half-lines cross the region seen
+        from above (``polygon.toward_polygon``), or None (all of them). Every point of
+        a ray lies on its half-line (its range noise, a ghost's total path, a false
+        return from the air: all along the ray), so the others cannot count, and each
+        ray cast returns what it returns in the whole frame (``scan_frame``'s
+        ``rays``): the counts are the whole frame's. A candidate outside the region,
+        which sees it in a quarter of its turn, casts a quarter of its rays. All rays
+        are cast with beam footprints (a footprint needs its neighbours) and with
+        traffic frames (they reuse the candidate's whole static cast)."""
+        if self.traffic or beam_of(self.preset, self.settings) is not None:
+            return None
+        where = tuple(cand.pose[:2, 3])
+        if where not in self._arcs:  # per mount: its pitches and yaws share it
+            self._arcs[where] = polygon_arc(self.polygon, where)
+        if self._arcs[where] is None:
+            return None
+        rot = sensor_axes(cand.pose)[1]
+        return in_arc(self._arcs[where], self.preset.pattern(self.frame).rotated(rot))
 
     def kept_xy(self, cand):
         """(n, 2) world xy of candidate ``cand``'s points in the region with a counted

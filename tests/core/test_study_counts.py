@@ -154,3 +154,22 @@ def test_traffic_counts_and_maps_equal_full_scans():
     for s in res.searches.values():
         np.testing.assert_array_equal(res.density(s.best.members).values,
                                       expected_map(res, s.best.members).values)
+
+
+@pytest.mark.parametrize("noise", [False, True])
+def test_candidates_cast_only_rays_toward_the_region_and_count_the_same(noise):
+    """A candidate casts the rays whose half-lines cross the region; its counts are
+    those of its whole frame (every point lies on its ray's half-line)."""
+    cfg = StudyConfig(k=(1,), disks=500, noise=noise, dropout=noise)
+    scanner, cands = scanner_of(FakeStudyScene(), cfg)
+    n = len(scanner.preset.pattern(scanner.frame))
+    culled = 0
+    for cand in cands:
+        got = scanner.scan(cand)
+        xy = scanner.layout.select([full_scan(scanner, cand, scanner.frame)],
+                                   scanner.label_ids)
+        assert got.n_points == len(xy) > 500
+        np.testing.assert_array_equal(got.disk_counts, scanner.layout.counts(xy))
+        np.testing.assert_array_equal(scanner.kept_xy(cand), xy)
+        culled += got.rays < n
+    assert culled == len(cands)  # the mounts stand outside the region
