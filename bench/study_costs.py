@@ -14,7 +14,9 @@ leaves out as traffic, and N mounts 20-28 m from the centre at 4-9 m).
   (seconds per candidate, cast alone in seconds, ratio). Target: ratio <= 1.5.
 - ``study_cost_parts``: where a candidate's time goes: its frame (``scan_frame`` with
   the study's fields), the selection of its points in the region, their counts in the
-  disks (``DiskLayout.counts``), and once per study the disks' grid (``DiskCounter``).
+  disks (``DiskLayout.counts``), and once per study the disks' grid (``DiskCounter``);
+  and the share of the pattern's rays the candidates cast (those outside the region
+  cast only the rays toward it, ``StudyScanner.rays_toward_region``).
 
 Run alone: ``python bench/study_costs.py [--quick]`` (prints JSON with the load average).
 """
@@ -233,6 +235,8 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
             best = min(best, (time.perf_counter() - t) / len(cands))
         return best
 
+    n_rays = len(scanner.preset.pattern(scanner.frame))
+    toward = [scanner.rays_toward_region(c) for c in cands]
     grid = float("inf")
     for _ in range(repeat):
         t = time.perf_counter()
@@ -243,6 +247,10 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
             "disks_s": each(lambda i, c: layout.counts(kept[i])),
             "scan_s": each(lambda i, c: scanner.scan(c)),
             "disk_grid_s": grid,
+            # candidates outside the region cast only the rays toward it
+            "outside": sum(t is not None for t in toward), "candidates": len(cands),
+            "rays_cast_share": float(np.mean([1.0 if t is None else len(t) / n_rays
+                                              for t in toward])),
             "points_in_region": int(np.mean([len(x) for x in kept])),
             "disks": len(layout.centres)}
 
@@ -280,6 +288,10 @@ def section(res):
             f"{parts['select_s'] * 1e3:.1f} ms / {parts['disks_s'] * 1e3:.1f} ms "
             f"({parts['points_in_region']:,} points in the region, {parts['disks']} disks; "
             f"their grid, once per study: {parts['disk_grid_s'] * 1e3:.0f} ms) | |",
+            f"| rays cast, share of the pattern's | {parts['rays_cast_share']:.0%} on average "
+            f"({parts['outside']} of {parts['candidates']} candidates stand outside the "
+            f"region and cast only the rays toward it; the cast alone above is all the "
+            f"pattern's rays) | |",
             f"| memory kept per candidate | **{mem['kept_bytes_per_candidate'] / 1e3:.1f} KB** "
             f"({mem['kept_mb_per_1000']} MB per 1,000) | <= 50 KB |",
             f"| peak while scanning, per 1,000 candidates | {mem['scan_peak_mb_per_1000']} MB "

@@ -296,6 +296,12 @@ class WatertightCaster(CasterBase):
         # per column: numpy's min over axis 0 of an (N, 3) array is ~25x slower
         lo_o = np.array([o[:, k].min() for k in range(3)])
         hi_o = np.array([o[:, k].max() for k in range(3)])
+        # The table depends on the origins' bounds alone: a still sensor's frames (and a
+        # study's candidates on one mount) ask for the same one (read-only, shared).
+        key = lo_o.tobytes() + hi_o.tobytes()
+        kept = self.__dict__.get("_octants")
+        if kept is not None and kept[0] == key:
+            return kept[1]
         # (3, B) per axis, so that every reduction below runs along contiguous rows
         box_lo, box_hi = np.ascontiguousarray(self.box_lo.T), np.ascontiguousarray(self.box_hi.T)
         ahead_lo = box_hi > lo_o[:, None]   # reachable moving + along the axis
@@ -307,6 +313,8 @@ class WatertightCaster(CasterBase):
         lo = np.where(sel[:, None, :], box_lo[None], np.inf).min(axis=2)
         hi = np.where(sel[:, None, :], box_hi[None], -np.inf).max(axis=2)
         boxes = np.where(has[:, None] != 0, np.concatenate([lo, hi], axis=1), 0.0)
+        boxes.flags.writeable = has.flags.writeable = False
+        self._octants = (key, (boxes, has))
         return boxes, has
 
     def may_reach_hull(self, origins, directions, max_dist, table=None):
