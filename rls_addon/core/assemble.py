@@ -247,7 +247,8 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
         power = rho_cos * t2 / (r * r)
     keep = valid.copy()
     if model is not None:
-        detected = draws.detect < model.probability_of(power)
+        excess = model.excess(power)  # ln(P / P50), for the detection and the strength
+        detected = draws.detect < model.probability_of(power, excess)
         if medium is not None:
             detected |= medium
         if len(e):  # detected echo by echo (footprint.resolve)
@@ -256,7 +257,7 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
     if effects.intensity == "reflectivity":
         inten = np.clip(rho_cos * t2, 0.0, 1.0)
     elif effects.intensity == "strength":
-        inten = model.strength(power)
+        inten = model.strength(power, excess)
     else:
         inten = carla * t2
     return _kept_points(fn, hits, rays, draws, effects, frame_space, fields, keep, dist,

@@ -72,19 +72,25 @@ class DetectionModel:
         """The received power detected half of the time."""
         return math.exp(self.log_p50)
 
-    def probability_of(self, power):
-        """Detection probability of received powers (array; 0 for P <= 0)."""
+    def excess(self, power):
+        """ln(P / P50) of received powers (array; -inf for P = 0): what
+        ``probability_of`` and ``strength`` are made of, to work out once when a frame
+        wants both."""
         p = np.asarray(power, np.float64)
         with np.errstate(divide="ignore"):
-            x = (np.log(p) - self.log_p50) / self.width
+            return np.log(p) - self.log_p50
+
+    def probability_of(self, power, excess=None):
+        """Detection probability of received powers (array; 0 for P <= 0); ``excess``:
+        their ``excess``, when already worked out."""
+        x = (self.excess(power) if excess is None else excess) / self.width
         return 0.5 + 0.5 * np.tanh(0.5 * x)
 
-    def strength(self, power):
+    def strength(self, power, excess=None):
         """The raw return strength reported with ``intensity = "strength"``: ln(P / P50)
-        over ln(``STRENGTH_DYNAMIC_RANGE``), clipped to 0..1."""
-        p = np.asarray(power, np.float64)
-        with np.errstate(divide="ignore"):
-            s = (np.log(p) - self.log_p50) / math.log(STRENGTH_DYNAMIC_RANGE)
+        over ln(``STRENGTH_DYNAMIC_RANGE``), clipped to 0..1; ``excess`` as in
+        ``probability_of``."""
+        s = (self.excess(power) if excess is None else excess) / math.log(STRENGTH_DYNAMIC_RANGE)
         return np.clip(s, 0.0, 1.0)
 
     def range_at(self, reflectivity, probability=None, transmission2=1.0):
