@@ -202,8 +202,11 @@ def report_lines(r):
               f"over the open-sky scene (exact motion, PCD and sidecars written, one "
               f"process): {ms(d['per_frame_s'])} wall per frame after the first, "
               f"**{d['per_frame_over_cast']:.1f}x** the frame's cast alone (target <= 2x); "
-              f"the run's own step (scene reading, motion, frame, files) took "
-              f"{ms(d['scan_step_median_s'])} per frame (median).",
+              f"the frame itself (`scan_frame`, the seconds the run reports per output) "
+              f"took {ms(d['scan_step_median_s'])} (median); the rest of a step is the "
+              f"sweep sampled through Blender (9 sub-frame states), the sidecar's pose "
+              f"knots, reading the scene and waiting for the previous frame's files "
+              f"(written on a thread of their own, with fsync).",
               f"Load average at the end: {r['loadavg'][0]:.2f}.\n"]
     return lines
 
