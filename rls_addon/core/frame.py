@@ -407,5 +407,4 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         rays = RayRecord(origins, dirs, ray_times, first_hit[0], first_hit[1], idx,
                          list(g.objects))
     return ScanResult(pts, len(dirs), len(scene.triangles), time.perf_counter() - t0, warnings,
-                      stats,
-                      rays)
+                      stats, rays)

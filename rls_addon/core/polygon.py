@@ -155,7 +155,7 @@ def distance_to_boundary(xy, poly):
     return best
 
 
-# Widening of the arc ``toward_polygon`` keeps (radians): rays within float noise of its
+# Widening of the arc ``polygon_arc`` gives (radians): rays within float noise of its
 # edge are kept, never dropped.
 ARC_MARGIN_RAD = 1e-3
 
@@ -183,19 +183,14 @@ def polygon_arc(poly, origin, margin_rad=ARC_MARGIN_RAD):
     return lo, hi - lo
 
 
-def toward_polygon(poly, origin, directions):
-    """Indices of the ``directions`` ((N, 3) or (N, 2); only x and y are read) whose
-    half-line from ``origin`` (xy) may cross the polygon: its azimuth is in
-    ``polygon_arc`` (a direction with no horizontal part is kept). None: every one
-    may (the arc is every direction). A point along a ray lies on its half-line, so
-    the others cannot put a point inside."""
-    return in_arc(polygon_arc(poly, origin), directions)
-
-
 def in_arc(arc, directions):
-    """Indices of the ``directions`` whose azimuth lies in ``arc`` ((start, extent) as
-    ``polygon_arc`` gives it; None: all, and None is returned). Sign tests of cross
-    products, no angle per direction."""
+    """Indices of the ``directions`` ((N, 3) or (N, 2); only x and y are read) whose
+    azimuth lies in ``arc`` ((start, extent) as ``polygon_arc`` gives it; a direction
+    with no horizontal part is kept); None when ``arc`` is None (every direction).
+    With ``polygon_arc(poly, origin)``: the directions whose half-line from ``origin``
+    may cross the polygon (a point along a ray lies on its half-line, so the others
+    cannot put a point inside). Sign tests of cross products, no angle per
+    direction."""
     if arc is None:
         return None
     start, extent = arc

@@ -291,7 +291,7 @@ class StudyScanner:
 
     def rays_toward_region(self, cand):
         """Indices of candidate ``cand``'s rays whose half-lines cross the region seen
-        from above (``polygon.toward_polygon``), or None (all of them). Every point of
+        from above (``polygon.polygon_arc``, ``in_arc``), or None (all of them). Every point of
         a ray lies on its half-line (its range noise, a ghost's total path, a false
         return from the air: all along the ray), so the others cannot count, and each
         ray cast returns what it returns in the whole frame (``scan_frame``'s

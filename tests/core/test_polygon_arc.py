@@ -1,11 +1,17 @@
 """The arc of directions in which a region lies, seen from a point
-(``polygon.polygon_arc``, ``toward_polygon``): every half-line that crosses the
+(``polygon.polygon_arc``, ``in_arc``): every half-line that crosses the
 polygon is kept, and those clearly outside the arc are not."""
 
 import numpy as np
 import pytest
 
-from rls_addon.core.polygon import ARC_MARGIN_RAD, polygon_arc, toward_polygon
+from rls_addon.core.polygon import ARC_MARGIN_RAD, in_arc, polygon_arc
+
+
+def toward_polygon(poly, origin, directions):
+    """The directions whose half-line may cross the polygon, as the study asks."""
+    return in_arc(polygon_arc(poly, origin), directions)
+
 
 SQUARE = np.array([(-20.0, -20.0), (20.0, -20.0), (20.0, 20.0), (-20.0, 20.0)])
 # a C shape round the origin's side (opening to +x): it spans more than half a turn

@@ -147,6 +147,7 @@ class WatertightCaster(CasterBase):
         self.t = np.ascontiguousarray(triangles, dtype=np.int64)
         self.tol = 1e-6 * self.extent
         self.retried = 0
+        self._octants = (None, None)  # the last octant table and its origins' bounds
 
     def cast(self, origins, directions, max_dist):
         d = np.asarray(directions, np.float64)
@@ -299,9 +300,8 @@ class WatertightCaster(CasterBase):
         # The table depends on the origins' bounds alone: a still sensor's frames (and a
         # study's candidates on one mount) ask for the same one (read-only, shared).
         key = lo_o.tobytes() + hi_o.tobytes()
-        kept = self.__dict__.get("_octants")
-        if kept is not None and kept[0] == key:
-            return kept[1]
+        if self._octants[0] == key:
+            return self._octants[1]
         # (3, B) per axis, so that every reduction below runs along contiguous rows
         box_lo, box_hi = np.ascontiguousarray(self.box_lo.T), np.ascontiguousarray(self.box_hi.T)
         ahead_lo = box_hi > lo_o[:, None]   # reachable moving + along the axis
