@@ -110,30 +110,19 @@ class _Bounces:
 
     def __init__(self, world, uniforms, origins, dirs, times, ret, rmax):
         self.world, self.rmax = world, rmax
-        obj_glossy, mat_glossy, mat_ratio = ghost.glossy_tables(world.geometry,
-                                                                ghost.glossy_labels())
-        obj, mat = ret.surface[:, 0], ret.surface[:, 1]
-        glossy = mat_glossy.take(mat)  # take: a third of fancy indexing's time
-        if obj_glossy.any():
-            glossy |= obj_glossy.take(obj)
-        cand = np.nonzero(glossy & ret.valid)[0]
-        self.stats = {"glossy_hits": len(cand), "ghosts": 0, "bounce_rays": 0}
-        self.chosen = cand[uniforms[cand] < mat_ratio[mat[cand]]] if len(cand) else cand
-        self.stats["bounce_rays"] = len(self.chosen)
+        self.aim = ghost.aim(ret.valid, ret.surface,
+                             ghost.glossy_tables(world.geometry, ghost.glossy_labels()),
+                             uniforms, ret.dist, dirs, ret.normals, origins)
+        self.chosen = self.aim.chosen
+        self.stats = {"glossy_hits": self.aim.glossy_hits, "ghosts": 0,
+                      "bounce_rays": len(self.chosen)}
         self.pending = None
-        if len(self.chosen) == 0:
-            return
-        c = self.chosen
-        self.a = ret.dist[c]
-        uc, nc = dirs.take(c, axis=0), ret.normals.take(c, axis=0)
-        o = origins if origins.shape[0] == 1 else origins[c]
-        self.r = ghost.reflect(uc, nc)
-        self.p = o + uc * self.a[:, None]
-        # Reflected beams start on a surface, inside its cluster box: the watertight
-        # re-check would re-cast every one that escapes to the sky. A crack missed by a
-        # ghost ray only loses one ghost point, so they are cast once.
-        self.start = ghost.bounce_origins(self.p, uc, nc, self.a)
-        self.pending = world.start(self.start, self.r, times[c], rmax, watertight=False)
+        if len(self.chosen):
+            # Reflected beams start on a surface, inside its cluster box: the watertight
+            # re-check would re-cast every one that escapes to the sky. A crack missed
+            # by a ghost ray only loses one ghost point, so they are cast once.
+            self.pending = world.start(self.aim.start, self.aim.r, times[self.chosen],
+                                       rmax, watertight=False)
 
     def finish(self, ret):
         """Apply the bounces to ``ret``; returns (ghost rows, their last-leg
@@ -142,24 +131,16 @@ class _Bounces:
         if len(self.chosen) == 0:
             return none, np.zeros((0, 3)), np.zeros(0)
         b, body2, tri2, n2 = self.pending()
-        found = tri2 >= 0
-        # The second leg measured from the mirror point itself, not the lifted start.
-        b = np.where(found, np.linalg.norm(
-            self.start + self.r * np.where(found, b, 0)[:, None] - self.p, axis=1), b)
-        found &= self.a + b <= self.rmax
-        fi = np.nonzero(found)[0]
+        fi, ret.ghost, last_leg, mirror = ghost.land(
+            self.aim, b, tri2, n2, self.rmax, ret.valid, ret.dist, ret.normals,
+            ret.surface, self.world.geometry.material_field("reflectivity"))
         g = self.chosen[fi]
-        ret.valid[self.chosen[~found]] = False
         self.stats["ghosts"] = len(g)
         if len(g) == 0:
+            ret.ghost = None
             return none, np.zeros((0, 3)), np.zeros(0)
-        mirror = self.world.geometry.material_field("reflectivity")[ret.surface[g, 1]]
-        ret.dist[g] = self.a[fi] + b[fi]
         ret.surface[g] = self.world.surface_ids(body2[fi], tri2[fi])
-        ret.normals[g] = n2.take(fi, axis=0)
-        ret.ghost = np.zeros(len(ret.dist), np.uint8)
-        ret.ghost[g] = 1
-        return g, self.r.take(fi, axis=0), mirror
+        return g, last_leg, mirror
 
 
 class _Subset:
