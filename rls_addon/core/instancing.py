@@ -21,6 +21,7 @@ hundredth of a millimetre.
 import numpy as np
 
 from .casting import GRAZING
+from .geometry import hit_body
 
 STEP_TOLERANCE_M = 1e-5  # steps: linear interpolation within 10 um of the track
 MAX_STEPS = 129          # Embree's limit (RTC_MAX_TIME_STEP_COUNT)
@@ -166,8 +167,8 @@ class InstancedWorld:
             won = won[closer]
             dist[won], normals[won], inst[won] = sd[won], sn[won], 0
         # _to_geometry ends in -1, so misses (-1) map to -1.
-        out_tri = self.static._to_geometry.take(st) if first else st
-        body = np.where(st >= 0, 0, -1)
+        out_tri = self.static._to_geometry[st] if first else st
+        body = hit_body(st)
         moved = np.nonzero(inst >= first)[0]
         if len(moved):
             part = inst.take(moved) - first

@@ -5,7 +5,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .bodies import PreparedScene
-from .geometry import ObjectInfo, SceneGeometry
+from .geometry import ObjectInfo, SceneGeometry, hit_body, pair_rows
 from .instancing import InstancedWorld
 
 
@@ -113,7 +113,7 @@ class World:
         # take(axis=0): numpy's fancy indexing copies rows one by one, ~8x slower.
         t = self.static.geometry.surface_ids()
         rows = np.where(body == 0, tri, 0) if self.moving else tri
-        out = t.take(rows, axis=0) if len(t) else np.zeros((len(tri), 2), np.int32)
+        out = pair_rows(t, rows) if len(t) else np.zeros((len(tri), 2), np.int32)
         for k, b in enumerate(self.moving, start=1):
             sel = np.nonzero(body == k)[0]
             if len(sel):
@@ -126,7 +126,7 @@ class World:
 def _static_hits(dist, tri, normals):
     """A static scene's cast as a world's: (dist, body 0 where it hit else -1, tri,
     normals)."""
-    return dist, np.where(tri >= 0, 0, -1), tri, normals
+    return dist, hit_body(tri), tri, normals
 
 
 def _nearer(got, other):

@@ -1,0 +1,44 @@
+"""Small helpers on a frame's hot path give what the plain numpy they replace gives."""
+
+import numpy as np
+
+from rls_addon.core.frame import sensor_axes
+from rls_addon.core.geometry import hit_body, pair_rows
+from rls_addon.core.motion import polar
+
+
+def test_hit_body_is_zero_on_hits_and_minus_one_on_misses():
+    tri = np.array([5, -1, 0, 123456789012, -1, -7], np.int64)
+    got = hit_body(tri)
+    assert got.dtype == np.int64 and got.tolist() == np.where(tri >= 0, 0, -1).tolist()
+    small = np.array([5, -1, 0, 2**31 - 1, -2**31], np.int32)
+    assert hit_body(small).tolist() == [0, -1, 0, 0, -1]
+
+
+def test_pair_rows_is_take_including_negative_rows():
+    rng = np.random.default_rng(0)
+    table = rng.integers(-2**31, 2**31 - 1, (1000, 2)).astype(np.int32)
+    rows = np.concatenate([rng.integers(0, 1000, 5000), [-1, -1000, 999, 0]])
+    got = pair_rows(table, rows)
+    want = table.take(rows, axis=0)
+    assert got.dtype == want.dtype and got.shape == want.shape
+    assert np.array_equal(got, want) and got.flags.writeable
+    # a table it cannot view as 8-byte rows goes through take
+    wide = table.astype(np.int64)
+    assert np.array_equal(pair_rows(wide, rows), wide.take(rows, axis=0))
+    assert np.array_equal(pair_rows(table[:, ::-1], rows), table[:, ::-1].take(rows, axis=0))
+
+
+def test_sensor_axes_kept_for_a_pose_give_the_same_bits_and_fresh_arrays():
+    pose = np.eye(4)
+    pose[:3, :3] = polar(np.array([[[0.9, -0.4, 0.1], [0.4, 0.9, 0.0], [0.0, 0.1, 1.1]]]))[0][0] * 1.5
+    pose[:3, 3] = (1.0, 2.0, 3.0)
+    first = sensor_axes(pose)
+    first[0][:] = 0.0  # the caller's copy: the kept answer is not touched
+    first[1][:] = 0.0
+    again = sensor_axes(pose.copy())
+    want = polar(pose[None, :3, :3])[0][0]
+    assert np.array_equal(again[0], [1.0, 2.0, 3.0])
+    assert np.array_equal(again[1].view(np.uint8), want.view(np.uint8))
+    stack = sensor_axes(np.stack([pose, np.eye(4)]))
+    assert stack[1].shape == (2, 3, 3) and np.array_equal(stack[1][0], want)
