@@ -5,8 +5,8 @@ For each scene and the Pandar64 preset (default settings):
 - Embree: the cast alone (the pattern's rays into the prepared triangles, no re-check,
   no refinement) against a cold frame (``scan_frame``, nothing reused) and a still
   sensor's later frame (its static cast reused); the same cold frame with the numpy
-  references (``assemble.compiled``, ``ghost.compiled`` and the re-check's ``compiled``
-  off) for the gain;
+  references (``assemble.compiled``, ``ghost.compiled``, ``returns.compiled`` and the
+  re-check's ``compiled`` off) for the gain;
 - BVHTree: the frame against the bare ``ray_cast`` loop over the pattern's rays.
 End to end: ``rls scan --frames`` of a LiDAR driving across the open-sky scene (exact
 motion, files written), wall time per frame after the first, against its cast alone.
@@ -73,7 +73,7 @@ def scene_ratios(geometry, pose, preset, repeat=7, bvh_repeat=2):
     import bpy  # noqa: F401  (mathutils)
 
     from bench.run import bare_loop
-    from rls_addon.core import assemble, ghost
+    from rls_addon.core import assemble, ghost, returns
     from rls_addon.core.bodies import PreparedScene
     from rls_addon.core.casting import BVHCaster
     from rls_addon.core.casting.embree import EmbreeCaster
@@ -102,11 +102,11 @@ def scene_ratios(geometry, pose, preset, repeat=7, bvh_repeat=2):
         cast = min(cast, _best(lambda: raw.cast(zero, dirs, rmax), repeat))
         casts_s = min(casts_s, _best(casts, repeat))
         cold = min(cold, _best(frame, repeat))
-        scene.caster.compiled = assemble.compiled = ghost.compiled = False
+        scene.caster.compiled = assemble.compiled = ghost.compiled = returns.compiled = False
         try:
             numpy_cold = min(numpy_cold, _best(frame, max(2, repeat // 2)))
         finally:
-            scene.caster.compiled = assemble.compiled = ghost.compiled = True
+            scene.caster.compiled = assemble.compiled = ghost.compiled = returns.compiled = True
     scene.reuse_casts = True
     frame()  # the first frame casts and keeps its static cast
     still = _best(frame, repeat)

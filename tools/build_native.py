@@ -39,11 +39,11 @@ ROOT = Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
 # One library: the Embree loop, the per-hit stage of a frame (points.c), the
 # footprint's depth-edge test (edges.c) and probe sub-rays (probes.c), the weather's
-# false returns (weather.c), a study candidate's disk counts (disks.c) and the ghost
-# bounces' set-up and landing (ghosts.c).
+# false returns (weather.c), a study candidate's disk counts (disks.c), the ghost
+# bounces' set-up and landing (ghosts.c) and a static cast's returns (returns.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
-           NATIVE / "ghosts.c"]
+           NATIVE / "ghosts.c", NATIVE / "returns.c"]
 HEADERS = [NATIVE / "rls_threads.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
@@ -62,7 +62,8 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
            "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
            "rls_disk_counts", "rls_disks_abi",
-           "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi")
+           "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",
+           "rls_static_returns", "rls_returns_abi")
 
 
 def library_name(sys_platform):

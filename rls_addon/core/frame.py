@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import allocator, blas, effects, footprint, ghost, weather
+from . import allocator, blas, effects, footprint, ghost, returns, weather
 from .assemble import Draws, Effects, Hits, Rays, _dot, assemble
 from .bodies import PreparedScene
 from .detection import detection_of
@@ -326,8 +326,13 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
 
     dist, body, tri, normals = pending()
     reused = scene.reused > reused
-    ret = Returns((tri >= 0) & (dist >= rmin) & (dist <= rmax), dist,
-                  world.surface_ids(body, tri), normals)
+    if world.moving:
+        valid = (tri >= 0) & (dist >= rmin) & (dist <= rmax)
+        surface = world.surface_ids(body, tri)
+    else:
+        valid, surface = returns.static_returns(
+            dist, tri, world.static.geometry.surface_ids(), rmin, rmax)
+    ret = Returns(valid, dist, surface, normals)
     first_hit = None
     if keep_rays:  # before ghosts relabel the glossy rays
         hit = (tri >= 0) & (dist <= rmax)

@@ -6,7 +6,7 @@ no more than a leak needs."""
 import numpy as np
 import pytest
 
-from rls_addon.core import assemble, ghost
+from rls_addon.core import assemble, ghost, returns
 from rls_addon.core.assemble import Draws, Effects, Hits, Rays, assemble_numpy
 from rls_addon.core.bodies import PreparedScene
 from rls_addon.core.casting import embree
@@ -209,7 +209,7 @@ def open_sky(boxes=20, seed=2):
 
 def _modes(scene, on):
     scene.caster.compiled = on
-    assemble.compiled = ghost.compiled = on
+    assemble.compiled = ghost.compiled = returns.compiled = on
 
 
 @pytest.mark.parametrize("space", ["sensor", "world"])

@@ -1,0 +1,55 @@
+"""A static cast's returns in C (native/returns.c) are their numpy reference's
+(``returns.static_returns_numpy``) to the bit; whole frames are byte-identical with the
+kernel or without it (tests/core/test_assemble.py switches it with the others)."""
+
+import numpy as np
+import pytest
+
+from rls_addon.core import returns
+from tests.core.built import require_built
+
+
+@pytest.fixture(scope="module")
+def native():
+    return require_built(returns.STATIC_RETURNS)
+
+
+def both(monkeypatch, *args):
+    got = returns.static_returns(*args)
+    monkeypatch.setattr(returns, "compiled", False)
+    want = returns.static_returns(*args)
+    monkeypatch.setattr(returns, "compiled", True)
+    return got, want
+
+
+def test_compiled_returns_are_the_reference(native, monkeypatch):
+    rng = np.random.default_rng(3)
+    n, rows = 100_000, 5000
+    tri = np.where(rng.random(n) < 0.6, rng.integers(0, rows, n), -1)
+    dist = np.where(tri >= 0, rng.uniform(0.0, 250.0, n), np.inf)
+    dist[:6] = [0.3, 200.0, np.nextafter(0.3, 0), np.nextafter(200.0, 300), np.nan, -0.0]
+    tri[:6] = 7
+    table = rng.integers(-5, 2**31 - 1, (rows, 2)).astype(np.int32)
+    (valid, surface), (want_valid, want_surface) = both(monkeypatch, dist, tri, table,
+                                                        0.3, 200.0)
+    assert valid.dtype == want_valid.dtype == np.bool_ and np.array_equal(valid, want_valid)
+    assert surface.dtype == np.int32 and np.array_equal(surface, want_surface)
+    # the bounds are inclusive, NaN never returns, a miss gets the table's last row
+    assert valid[:6].tolist() == [True, True, False, False, False, False]
+    assert np.array_equal(surface[tri < 0], np.broadcast_to(table[-1], (np.sum(tri < 0), 2)))
+    assert 0.3 < want_valid.mean() < 0.6
+
+
+def test_returns_of_an_empty_table_and_of_no_rays(native, monkeypatch):
+    none = np.zeros((0, 2), np.int32)
+    (v, s), (wv, ws) = both(monkeypatch, np.full(3, np.inf), np.full(3, -1), none, 0.1, 9.0)
+    assert not v.any() and np.array_equal(s, ws) and s.shape == (3, 2)
+    (v, s), _ = both(monkeypatch, np.zeros(0), np.zeros(0, np.int64), np.ones((4, 2), np.int32),
+                     0.1, 9.0)
+    assert v.shape == (0,) and s.shape == (0, 2)
+
+
+def test_a_triangle_outside_the_table_is_refused(native):
+    with pytest.raises(IndexError, match="outside the scene"):
+        returns.static_returns(np.ones(3), np.array([0, 4, 1]), np.ones((4, 2), np.int32),
+                               0.0, 9.0)
