@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
 from .errors import SettingsError
 from .kernels import Kernel
 
@@ -209,7 +210,7 @@ def false_returns(alpha, u_medium, u_range, hit, dist, r_near, r_far):
                     false_return_probability(alpha), keep[2].ctypes.data,
                     keep[3].ctypes.data, keep[4].ctypes.data, keep[5].ctypes.data, len(x),
                     rows.ctypes.data, ranges.ctypes.data)
-    got = fn(ctypes.byref(args))
+    got = fn(ctypes.byref(args), kernels.threads())
     if got < 0:
         return false_returns_numpy(alpha, u_medium, u_range, hit, dist, r_near, r_far)
     return rows[:got], ranges[:got]
@@ -234,9 +235,9 @@ class _AirArgs(ctypes.Structure):
                 ("rows", ctypes.c_void_p), ("ranges", ctypes.c_void_p)]
 
 
-NATIVE_WEATHER_ABI = 1
+NATIVE_WEATHER_ABI = 2
 FALSE_RETURNS = Kernel("rls_false_returns", "rls_weather_abi", NATIVE_WEATHER_ABI,
-                       [ctypes.POINTER(_AirArgs)], ctypes.c_int64)
+                       [ctypes.POINTER(_AirArgs), ctypes.c_int], ctypes.c_int64)
 # Off: every frame draws its false returns in numpy (the reference the C code is
 # tested against).
 compiled = True

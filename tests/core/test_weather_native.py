@@ -45,6 +45,23 @@ def test_compiled_false_returns_are_the_reference(native, monkeypatch, spec):
     assert same_bits(got[0], want[0]) and same_bits(got[1], want[1])
 
 
+@pytest.mark.parametrize("threads", [1, 3, 5])
+def test_compiled_false_returns_join_their_shares_in_ray_order(native, monkeypatch, threads):
+    """Each share of rays writes its false returns from its first ray's slot on; the
+    shares are then moved down to follow each other (one share with none at all)."""
+    monkeypatch.setattr(weather.kernels, "threads", lambda: threads)
+    alpha = weather.parse_weather("fog:visibility=20").alpha
+    rng = np.random.default_rng(4)
+    n = 100_000
+    u_medium, u_range = rng.random(n), rng.random(n)
+    u_medium[25_000:50_000] = 1.0  # the second of four shares draws none
+    hit = rng.random(n) < 0.5
+    dist = np.where(hit, rng.uniform(0.5, 130.0, n), np.inf)
+    got, want = both(monkeypatch, alpha, u_medium, u_range, hit, dist, 1.0, 120.0)
+    assert len(want[0]) > 10_000 and not np.any((want[0] >= 25_000) & (want[0] < 50_000))
+    assert same_bits(got[0], want[0]) and same_bits(got[1], want[1])
+
+
 def test_the_inversion_is_numpys_interp(native, monkeypatch):
     """Every ray drawn and nothing in the way: the ranges are 1 / np.interp(u, cdf, x),
     for tables with ties, flat and steep stretches, infinities, and u on the table's

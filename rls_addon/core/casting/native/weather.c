@@ -12,14 +12,16 @@
  * x[j] where cdf[j] == u or j is the last, else slope * (u - cdf[j]) + x[j] with
  * slope = (x[j + 1] - x[j]) / (cdf[j + 1] - cdf[j]) (NaN retried from j + 1, as
  * numpy does); the range is 1.0 / that. Built without fused multiply-add. One pass
- * over the rays, single-threaded (a millisecond for a frame of 133k rays). */
+ * over the rays, in shares on a few threads (1.6 ms on one thread for a frame of 133k
+ * rays in fog of 50 m visibility). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "rls_threads.h"
 
-#define RLS_WEATHER_ABI 1
+#define RLS_WEATHER_ABI 2
 
 /* The last j in [lo, hi) with xp[j] <= x, given xp[lo] <= x and (hi == len or)
  * x < xp[hi]. */
@@ -57,26 +59,26 @@ typedef struct {
     double *ranges;           /* out, room for n: its range */
 } air_t;
 
-/* Writes the rays with a false return and their ranges; returns how many, or -1 when
- * it could not allocate its table (nothing written then). */
-RLS_EXPORT int64_t rls_false_returns(const air_t *a) {
+/* The bucket table of the CDF: tab[m] is the last j with xp[j] <= lo + m * h, m = 0..len
+ * (len buckets): where to look for u in bucket m (any bracket found is checked, so
+ * rounding here only costs time). */
+typedef struct {
+    const air_t *a;
+    const int64_t *tab;
+    int64_t buckets;
+    double lo, hi, per_bucket;
+    int64_t start, end;  /* this share's rays */
+    int64_t count;       /* out: its false returns, written from rows[start] on */
+} share_t;
+
+static void run_share(share_t *s) {
+    const air_t *a = s->a;
     const double *xp = a->cdf, *fp = a->x;
-    int64_t len = a->len;
-    /* tab[m]: the last j with xp[j] <= lo + m * h, m = 0..len (len buckets): where to
-     * look for u in bucket m (any bracket found is checked, so rounding here only
-     * costs time) */
-    double lo = xp[0], hi = xp[len - 1], h = (hi - lo) / (double)len;
-    int64_t buckets = h > 0.0 ? len : 0;
-    double per_bucket = buckets ? 1.0 / h : 0.0;
-    int64_t *tab = malloc(sizeof(int64_t) * (size_t)(buckets + 1));
-    if (!tab) return -1;
-    for (int64_t m = 0, j = 0; m <= buckets; m++) {
-        double edge = lo + (double)m * h;
-        while (j + 1 < len && xp[j + 1] <= edge) j++;
-        tab[m] = j;
-    }
-    int64_t count = 0;
-    for (int64_t i = 0; i < a->n; i++) {
+    int64_t len = a->len, buckets = s->buckets, count = 0;
+    double lo = s->lo, hi = s->hi;
+    int64_t *rows = a->rows + s->start;
+    double *ranges = a->ranges + s->start;
+    for (int64_t i = s->start; i < s->end; i++) {
         if (!(a->u_medium[i] < a->p)) continue;
         double u = a->u_range[i], v;
         if (isnan(u)) {
@@ -86,23 +88,77 @@ RLS_EXPORT int64_t rls_false_returns(const air_t *a) {
         } else if (u > hi) {
             v = fp[len - 1];
         } else {
-            int64_t s = 0, e = len;
+            int64_t b0 = 0, e = len;
             if (buckets) {
-                double f = (u - lo) * per_bucket;
+                double f = (u - lo) * s->per_bucket;
                 int64_t m = f < (double)buckets ? (int64_t)f : buckets - 1;
-                s = tab[m];
-                e = tab[m + 1] + 1;
-                if (!(xp[s] <= u)) s = 0;
+                b0 = s->tab[m];
+                e = s->tab[m + 1] + 1;
+                if (!(xp[b0] <= u)) b0 = 0;
                 if (e < len && !(u < xp[e])) e = len;
             }
-            v = at(xp, fp, len, u, last_le(xp, u, s, e));
+            v = at(xp, fp, len, u, last_le(xp, u, b0, e));
         }
         double r = 1.0 / v;
         if (r < (a->hit[i] ? a->dist[i] : INFINITY)) {
-            a->rows[count] = i;
-            a->ranges[count] = r;
+            rows[count] = i;
+            ranges[count] = r;
             count++;
         }
+    }
+    s->count = count;
+}
+
+RLS_THREAD_ENTRY(air_worker, arg) {
+    run_share((share_t *)arg);
+    RLS_THREAD_RETURN;
+}
+
+#define MAX_SHARES 64
+/* Below this many rays per share a thread costs more than it saves. */
+#define MIN_SHARE 16384
+
+/* Writes the rays with a false return and their ranges, in ray order, on up to
+ * ``threads`` threads (the caller's among them): each share of rays writes its own
+ * from its first ray's slot on, then the shares are moved down to follow each other.
+ * Returns how many, or -1 when it could not allocate its table (nothing written). */
+RLS_EXPORT int64_t rls_false_returns(const air_t *a, int threads) {
+    const double *xp = a->cdf;
+    int64_t len = a->len;
+    double lo = xp[0], hi = xp[len - 1], h = (hi - lo) / (double)len;
+    int64_t buckets = h > 0.0 ? len : 0;
+    int64_t *tab = malloc(sizeof(int64_t) * (size_t)(buckets + 1));
+    if (!tab) return -1;
+    for (int64_t m = 0, j = 0; m <= buckets; m++) {
+        double edge = lo + (double)m * h;
+        while (j + 1 < len && xp[j + 1] <= edge) j++;
+        tab[m] = j;
+    }
+    int shares = threads < 1 ? 1 : (threads > MAX_SHARES ? MAX_SHARES : threads);
+    if (shares > 1 && a->n / shares < MIN_SHARE) shares = (int)(a->n / MIN_SHARE) + 1;
+    if (shares > MAX_SHARES) shares = MAX_SHARES;
+    share_t s[MAX_SHARES];
+    rls_thread ids[MAX_SHARES];
+    int started[MAX_SHARES] = {0};
+    int64_t step = (a->n + shares - 1) / shares;
+    for (int k = 0; k < shares; k++) {
+        int64_t first = k * step < a->n ? k * step : a->n;
+        s[k] = (share_t){a, tab, buckets, lo, hi, buckets ? 1.0 / h : 0.0, first,
+                         first + step < a->n ? first + step : a->n, 0};
+    }
+    for (int k = 1; k < shares; k++) started[k] = rls_thread_start(&ids[k], air_worker, &s[k]);
+    run_share(&s[0]);
+    for (int k = 1; k < shares; k++) {
+        if (started[k]) rls_thread_join(ids[k]);
+        else run_share(&s[k]);
+    }
+    int64_t count = s[0].count;
+    for (int k = 1; k < shares; k++) {
+        if (s[k].count && s[k].start != count) {
+            memmove(a->rows + count, a->rows + s[k].start, sizeof(int64_t) * (size_t)s[k].count);
+            memmove(a->ranges + count, a->ranges + s[k].start, sizeof(double) * (size_t)s[k].count);
+        }
+        count += s[k].count;
     }
     free(tab);
     return count;
