@@ -215,20 +215,25 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
     model, alpha = effects.detection, float(effects.alpha)
     dot = _dot(hits.normals, rays.dirs)
     rho_cos = hits.reflectivity[hits.surface[:, 1]] * np.abs(dot)
-    carla = rho_cos
-    if effects.attenuation_per_m:
-        carla = carla * np.exp(-float(effects.attenuation_per_m)
-                               * np.where(hits.valid, hits.dist, 0.0))
-    carla = np.clip(carla, 0.0, 1.0)
+    # CARLA's intensity, only for a device that reports neither reflectivity nor strength
+    carla = None
+    if effects.intensity not in ("reflectivity", "strength"):
+        carla = rho_cos
+        if effects.attenuation_per_m:
+            carla = carla * np.exp(-float(effects.attenuation_per_m)
+                                   * np.where(hits.valid, hits.dist, 0.0))
+        carla = np.clip(carla, 0.0, 1.0)
     g = hits.ghost_rows
     if len(g):
         dot[g] = hits.ghost_dot
         rho_cos[g] = hits.ghost_intensity
-        carla[g] = hits.ghost_intensity
+        if carla is not None:
+            carla[g] = hits.ghost_intensity
     e = hits.echo_rows
     if len(e):
         rho_cos[e] = hits.echo_rho_cos
-        carla[e] = hits.echo_carla
+        if carla is not None:
+            carla[e] = hits.echo_carla
     dist, valid = hits.dist, hits.valid
     m = hits.medium_rows
     medium = None
@@ -237,7 +242,9 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
         dist[m], valid[m] = hits.medium_dist, True
         rho = wx.medium_reflectivity(alpha)
         rho_cos[m], dot[m] = rho, -1.0
-        carla[m] = np.clip(rho * np.exp(-float(effects.attenuation_per_m) * dist[m]), 0.0, 1.0)
+        if carla is not None:
+            carla[m] = np.clip(rho * np.exp(-float(effects.attenuation_per_m) * dist[m]),
+                               0.0, 1.0)
         medium = np.zeros(len(dist), bool)
         medium[m] = True
     r = np.where(valid, dist, 1.0)

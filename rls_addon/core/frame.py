@@ -182,13 +182,18 @@ class _Subset:
         return np.asarray(a).take(self.rows, axis=0)
 
 
-def _inside_warnings(world, ray_obj, rows, back, min_hits=100, share=0.95):
+def _inside_warnings(world, ray_obj, rows, back, in_air=None, min_hits=100, share=0.95):
     """Warn when nearly all points on an object land on the back of its faces: the
     sensor is inside it (fine for a tunnel or a room; a mistake for a solid object).
     ``ray_obj``: per ray, the object hit (index into ``world.geometry.objects``); per
-    point: its ray (``rows``) and whether it lies on a back face (``back``)."""
+    point: its ray (``rows``), whether it lies on a back face (``back``) and whether it
+    is a false return from the air (``in_air``, or None: none is; those lie on no
+    object, and are left out)."""
     if len(rows) < min_hits or np.count_nonzero(back) < min_hits:
         return []
+    if in_air is not None:
+        real = ~in_air
+        rows, back = rows[real], back[real]
     obj = ray_obj.take(rows)
     objects = world.geometry.objects
     behind = np.bincount(obj[back], minlength=len(objects))
@@ -391,16 +396,15 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         pts, idx, back = footprint.merge((pts, idx, back),
                                          assemble(*extra, fx, s.frame_space, fields),
                                          echoes.extra_parent)
-    surfaces = idx
+    in_air = None
     if len(medium_rows):  # false returns from the air lie on no object
         medium = np.zeros(len(dirs), bool)
         medium[medium_rows] = True
-        real = ~medium[idx]
-        stats["weather_returns"] = int(len(idx) - np.count_nonzero(real))
-        surfaces, back = idx[real], back[real]
+        in_air = medium.take(idx)
+        stats["weather_returns"] = int(np.count_nonzero(in_air))
     elif air is not None:
         stats["weather_returns"] = 0
-    warnings += _inside_warnings(world, ret.surface[:, 0], surfaces, back)
+    warnings += _inside_warnings(world, ret.surface[:, 0], idx, back, in_air)
     stats["moving_bodies"] = len(moving)
     stats["substeps_used"] = substeps_used
     stats["static_cast_reused"] = reused

@@ -42,3 +42,38 @@ def test_sensor_axes_kept_for_a_pose_give_the_same_bits_and_fresh_arrays():
     assert np.array_equal(again[1].view(np.uint8), want.view(np.uint8))
     stack = sensor_axes(np.stack([pose, np.eye(4)]))
     assert stack[1].shape == (2, 3, 3) and np.array_equal(stack[1][0], want)
+
+
+def _box_scan(origin, **settings):
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.patterns.spinning import spinning_pattern
+    from rls_addon.core.presets import DevicePreset, RangeModel
+    from rls_addon.core.settings import ScanSettings
+    from tests.core.scenes import box_geometry
+
+    preset = DevicePreset(id="t", name="t", family="spinning", source="test",
+                          frequency_hz=10.0, range=RangeModel(0.1, 100.0, 0.0))
+    box = box_geometry((-4.0, -4.0, -2.0), (4.0, 4.0, 2.0), label=11, instance=1, name="van")
+    pose = np.eye(4)
+    pose[:3, 3] = origin
+    pattern = spinning_pattern(np.linspace(-30, 30, 16), 10.0, 16 * 360 * 10)
+    return scan_frame(box, pattern, pose, preset,
+                      ScanSettings(noise=False, dropout=False, **settings), NumpyCaster)
+
+
+def test_a_sensor_inside_a_solid_object_is_warned_about_and_one_outside_is_not():
+    inside = _box_scan((0.0, 0.0, 0.0))
+    assert any("the sensor is inside 'van'" in w and "100%" in w for w in inside.warnings)
+    outside = _box_scan((12.0, 0.0, 0.0))
+    assert len(outside.points) > 100 and not any("inside" in w for w in outside.warnings)
+
+
+def test_false_returns_from_the_air_do_not_count_as_hits_on_the_object():
+    """In thick fog inside the box, the air's false returns are left out of the object's
+    hits: all its real hits are still on the back of its faces (counted with the air's,
+    they would be a minority of the points, and nothing would be said)."""
+    res = _box_scan((0.0, 0.0, 0.0), weather="fog:visibility=20")
+    real = len(res.points) - res.stats["weather_returns"]
+    assert res.stats["weather_returns"] > 2 * real > 200
+    assert any(f"100% of its {real} hits" in w for w in res.warnings)
