@@ -12,3 +12,13 @@ def require_built(*kernels):
         pytest.fail("not built: " + "; ".join(f"{k.name} ({k.error})" for k in missing)
                     + ": run 'make native' (make test does)")
     return tuple(k.get() for k in kernels)
+
+
+def both_ways(monkeypatch, module, fn, *args):
+    """``fn(*args)`` with ``module.compiled`` on, then off: (the compiled kernel's
+    answer, the numpy reference's)."""
+    got = fn(*args)
+    monkeypatch.setattr(module, "compiled", False)
+    want = fn(*args)
+    monkeypatch.setattr(module, "compiled", True)
+    return got, want

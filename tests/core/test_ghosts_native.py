@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core import ghost
-from tests.core.built import require_built
+from tests.core.built import both_ways, require_built
 
 
 @pytest.fixture(scope="module")
@@ -42,11 +42,7 @@ def returns(n, seed, objects=30, materials=6, per_ray_origins=False):
 
 
 def both(monkeypatch, fn, *args):
-    got = fn(*args)
-    monkeypatch.setattr(ghost, "compiled", False)
-    want = fn(*args)
-    monkeypatch.setattr(ghost, "compiled", True)
-    return got, want
+    return both_ways(monkeypatch, ghost, fn, *args)
 
 
 @pytest.mark.parametrize("per_ray_origins", [False, True])

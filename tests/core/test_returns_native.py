@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core import returns
-from tests.core.built import require_built
+from tests.core.built import both_ways, require_built
 
 
 @pytest.fixture(scope="module")
@@ -15,11 +15,7 @@ def native():
 
 
 def both(monkeypatch, *args):
-    got = returns.static_returns(*args)
-    monkeypatch.setattr(returns, "compiled", False)
-    want = returns.static_returns(*args)
-    monkeypatch.setattr(returns, "compiled", True)
-    return got, want
+    return both_ways(monkeypatch, returns, returns.static_returns, *args)
 
 
 def test_compiled_returns_are_the_reference(native, monkeypatch):

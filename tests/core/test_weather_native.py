@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core import depth_edges, weather
-from tests.core.built import require_built
+from tests.core.built import both_ways, require_built
 from tests.core.test_footprint import edge_scene
 from tests.core.test_footprint_native import frame_digests
 
@@ -22,11 +22,7 @@ def same_bits(a, b):
 
 
 def both(monkeypatch, *args):
-    got = weather.false_returns(*args)
-    monkeypatch.setattr(weather, "compiled", False)
-    want = weather.false_returns(*args)
-    monkeypatch.setattr(weather, "compiled", True)
-    return got, want
+    return both_ways(monkeypatch, weather, weather.false_returns, *args)
 
 
 @pytest.mark.parametrize("spec", ["fog:visibility=1", "fog:visibility=50", "rain:rate=10",
