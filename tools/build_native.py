@@ -44,7 +44,7 @@ NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
            NATIVE / "ghosts.c", NATIVE / "returns.c"]
-HEADERS = [NATIVE / "rls_threads.h"]
+HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
 

@@ -10,7 +10,7 @@
 #include <math.h>
 #include <stdint.h>
 
-#include "rls_threads.h"
+#include "rls_shares.h"
 
 #define RLS_EDGES_ABI 1
 
@@ -64,39 +64,24 @@ static uint8_t is_edge(const edges_t *e, int64_t i, int64_t j) {
     return !(fabs(tj - rj) <= step) && !(fabs(ti - ri) <= step);
 }
 
-static void run_share(share_t *s) {
+static void run_share(void *arg) {
+    share_t *s = (share_t *)arg;
     const edges_t *e = s->e;
     for (int64_t k = s->lo; k < s->hi; k++) e->edge[k] = is_edge(e, e->a[k], e->b[k]);
 }
 
-RLS_THREAD_ENTRY(edges_worker, arg) {
-    run_share((share_t *)arg);
-    RLS_THREAD_RETURN;
-}
-
-#define MAX_SHARES 64
 /* Below this many pairs per share a thread costs more than it saves. */
 #define MIN_SHARE 65536
 
 /* Marks every pair (e->edge), on up to ``threads`` threads (the caller's among them). */
 RLS_EXPORT void rls_depth_edges(const edges_t *e, int threads) {
-    int shares = threads < 1 ? 1 : (threads > MAX_SHARES ? MAX_SHARES : threads);
-    if (shares > 1 && e->n / shares < MIN_SHARE) shares = (int)(e->n / MIN_SHARE) + 1;
-    if (shares > MAX_SHARES) shares = MAX_SHARES;
-    share_t s[MAX_SHARES];
-    rls_thread ids[MAX_SHARES];
-    int started[MAX_SHARES] = {0};
-    int64_t step = (e->n + shares - 1) / shares;
+    int shares = rls_share_count(e->n, threads, MIN_SHARE);
+    share_t s[RLS_MAX_SHARES];
     for (int k = 0; k < shares; k++) {
-        int64_t lo = k * step < e->n ? k * step : e->n;
-        s[k] = (share_t){e, lo, lo + step < e->n ? lo + step : e->n};
+        s[k] = (share_t){e, 0, 0};
+        rls_share_bounds(e->n, shares, k, &s[k].lo, &s[k].hi);
     }
-    for (int k = 1; k < shares; k++) started[k] = rls_thread_start(&ids[k], edges_worker, &s[k]);
-    run_share(&s[0]);
-    for (int k = 1; k < shares; k++) {
-        if (started[k]) rls_thread_join(ids[k]);
-        else run_share(&s[k]);
-    }
+    rls_run_shares(run_share, s, sizeof(share_t), shares);
 }
 
 /* The interface version of the depth-edge test (RLS_EDGES_ABI). */

@@ -27,7 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rls_threads.h"
+#include "rls_shares.h"
 
 #define RLS_POINTS_ABI 4
 
@@ -116,7 +116,8 @@ static int shade(const points_t *a, int64_t i, double *range, double *inten, dou
     } while (0)
 
 /* Writes the points of rays [lo, hi) from record lo on; counts them. */
-static void write_share(share_t *s) {
+static void write_share(void *arg) {
+    share_t *s = (share_t *)arg;
     const points_t *a = s->a;
     int64_t p = s->lo;
     double r, v, dot;
@@ -152,44 +153,19 @@ static void write_share(share_t *s) {
     s->count = p - s->lo;
 }
 
-RLS_THREAD_ENTRY(write_worker, arg) {
-    write_share((share_t *)arg);
-    RLS_THREAD_RETURN;
-}
-
-#define MAX_SHARES 64
 /* Below this many rays per share a thread costs more than it saves. */
 #define MIN_SHARE 16384
-
-static int shares_of(int64_t n, int threads) {
-    int shares = threads < 1 ? 1 : (threads > MAX_SHARES ? MAX_SHARES : threads);
-    if (shares > 1 && n / shares < MIN_SHARE) shares = (int)(n / MIN_SHARE) + 1;
-    return shares > MAX_SHARES ? MAX_SHARES : shares;
-}
-
-static void split(const points_t *a, int shares, share_t *s) {
-    int64_t n = a->n, step = (n + shares - 1) / shares;
-    for (int k = 0; k < shares; k++) {
-        int64_t lo = k * step < n ? k * step : n;
-        int64_t hi = lo + step < n ? lo + step : n;
-        s[k] = (share_t){a, lo, hi, 0};
-    }
-}
 
 /* The records of the rays kept, in ray order, from the first record of out, index and
  * back on (each with room for n); returns how many. */
 RLS_EXPORT int64_t rls_points_assemble(const points_t *a, int threads) {
-    int shares = shares_of(a->n, threads);
-    share_t s[MAX_SHARES];
-    rls_thread ids[MAX_SHARES];
-    int started[MAX_SHARES] = {0};
-    split(a, shares, s);
-    for (int k = 1; k < shares; k++) started[k] = rls_thread_start(&ids[k], write_worker, &s[k]);
-    write_share(&s[0]);
-    for (int k = 1; k < shares; k++) {
-        if (started[k]) rls_thread_join(ids[k]);
-        else write_share(&s[k]);
+    int shares = rls_share_count(a->n, threads, MIN_SHARE);
+    share_t s[RLS_MAX_SHARES];
+    for (int k = 0; k < shares; k++) {
+        s[k] = (share_t){a, 0, 0, 0};
+        rls_share_bounds(a->n, shares, k, &s[k].lo, &s[k].hi);
     }
+    rls_run_shares(write_share, s, sizeof(share_t), shares);
     int64_t at = s[0].count;
     for (int k = 1; k < shares; k++) {
         int64_t c = s[k].count, lo = s[k].lo;

@@ -19,7 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "rls_threads.h"
+#include "rls_shares.h"
 
 #define RLS_WEATHER_ABI 2
 
@@ -71,7 +71,8 @@ typedef struct {
     int64_t count;       /* out: its false returns, written from rows[start] on */
 } share_t;
 
-static void run_share(share_t *s) {
+static void run_share(void *arg) {
+    share_t *s = (share_t *)arg;
     const air_t *a = s->a;
     const double *xp = a->cdf, *fp = a->x;
     int64_t len = a->len, buckets = s->buckets, count = 0;
@@ -109,12 +110,6 @@ static void run_share(share_t *s) {
     s->count = count;
 }
 
-RLS_THREAD_ENTRY(air_worker, arg) {
-    run_share((share_t *)arg);
-    RLS_THREAD_RETURN;
-}
-
-#define MAX_SHARES 64
 /* Below this many rays per share a thread costs more than it saves. */
 #define MIN_SHARE 16384
 
@@ -134,24 +129,13 @@ RLS_EXPORT int64_t rls_false_returns(const air_t *a, int threads) {
         while (j + 1 < len && xp[j + 1] <= edge) j++;
         tab[m] = j;
     }
-    int shares = threads < 1 ? 1 : (threads > MAX_SHARES ? MAX_SHARES : threads);
-    if (shares > 1 && a->n / shares < MIN_SHARE) shares = (int)(a->n / MIN_SHARE) + 1;
-    if (shares > MAX_SHARES) shares = MAX_SHARES;
-    share_t s[MAX_SHARES];
-    rls_thread ids[MAX_SHARES];
-    int started[MAX_SHARES] = {0};
-    int64_t step = (a->n + shares - 1) / shares;
+    int shares = rls_share_count(a->n, threads, MIN_SHARE);
+    share_t s[RLS_MAX_SHARES];
     for (int k = 0; k < shares; k++) {
-        int64_t first = k * step < a->n ? k * step : a->n;
-        s[k] = (share_t){a, tab, buckets, lo, hi, buckets ? 1.0 / h : 0.0, first,
-                         first + step < a->n ? first + step : a->n, 0};
+        s[k] = (share_t){a, tab, buckets, lo, hi, buckets ? 1.0 / h : 0.0, 0, 0, 0};
+        rls_share_bounds(a->n, shares, k, &s[k].start, &s[k].end);
     }
-    for (int k = 1; k < shares; k++) started[k] = rls_thread_start(&ids[k], air_worker, &s[k]);
-    run_share(&s[0]);
-    for (int k = 1; k < shares; k++) {
-        if (started[k]) rls_thread_join(ids[k]);
-        else run_share(&s[k]);
-    }
+    rls_run_shares(run_share, s, sizeof(share_t), shares);
     int64_t count = s[0].count;
     for (int k = 1; k < shares; k++) {
         if (s[k].count && s[k].start != count) {
