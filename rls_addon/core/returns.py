@@ -8,6 +8,7 @@ import ctypes
 
 import numpy as np
 
+from . import kernels
 from .geometry import pair_rows
 from .kernels import Kernel
 
@@ -25,7 +26,7 @@ def static_returns(dist, tri, table, rmin, rmax):
     valid, surface = np.empty(n, np.bool_), np.empty((n, 2), np.int32)
     args = _ReturnsArgs(n, *(a.ctypes.data for a in keep), len(keep[2]), float(rmin),
                         float(rmax), valid.ctypes.data, surface.ctypes.data)
-    if fn(ctypes.byref(args)) < 0:
+    if fn(ctypes.byref(args), kernels.threads()) < 0:
         raise IndexError("a hit triangle is outside the scene's table of surfaces")
     return valid, surface
 
@@ -46,9 +47,9 @@ class _ReturnsArgs(ctypes.Structure):
                 ("valid", ctypes.c_void_p), ("surface", ctypes.c_void_p)]
 
 
-NATIVE_RETURNS_ABI = 1
+NATIVE_RETURNS_ABI = 2
 STATIC_RETURNS = Kernel("rls_static_returns", "rls_returns_abi", NATIVE_RETURNS_ABI,
-                        [ctypes.POINTER(_ReturnsArgs)], ctypes.c_int64)
+                        [ctypes.POINTER(_ReturnsArgs), ctypes.c_int], ctypes.c_int64)
 # Off: every frame works out its returns in numpy (the reference the C code is tested
 # against).
 compiled = True

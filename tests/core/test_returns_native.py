@@ -49,3 +49,18 @@ def test_a_triangle_outside_the_table_is_refused(native):
     with pytest.raises(IndexError, match="outside the scene"):
         returns.static_returns(np.ones(3), np.array([0, 4, 1]), np.ones((4, 2), np.int32),
                                0.0, 9.0)
+
+
+@pytest.mark.parametrize("threads", [1, 3, 5])
+def test_every_share_writes_its_own_rays_and_reports_a_bad_row(native, monkeypatch, threads):
+    monkeypatch.setattr(returns.kernels, "threads", lambda: threads)
+    rng = np.random.default_rng(5)
+    n, rows = 80_000, 300
+    tri = np.where(rng.random(n) < 0.7, rng.integers(0, rows, n), -1)
+    dist = rng.uniform(0.0, 50.0, n)
+    table = rng.integers(0, 1000, (rows, 2)).astype(np.int32)
+    (v, s), (wv, ws) = both(monkeypatch, dist, tri, table, 1.0, 40.0)
+    assert np.array_equal(v, wv) and np.array_equal(s, ws)
+    tri[-1] = rows  # in the last share
+    with pytest.raises(IndexError):
+        returns.static_returns(dist, tri, table, 1.0, 40.0)
