@@ -29,6 +29,7 @@ replaces the ray's return only when nearer than the first surface the ray meets.
 """
 
 import ctypes
+import functools
 import math
 from dataclasses import dataclass
 
@@ -105,6 +106,13 @@ def parse_weather(spec):
         return spec
     if not isinstance(spec, str):
         raise SettingsError(f"weather must be a text like 'fog:visibility=50', got {spec!r}")
+    return _parse(spec)
+
+
+@functools.lru_cache(maxsize=64)
+def _parse(spec):
+    """``parse_weather`` of a string, kept: every frame of a scan parses the same one
+    (a ``Weather`` is frozen; errors are raised anew each time)."""
     text = spec.strip().lower()
     if text in ("", "clear", "none"):
         return None
@@ -173,12 +181,20 @@ def medium_reflectivity(alpha):
 def false_return_table(alpha, r_near, r_far, grid=4097):
     """(cdf, x): the CDF of the distribution of ``false_return_ranges`` in x = 1 / R,
     tabulated on ``grid`` points of x from 1 / r_far to 1 / r_near. In x the density is
-    exp(-2 alpha / x) (uniform when alpha = 0)."""
-    x0, x1 = 1.0 / float(r_far), 1.0 / float(r_near)
+    exp(-2 alpha / x) (uniform when alpha = 0). Read-only, kept for the last few
+    weathers: every frame of a scan asks for the same table (0.1 ms to make, as much
+    as a small frame's false returns themselves)."""
+    return _table(float(alpha), float(r_near), float(r_far), int(grid))
+
+
+@functools.lru_cache(maxsize=16)
+def _table(alpha, r_near, r_far, grid):
+    x0, x1 = 1.0 / r_far, 1.0 / r_near
     x = np.linspace(x0, x1, grid)
-    f = np.exp(-2.0 * float(alpha) / x)
+    f = np.exp(-2.0 * alpha / x)
     cdf = np.concatenate([[0.0], np.cumsum((f[1:] + f[:-1]) * 0.5 * np.diff(x))])
     cdf /= cdf[-1]
+    cdf.flags.writeable = x.flags.writeable = False
     return cdf, x
 
 
