@@ -54,9 +54,9 @@ def frame_casts(scene, pattern, pose, preset, settings, frame):
     times = pattern.times
     world = World(scene, [])
     dist, body, tri, normals = world.start(origins, dirs, times, rmax)()
-    valid = (tri >= 0) & (dist >= rmin) & (dist <= rmax)
+    valid, surface = world.returns(dist, body, tri, rmin, rmax)
     _, ghost_rng = effects.scan_rng(settings.seed, "sensor", frame)
-    aim = ghost.aim(valid, world.surface_ids(body, tri),
+    aim = ghost.aim(valid, surface,
                     ghost.glossy_tables(scene.geometry, ghost.glossy_labels()),
                     ghost_rng.random(len(dirs)), dist, dirs, normals, origins)
 

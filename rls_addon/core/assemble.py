@@ -27,6 +27,7 @@ from . import weather as wx
 from .kernels import Kernel
 from .labels import WEATHER_LABEL
 from .points import point_dtype
+from .vectors import row_dot
 
 # The fields points.c knows, in its enum's order.
 FIELD_ORDER = ("x", "y", "z", "range", "intensity", "ring", "time", "label", "instance",
@@ -105,15 +106,10 @@ class Effects:
         return self.detection is None and self.intensity == "carla" and not self.alpha
 
 
-def _dot(a, b):
-    """Row-wise dot products summed as points.c sums them."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
 def intensities(hits, dirs, attenuation_per_m=0.0):
     """(intensity, cos) per ray: reflectivity x |cos| clipped to 0..1 (x exp(-a d) with
     attenuation), the ghosts' own where they came back by a bounce."""
-    dot = _dot(hits.normals, dirs)
+    dot = row_dot(hits.normals, dirs)
     inten = hits.reflectivity[hits.surface[:, 1]] * np.abs(dot)
     if attenuation_per_m:
         inten = inten * np.exp(-float(attenuation_per_m)
@@ -213,7 +209,7 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
     construction); the intensity is what the device reports; then noise and CARLA's
     dropout as in the plain model."""
     model, alpha = effects.detection, float(effects.alpha)
-    dot = _dot(hits.normals, rays.dirs)
+    dot = row_dot(hits.normals, rays.dirs)
     rho_cos = hits.reflectivity[hits.surface[:, 1]] * np.abs(dot)
     # CARLA's intensity, only for a device that reports neither reflectivity nor strength
     carla = None

@@ -14,6 +14,7 @@ import ctypes
 import numpy as np
 
 from .kernels import Kernel, threads
+from .vectors import row_dot
 
 NATIVE_EDGES_ABI = 1
 
@@ -90,18 +91,15 @@ def edges_numpy(a, b, hit, dist, normals, dirs, origins, step):
         ni, nj = normals.take(i, axis=0), normals.take(j, axis=0)
         ri, rj = dist[i], dist[j]
 
-        def dot(x, y):
-            return x[:, 0] * y[:, 0] + x[:, 1] * y[:, 1] + x[:, 2] * y[:, 2]
-
         with np.errstate(divide="ignore", invalid="ignore"):
             if origins.shape[0] == 1:
                 # one origin: ray j on the plane of i's hit, ray i on the plane of j's
-                tj = ri * dot(ni, di) / dot(ni, dj)
-                ti = rj * dot(nj, dj) / dot(nj, di)
+                tj = ri * row_dot(ni, di) / row_dot(ni, dj)
+                ti = rj * row_dot(nj, dj) / row_dot(nj, di)
             else:
                 oi, oj = origins.take(i, axis=0), origins.take(j, axis=0)
-                tj = dot(ni, oi + di * ri[:, None] - oj) / dot(ni, dj)
-                ti = dot(nj, oj + dj * rj[:, None] - oi) / dot(nj, di)
+                tj = row_dot(ni, oi + di * ri[:, None] - oj) / row_dot(ni, dj)
+                ti = row_dot(nj, oj + dj * rj[:, None] - oi) / row_dot(nj, di)
             edge[both] = ~(np.abs(tj - rj) <= step) & ~(np.abs(ti - ri) <= step)
     return edge
 

@@ -8,14 +8,15 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import allocator, blas, effects, footprint, ghost, returns, weather
-from .assemble import Draws, Effects, Hits, Rays, _dot, assemble
+from . import allocator, blas, effects, footprint, ghost, weather
+from .assemble import Draws, Effects, Hits, Rays, assemble
 from .bodies import PreparedScene
 from .detection import detection_of
 from .errors import SceneError
 from .motion import effective_times, polar
 from .settings import resolve_range
 from .sweep import adaptive_substeps
+from .vectors import row_dot
 from .world import World
 
 
@@ -331,12 +332,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
 
     dist, body, tri, normals = pending()
     reused = scene.reused > reused
-    if world.moving:
-        valid = (tri >= 0) & (dist >= rmin) & (dist <= rmax)
-        surface = world.surface_ids(body, tri)
-    else:
-        valid, surface = returns.static_returns(
-            dist, tri, world.static.geometry.surface_ids(), rmin, rmax)
+    valid, surface = world.returns(dist, body, tri, rmin, rmax)
     ret = Returns(valid, dist, surface, normals)
     first_hit = None
     if keep_rays:  # before ghosts relabel the glossy rays
@@ -365,7 +361,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         rows, last_leg, mirror = bounces.finish(ret)
         stats = bounces.stats
         if len(rows):
-            ghost_dot = _dot(last_leg, ret.normals.take(rows, axis=0))
+            ghost_dot = row_dot(last_leg, ret.normals.take(rows, axis=0))
             ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]],
                                                    np.abs(ghost_dot), ret.dist[rows], atten)
     echoes = None

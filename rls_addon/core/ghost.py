@@ -14,6 +14,7 @@ import numpy as np
 
 from .kernels import Kernel
 from .labels import NAME_TO_ID
+from .vectors import row_dot
 
 # Smoothness per semantic class (0..1), after the paper's target-reflector library;
 # a surface is glossy when its smoothness exceeds SMOOTHNESS_THRESHOLD.
@@ -40,22 +41,16 @@ def glossy_tables(geometry, label_ids):
             geometry.material_field("ghost_ratio").astype(np.float64))
 
 
-def _dot(u, n):
-    """Row-wise dot products summed left to right, as native/ghosts.c sums them (the
-    order of numpy's einsum depends on its build)."""
-    return (u[:, 0] * n[:, 0] + u[:, 1] * n[:, 1]) + u[:, 2] * n[:, 2]
-
-
 def reflect(u, n):
     """Mirror directions r = u - 2 (u.n) n, row-wise."""
-    return u - (2.0 * _dot(u, n))[:, None] * n
+    return u - (2.0 * row_dot(u, n))[:, None] * n
 
 
 def bounce_origins(points, u, n, distance):
     """Start points for reflected rays: the hit point moved off the surface, towards the
     side the beam came from, by a scale-aware epsilon (a few float32 ulps of the
     distance travelled), so that a reflected ray never re-hits its own surface."""
-    side = np.where((_dot(u, n) < 0)[:, None], n, -n)
+    side = np.where((row_dot(u, n) < 0)[:, None], n, -n)
     eps = 1e-6 + 4e-6 * np.asarray(distance)[:, None]
     return points + side * eps
 
@@ -154,7 +149,7 @@ def land_numpy(bounce, b, tri, n2, rmax, valid, dist, normals, surface, reflecti
     found = tri >= 0
     # The second leg measured from the mirror point itself, not the lifted start.
     x = bounce.start + bounce.r * np.where(found, b, 0)[:, None] - bounce.p
-    b = np.where(found, np.sqrt(_dot(x, x)), b)
+    b = np.where(found, np.sqrt(row_dot(x, x)), b)
     found &= bounce.a + b <= rmax
     fi = np.nonzero(found)[0]
     g = bounce.chosen[fi]

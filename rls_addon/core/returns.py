@@ -2,7 +2,8 @@
 the (object, material) ids of the surface it hit.
 
 In C (``native/returns.c``) where it is built, else ``static_returns_numpy``: the same
-bytes. A world with moving bodies maps its hits through ``World.surface_ids``."""
+bytes. A world with moving bodies maps its hits through ``World.surface_ids`` (see
+``World.returns``)."""
 
 import ctypes
 
@@ -31,9 +32,14 @@ def static_returns(dist, tri, table, rmin, rmax):
     return valid, surface
 
 
+def in_range(dist, tri, rmin, rmax):
+    """Per ray, whether it hit a triangle (``tri`` >= 0) at a range within [rmin, rmax]."""
+    return (tri >= 0) & (dist >= rmin) & (dist <= rmax)
+
+
 def static_returns_numpy(dist, tri, table, rmin, rmax):
     """The reference of ``static_returns``."""
-    valid = (tri >= 0) & (dist >= rmin) & (dist <= rmax)
+    valid = in_range(dist, tri, rmin, rmax)
     surface = pair_rows(table, tri) if len(table) else np.zeros((len(tri), 2), np.int32)
     return valid, surface
 

@@ -7,6 +7,7 @@ import numpy as np
 from .bodies import PreparedScene
 from .geometry import ObjectInfo, SceneGeometry, hit_body, pair_rows
 from .instancing import InstancedWorld
+from .returns import in_range, static_returns
 
 
 @dataclass
@@ -104,6 +105,15 @@ class World:
         """A geometry holding the object and material tables of every body (the
         indices ``surface_ids`` gives point into them)."""
         return self._tables
+
+    def returns(self, dist, body, tri, rmin, rmax):
+        """(valid, surface ids) of a cast (``cast``'s dist, body, tri): per ray, whether
+        it returns a point (a hit within [rmin, rmax]) and ``surface_ids`` of what it
+        hit. A static world's in one pass (``returns.static_returns``: in C where it is
+        built)."""
+        if not self.moving:
+            return static_returns(dist, tri, self.static.geometry.surface_ids(), rmin, rmax)
+        return in_range(dist, tri, rmin, rmax), self.surface_ids(body, tri)
 
     def surface_ids(self, body, tri):
         """(N, 2) int32 (object index, material index) of the surface each ray hit, into

@@ -35,6 +35,8 @@ from typing import Callable, Protocol
 
 import numpy as np
 
+from ..vectors import row_dot
+
 
 class Caster(Protocol):
     """The one thing every backend must do (see the module docstring)."""
@@ -136,8 +138,8 @@ def plane_ranges(planes, origins, directions, rows):
     o = o if o.shape[0] == 1 else o[rows]
     d = directions[rows]
     # Summed in the compiled loop's order (native/embree_loop.c), for the same bits.
-    denom = n[:, 0] * d[:, 0] + n[:, 1] * d[:, 1] + n[:, 2] * d[:, 2]
-    no = n[:, 0] * o[:, 0] + n[:, 1] * o[:, 1] + n[:, 2] * o[:, 2]
+    denom = row_dot(n, d)
+    no = row_dot(n, o)
     with np.errstate(divide="ignore", invalid="ignore"):
         exact = (off - no) / denom
     return exact, np.isfinite(exact) & (np.abs(denom) > GRAZING) & (exact > 0)

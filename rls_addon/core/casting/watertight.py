@@ -3,6 +3,7 @@ never slip between the triangles (see ``WatertightCaster``)."""
 
 import numpy as np
 
+from ..vectors import row_dot
 from .base import CasterBase, cast_exact, refine_hits
 from .envelope import ElevationEnvelope
 
@@ -44,12 +45,6 @@ def cluster_boxes(vertices, triangles, groups, cell):
             np.maximum.reduceat(tmax[order], starts, axis=0))
 
 
-def _dot(a, b):
-    """Row-wise dot products of (N, 3) arrays, summed in the order the compiled loop
-    sums them (native/embree_loop.c: dot3), so both give the same bits."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
-
-
 def _cross(a, b):
     """Row-wise cross products (embree_loop.c: cross3)."""
     a, b = np.broadcast_arrays(a, b)
@@ -71,14 +66,14 @@ def outside_distance(vertices, triangles, tri, origins, directions):
     a, b, c = vertices[t[:, 0]], vertices[t[:, 1]], vertices[t[:, 2]]
     origins = np.broadcast_to(origins, directions.shape)
     n = _unit(_cross(b - a, c - a))
-    denom = _dot(n, directions)
+    denom = row_dot(n, directions)
     with np.errstate(divide="ignore", invalid="ignore"):
-        s = _dot(n, a - origins) / denom
+        s = row_dot(n, a - origins) / denom
         x = origins + directions * s[:, None]
         out = np.zeros(len(tri))
         for p, q in ((a, b), (b, c), (c, a)):
             m = _unit(_cross(n, q - p))
-            out = np.maximum(out, -_dot(x - p, m))
+            out = np.maximum(out, -row_dot(x - p, m))
     return np.where(np.isfinite(out) & (s > 0), out, np.inf)
 
 
