@@ -225,9 +225,14 @@ class SubRays:
     """The sub-rays of one frame's rays next to a depth edge, cast in two steps: first,
     for each ray and each neighbour across an edge, the one ring sub-ray nearest the
     neighbour's direction (the one most likely to reach across the edge); then the
-    whole ring of the rays where such a probe disagrees with the centre (another
-    object, no hit, or beyond the echo separation). A ray whose probes agree keeps its
-    one return: its cone does not reach the edge toward any neighbour."""
+    rest of the ring of the rays where such a probe disagrees with the centre (another
+    object, no hit, or beyond the echo separation): a probe is one of its ring's
+    sub-rays, and is not cast twice. A ray whose probes agree keeps its one return:
+    its cone does not reach the edge toward any neighbour.
+
+    ``rows``: the rays whose whole ring was sampled; ``dirs``, ``dist``, ``tri``,
+    ``surface``, ``normals``: their RING sub-rays each, ray by ray; ``probes``: the
+    probes cast; ``cast``: every sub-ray cast (probes and the rest of the rings)."""
 
     def __init__(self, beam, world, pattern, origins, dirs, times, ret, tri, rmax):
         hit = tri >= 0
@@ -237,32 +242,46 @@ class SubRays:
                           DEPTH_STEP * sep)
         times = np.asarray(times)
         self.rows = np.zeros(0, np.int64)
-        self.count = 0
-        self.probes = 0
+        self.count = self.probes = self.cast = 0
         if not len(a):
             return
         pi, pk, pdir = probe_rays(a, b, dirs, beam.divergence_rad)
         o = origins if origins.shape[0] == 1 else origins[pi]
-        dist, body, tri2, _ = world.cast(o, pdir, times[pi], rmax)
-        obj = world.surface_ids(body, tri2)[:, 0]
-        self.probes = len(pi)
-        phit = tri2 >= 0
+        pdist, body, ptri, pnormals = world.cast(o, pdir, times[pi], rmax)
+        psurface = world.surface_ids(body, ptri)
+        self.probes = self.cast = len(pi)
+        phit = ptri >= 0
         chit = ret.valid[pi]
         with np.errstate(invalid="ignore"):
-            off = (phit != chit) | (phit & ((obj != ret.surface[pi, 0])
-                                            | (np.abs(dist - ret.dist[pi]) > sep)))
+            off = (phit != chit) | (phit & ((psurface[:, 0] != ret.surface[pi, 0])
+                                            | (np.abs(pdist - ret.dist[pi]) > sep)))
         c = np.unique(pi[off])
         self.rows = c
         self.count = len(c)
         if not len(c):
             return
+        # the probes of these rays are their rings' sub-rays already: the rest is cast
+        at = np.searchsorted(c, pi)
+        mine = np.nonzero(c.take(np.minimum(at, len(c) - 1)) == pi)[0]
+        slot = at[mine] * RING + pk[mine]
+        todo = np.ones(len(c) * RING, bool)
+        todo[slot] = False
+        todo = np.nonzero(todo)[0]
         sub = whole_rings(c, dirs, beam.divergence_rad)
-        o = origins if origins.shape[0] == 1 else np.repeat(origins[c], RING, axis=0)
-        t = np.repeat(times[c], RING)
-        dist, body, tri2, normals = world.cast(o, sub, t, rmax)
-        self.dirs, self.dist, self.tri = sub, dist, tri2
-        self.surface = world.surface_ids(body, tri2)
-        self.normals = normals
+        ray = c[todo // RING]
+        o = origins if origins.shape[0] == 1 else origins[ray]
+        dist, body, tri2, normals = world.cast(o, sub[todo], times[ray], rmax)
+        self.cast += len(todo)
+        self.dirs = sub
+        self.dist = np.empty(len(sub))
+        self.tri = np.empty(len(sub), tri2.dtype)
+        self.surface = np.empty((len(sub), 2), psurface.dtype)
+        self.normals = np.empty((len(sub), 3))
+        for out, mine_v, rest_v in ((self.dist, pdist, dist), (self.tri, ptri, tri2),
+                                    (self.surface, psurface, world.surface_ids(body, tri2)),
+                                    (self.normals, pnormals, normals)):
+            out[slot] = mine_v[mine]
+            out[todo] = rest_v
 
 
 @dataclass
@@ -324,7 +343,7 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
         skipped = np.zeros(len(ret.dist), bool)  # a mask: np.isin sorts both
         skipped[skip] = True
         act &= ~skipped[c]
-    stats = {"footprint_rays": int(n_c), "footprint_sub_rays": int(n_c * RING + sub.probes)}
+    stats = {"footprint_rays": int(n_c), "footprint_sub_rays": int(sub.cast)}
     if not act.any():
         return None, stats
     k = np.nonzero(act)[0]

@@ -375,7 +375,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                                            rmin, rmax)
         stats.update(fstats)
     elif sub is not None:
-        stats.update(footprint_rays=0, footprint_sub_rays=sub.probes)
+        stats.update(footprint_rays=0, footprint_sub_rays=sub.cast)
     hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
                 ghost_int, refl, g.object_field("label"), g.object_field("instance"),
                 medium_rows, medium_dist)
