@@ -40,10 +40,11 @@ NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
 # One library: the Embree loop, the per-hit stage of a frame (points.c), the
 # footprint's depth-edge test (edges.c) and probe sub-rays (probes.c), the weather's
 # false returns (weather.c), a study candidate's disk counts (disks.c), the ghost
-# bounces' set-up and landing (ghosts.c) and a static cast's returns (returns.c).
+# bounces' set-up and landing (ghosts.c), a static cast's returns (returns.c) and a
+# footprint's echoes (echoes.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
-           NATIVE / "ghosts.c", NATIVE / "returns.c"]
+           NATIVE / "ghosts.c", NATIVE / "returns.c", NATIVE / "echoes.c"]
 HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
@@ -63,7 +64,8 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
            "rls_disk_counts", "rls_disks_abi",
            "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",
-           "rls_static_returns", "rls_returns_abi")
+           "rls_static_returns", "rls_returns_abi",
+           "rls_echo_group", "rls_echo_choose", "rls_echoes_abi")
 
 
 def library_name(sys_platform):

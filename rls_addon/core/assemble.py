@@ -254,7 +254,7 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
         detected = draws.detect < model.probability_of(power, excess)
         if medium is not None:
             detected |= medium
-        if len(e):  # detected echo by echo (footprint.resolve)
+        if len(e):  # detected echo by echo (echoes.resolve)
             detected[e] = True
         keep &= detected
     if effects.intensity == "reflectivity":

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import allocator, blas, effects, footprint, ghost, weather
+from . import allocator, blas, echoes, effects, footprint, ghost, weather
 from .assemble import Draws, Effects, Hits, Rays, assemble
 from .bodies import PreparedScene
 from .detection import detection_of
@@ -364,15 +364,16 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
             ghost_dot = row_dot(last_leg, ret.normals.take(rows, axis=0))
             ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]],
                                                    np.abs(ghost_dot), ret.dist[rows], atten)
-    echoes = None
+    beam_echoes = None
     if sub is not None and sub.count:
         # Drawn last and only here: the key of the detection uniforms of echoes that do
-        # not hold the centre ray (footprint._uniforms)
+        # not hold the centre ray (echoes._uniforms)
         key = int(rng.integers(0, 2 ** 63)) if model is not None else 0
         skip = np.concatenate([bounces.chosen if bounces is not None else rows, medium_rows])
-        echoes, fstats = footprint.resolve(sub, ret, dirs, skip, refl, model, draws.detect,
-                                           key, 0.0 if air is None else air.alpha, atten,
-                                           rmin, rmax)
+        beam_echoes, fstats = echoes.resolve(sub, ret, dirs, skip, refl, model,
+                                             draws.detect, key,
+                                             0.0 if air is None else air.alpha, atten,
+                                             rmin, rmax)
         stats.update(fstats)
     elif sub is not None:
         stats.update(footprint_rays=0, footprint_sub_rays=sub.cast)
@@ -381,8 +382,8 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                 medium_rows, medium_dist)
     rays = Rays(dirs, origins, columns, channels, ray_times)
     extra = None
-    if echoes is not None:
-        hits, extra = footprint.split(hits, rays, draws, echoes)
+    if beam_echoes is not None:
+        hits, extra = footprint.split(hits, rays, draws, beam_echoes)
     fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
                  preset.dropout.intensity_zero, atten, model,
                  "carla" if model is None else model.intensity,
@@ -391,7 +392,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     if extra is not None:  # second echoes next to their pulse's first
         pts, idx, back = footprint.merge((pts, idx, back),
                                          assemble(*extra, fx, s.frame_space, fields),
-                                         echoes.extra_parent)
+                                         beam_echoes.extra_parent)
     in_air = None
     if len(medium_rows):  # false returns from the air lie on no object
         medium = np.zeros(len(dirs), bool)
