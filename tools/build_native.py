@@ -38,14 +38,14 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
 # One library: the Embree loop, the per-hit stage of a frame (points.c), the
-# footprint's depth-edge test (edges.c) and probe sub-rays (probes.c), the weather's
-# false returns (weather.c), a study candidate's disk counts (disks.c), the ghost
-# bounces' set-up and landing (ghosts.c), a static cast's returns (returns.c) and a
-# footprint's echoes (echoes.c).
+# footprint's depth-edge test and its probe sectors (edges.c) and probe sub-rays
+# (probes.c), the weather's false returns (weather.c), a study candidate's disk counts
+# (disks.c), the ghost bounces' set-up and landing (ghosts.c), a static cast's returns
+# (returns.c) and a footprint's echoes (echoes.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
            NATIVE / "ghosts.c", NATIVE / "returns.c", NATIVE / "echoes.c"]
-HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h"]
+HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h", NATIVE / "rls_sectors.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"
 
@@ -60,7 +60,8 @@ FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
          "-Wall", "-Werror=implicit-function-declaration"]
 EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_points_assemble", "rls_points_abi",
-           "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
+           "rls_depth_edges", "rls_edge_sectors", "rls_edges_abi",
+           "rls_false_returns", "rls_weather_abi",
            "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
            "rls_disk_counts", "rls_disks_abi",
            "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",

@@ -16,7 +16,7 @@ import numpy as np
 from .kernels import Kernel, threads
 from .vectors import row_dot
 
-NATIVE_EDGES_ABI = 1
+NATIVE_EDGES_ABI = 2
 
 
 def neighbour_pairs(pattern):
@@ -120,14 +120,21 @@ KERNEL = Kernel("rls_depth_edges", "rls_edges_abi", NATIVE_EDGES_ABI,
                 [ctypes.POINTER(_EdgesArgs), ctypes.c_int])
 
 
-def _edges_native(fn, a, b, hit, dist, normals, dirs, origins, step):
+def edges_args(a, b, hit, dist, normals, dirs, origins, step, edge=None):
+    """(``edges_t`` of the pairs, the arrays it points into: keep them alive while it
+    is used); ``edge``: the uint8 array it marks, or None."""
     def c(x, dtype):
         return np.ascontiguousarray(x, dtype=dtype)
 
     keep = [c(a, np.int64), c(b, np.int64), c(hit, np.uint8), c(dist, np.float64),
             c(normals, np.float64), c(dirs, np.float64), c(origins, np.float64)]
+    args = _EdgesArgs(len(a), *(x.ctypes.data for x in keep), int(origins.shape[0] != 1),
+                      float(step), 0 if edge is None else edge.ctypes.data)
+    return args, keep
+
+
+def _edges_native(fn, a, b, hit, dist, normals, dirs, origins, step):
     edge = np.empty(len(a), np.uint8)
-    args = _EdgesArgs(len(a), *(x.ctypes.data for x in keep[:6]), keep[6].ctypes.data,
-                      int(origins.shape[0] != 1), float(step), edge.ctypes.data)
+    args, _keep = edges_args(a, b, hit, dist, normals, dirs, origins, step, edge)
     fn(ctypes.byref(args), threads())
     return edge.view(bool)

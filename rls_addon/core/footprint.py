@@ -23,8 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .depth_edges import candidates
-from .kernels import Kernel
+from . import depth_edges
+from .depth_edges import candidates, neighbour_pairs
+from .kernels import Kernel, threads
 
 RING = 6                   # sub-rays on the ring at the 1/e^2 radius
 CENTRE_SHARE = 0.5         # the centre ray's share of the beam's energy
@@ -34,6 +35,8 @@ RING_SHARE = (1.0 - CENTRE_SHARE) / RING
 # VLS-128 User Manual 63-9483 Rev A, 6.2.3 Dual Return Mode).
 ECHO_SEPARATION_M = 1.0
 RETURN_MODES = ("strongest", "last", "dual")
+RLS_MAX_SHARES = 64         # native/rls_shares.h
+_AMBIGUOUS_CAP = 1024       # directed pairs per share left to numpy (else: two steps)
 # Neighbouring rays whose hits lie off each other's plane by more than this share of the
 # echo separation (0.1 m for 1 m) mark a depth step worth sampling: smaller steps move
 # a mixed point by less than that (a stated choice, about 5 sigma of the presets' range
@@ -147,20 +150,62 @@ def probe_rays(a, b, dirs, divergence_rad):
     a, b = np.ascontiguousarray(a, np.int64), np.ascontiguousarray(b, np.int64)
     mask = np.zeros(len(dirs), np.uint8)
     amb = np.empty(2 * len(a), np.int64)
-    h, vert = (max(math.tan(0.5 * float(x)), 1e-12) for x in divergence_rad)
+    h, vert = _half_axes(divergence_rad)
     args = _SectorsArgs(len(a), a.ctypes.data, b.ctypes.data, dirs.ctypes.data, h, vert,
                         2.0 * np.pi / RING, mask.ctypes.data, amb.ctypes.data)
     n_amb = PROBE_SECTORS.get()(ctypes.byref(args))
-    if n_amb:  # sectors on a boundary (to the last bits of atan2): numpy's
-        t = amb[:n_amb]
-        i = np.concatenate([a, b])[t]
-        j = np.concatenate([b, a])[t]
-        di = dirs.take(i, axis=0)
-        u, v = _basis(di)
-        k = _sectors(dirs, i, j, di, u, v, divergence_rad)
-        np.bitwise_or.at(mask, i, (1 << k).astype(np.uint8))
+    _numpy_sectors(mask, amb[:n_amb], a, b, dirs, divergence_rad)
     rows = np.flatnonzero(mask)
     return _ring_rays(rows, mask[rows], dirs, divergence_rad)
+
+
+def edge_probes(pattern, hit, dist, normals, dirs, origins, step, divergence_rad):
+    """(pi, pk, pdir): the probes of the pattern's neighbour pairs across a depth edge
+    (``probe_rays`` of ``depth_edges.candidates``' pairs). In C where it is built, in
+    one pass (native/edges.c: rls_edge_sectors): the pairs' rays are read once and no
+    list of the pairs across an edge is made."""
+    fused = EDGE_SECTORS.get() if compiled and depth_edges.compiled else None
+    if fused is None or RING_RAYS.get() is None:
+        a, b = candidates(pattern, hit, dist, normals, dirs, origins, step)
+        return probe_rays(a, b, dirs, divergence_rad)
+    a, b = neighbour_pairs(pattern)
+    dirs = np.ascontiguousarray(dirs, np.float64)
+    edges, _keep = depth_edges.edges_args(a, b, hit, dist, normals, dirs, origins, step)
+    mask = np.zeros(len(dirs), np.uint8)
+    amb = np.empty(_AMBIGUOUS_CAP * RLS_MAX_SHARES, np.int64)
+    h, vert = _half_axes(divergence_rad)
+    args = _EdgeSectorsArgs(ctypes.pointer(edges), h, vert, 2.0 * np.pi / RING,
+                            mask.ctypes.data, amb.ctypes.data, _AMBIGUOUS_CAP)
+    fused(ctypes.byref(args), threads())
+    counts = list(args.n_ambiguous[:args.shares])
+    if max(counts) > _AMBIGUOUS_CAP:  # a pathological frame: the two steps instead
+        return probe_rays(*candidates(pattern, hit, dist, normals, dirs, origins, step),
+                          dirs, divergence_rad)
+    total = sum(args.n_probes[:args.shares])
+    if sum(counts):
+        t = np.concatenate([amb[k * _AMBIGUOUS_CAP:k * _AMBIGUOUS_CAP + m]
+                            for k, m in enumerate(counts)])
+        _numpy_sectors(mask, t, a, b, dirs, divergence_rad)
+        total = None
+    return _ring_rays(None, mask, dirs, divergence_rad, total)
+
+
+def _half_axes(divergence_rad):
+    return tuple(max(math.tan(0.5 * float(x)), 1e-12) for x in divergence_rad)
+
+
+def _numpy_sectors(mask, t, a, b, dirs, divergence_rad):
+    """Sets in ``mask`` the sectors of the directed pairs ``t`` (t: a[t] toward b[t];
+    len(a) + t: b[t] toward a[t]) that the C code left to numpy: on a sector boundary
+    to the last bits of atan2."""
+    if not len(t):
+        return
+    i = np.concatenate([a, b])[t]
+    j = np.concatenate([b, a])[t]
+    di = dirs.take(i, axis=0)
+    u, v = _basis(di)
+    k = _sectors(dirs, i, j, di, u, v, divergence_rad)
+    np.bitwise_or.at(mask, i, (1 << k).astype(np.uint8))
 
 
 def whole_rings(rows, dirs, divergence_rad):
@@ -172,17 +217,20 @@ def whole_rings(rows, dirs, divergence_rad):
                       np.ascontiguousarray(dirs, np.float64), divergence_rad)[2]
 
 
-def _ring_rays(rows, mask, dirs, divergence_rad):
+def _ring_rays(rows, mask, dirs, divergence_rad, total=None):
+    """(ray, sector, direction) of each set bit of ``mask`` (per ray of ``rows``, or per
+    ray of the frame when rows is None); ``total``: how many bits are set, if known."""
     h, vert = (math.tan(0.5 * float(x)) for x in divergence_rad)
     phi = 2.0 * np.pi * np.arange(RING) / RING     # as ring_directions has them
     hc, vs = np.ascontiguousarray(h * np.cos(phi)), np.ascontiguousarray(vert * np.sin(phi))
-    total = int(np.unpackbits(mask).sum())
+    mask = np.ascontiguousarray(mask, np.uint8)
+    if total is None:
+        total = int(np.unpackbits(mask).sum())
     ray, sector = np.empty(total, np.int64), np.empty(total, np.int64)
     out = np.empty((total, 3), np.float64)
-    mask = np.ascontiguousarray(mask, np.uint8)
-    args = _RingArgs(len(rows), rows.ctypes.data, mask.ctypes.data, dirs.ctypes.data,
-                     hc.ctypes.data, vs.ctypes.data, ray.ctypes.data, sector.ctypes.data,
-                     out.ctypes.data)
+    args = _RingArgs(len(mask), 0 if rows is None else rows.ctypes.data, mask.ctypes.data,
+                     dirs.ctypes.data, hc.ctypes.data, vs.ctypes.data, ray.ctypes.data,
+                     sector.ctypes.data, out.ctypes.data)
     RING_RAYS.get()(ctypes.byref(args))
     return ray, sector, out
 
@@ -205,14 +253,27 @@ class _RingArgs(ctypes.Structure):
                 ("out", ctypes.c_void_p)]
 
 
+class _EdgeSectorsArgs(ctypes.Structure):
+    """``edge_sectors_t`` of native/edges.c."""
+
+    _fields_ = [("e", ctypes.POINTER(depth_edges._EdgesArgs)), ("h", ctypes.c_double),
+                ("vert", ctypes.c_double), ("sector", ctypes.c_double),
+                ("mask", ctypes.c_void_p), ("ambiguous", ctypes.c_void_p),
+                ("cap", ctypes.c_int64), ("shares", ctypes.c_int),
+                ("n_ambiguous", ctypes.c_int64 * RLS_MAX_SHARES),
+                ("n_probes", ctypes.c_int64 * RLS_MAX_SHARES)]
+
+
 # Off: every frame works out its probes and rings in numpy (the reference the C code is
 # tested against).
 compiled = True
-NATIVE_PROBES_ABI = 1
+NATIVE_PROBES_ABI = 2
 PROBE_SECTORS = Kernel("rls_probe_sectors", "rls_probes_abi", NATIVE_PROBES_ABI,
                        [ctypes.POINTER(_SectorsArgs)], ctypes.c_int64)
 RING_RAYS = Kernel("rls_ring_rays", "rls_probes_abi", NATIVE_PROBES_ABI,
                    [ctypes.POINTER(_RingArgs)], ctypes.c_int64)
+EDGE_SECTORS = Kernel("rls_edge_sectors", "rls_edges_abi", depth_edges.NATIVE_EDGES_ABI,
+                      [ctypes.POINTER(_EdgeSectorsArgs), ctypes.c_int])
 
 
 class SubRays:
@@ -232,14 +293,13 @@ class SubRays:
         hit = tri >= 0
         self.beam = beam
         sep = beam.echo_separation_m
-        a, b = candidates(pattern, hit, ret.dist, ret.normals, dirs, origins,
-                          DEPTH_STEP * sep)
+        pi, pk, pdir = edge_probes(pattern, hit, ret.dist, ret.normals, dirs, origins,
+                                   DEPTH_STEP * sep, beam.divergence_rad)
         times = np.asarray(times)
         self.rows = np.zeros(0, np.int64)
         self.count = self.probes = self.cast = 0
-        if not len(a):
+        if not len(pi):
             return
-        pi, pk, pdir = probe_rays(a, b, dirs, beam.divergence_rad)
         o = origins if origins.shape[0] == 1 else origins[pi]
         pdist, body, ptri, pnormals = world.cast(o, pdir, times[pi], rmax)
         psurface = world.surface_ids(body, ptri)

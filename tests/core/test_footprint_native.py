@@ -2,6 +2,7 @@
 give: the same depth-edge pairs, and whole frames byte-identical either way."""
 
 import hashlib
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -115,4 +116,50 @@ def test_compiled_probes_are_the_reference_probes(native_probes, monkeypatch, di
 def test_frames_are_byte_identical_with_compiled_or_numpy_probes(native_probes, monkeypatch,
                                                                   mode):
     got = frame_digests(monkeypatch, [footprint], edge_scene(), mode, "footprint_rays", seed=4)
+    assert got[True] == got[False]
+
+
+@pytest.fixture(scope="module")
+def native_edge_probes():
+    return require_built(footprint.EDGE_SECTORS, footprint.RING_RAYS)
+
+
+@pytest.mark.parametrize("per_ray_origins", [False, True])
+@pytest.mark.parametrize("cap", [100_000, 1])
+def test_probes_picked_while_testing_the_edges_are_the_reference_probes(
+        native_edge_probes, monkeypatch, per_ray_origins, cap):
+    """``edge_probes`` (the depth-edge test and the probe sectors in one pass) gives the
+    probes of ``probe_rays_numpy`` over ``edges_numpy``'s pairs: random rays and pairs
+    with directions repeated and vertical (thousands of sectors left to numpy), with
+    room for them all, and with room for one per share (more: the frame is done in two
+    steps)."""
+    a, b, hit, dist, normals, dirs, origins = random_pairs(50_000, 3, per_ray_origins)
+    dirs[::97] = (0.0, 0.0, 1.0)
+    b[::89] = a[::89]
+    pattern = SimpleNamespace(_neighbour_pairs=(a, b))
+    monkeypatch.setattr(footprint, "_AMBIGUOUS_CAP", cap)
+    two_steps = []
+    monkeypatch.setattr(footprint, "probe_rays",
+                        lambda *args: two_steps.append(1) or footprint.probe_rays_numpy(*args))
+    edge = edges_numpy(a, b, hit, dist, normals, dirs, origins, 0.1)
+    want = footprint.probe_rays_numpy(a[edge], b[edge], dirs, (2e-3, 1e-3))
+    got = footprint.edge_probes(pattern, hit, dist, normals, dirs, origins, 0.1, (2e-3, 1e-3))
+    assert len(want[0]) > 10_000
+    assert bool(two_steps) == (cap == 1)
+    for w, x in zip(want, got):
+        assert w.dtype == x.dtype
+        np.testing.assert_array_equal(x, w)
+
+
+def test_frames_are_byte_identical_with_probes_picked_in_one_pass_or_two(
+        native_edge_probes, monkeypatch):
+    """Off: the edge pairs listed, then their probes (both compiled)."""
+    scene, (pattern, _, _) = edge_scene(), grid(rows=300)
+    got = {}
+    for fused in (True, False):
+        monkeypatch.setattr(footprint.EDGE_SECTORS, "get",
+                            footprint.EDGE_SECTORS.get if fused else (lambda: None))
+        res = scan(scene, pattern, device(mode="dual"), noise=True, seed=4)
+        assert res.stats["footprint_rays"] > 0
+        got[fused] = hashlib.sha256(res.points.tobytes()).hexdigest()
     assert got[True] == got[False]

@@ -6,13 +6,20 @@
  * both mark the same pairs: a pair is an edge when one ray hits and the other does
  * not, or when both hit, their ranges differ by more than the step and neither lies
  * within the step of the other's plane (the range each ray would have on the plane of
- * the other's hit, along its own direction). */
+ * the other's hit, along its own direction).
+ *
+ * rls_edge_sectors tests the pairs in the same way and, for each pair across an edge,
+ * sets the probe sectors of both of its rays (rls_sector, both ways: what
+ * footprint.probe_rays does with the pairs rls_depth_edges marks), in one pass: the
+ * pairs' rays are read once and no list of edge pairs is made. Threads set bits of one
+ * mask with an atomic or; each share lists the directed pairs it leaves to numpy. */
 #include <math.h>
 #include <stdint.h>
 
+#include "rls_sectors.h"
 #include "rls_shares.h"
 
-#define RLS_EDGES_ABI 1
+#define RLS_EDGES_ABI 2
 
 typedef struct {
     int64_t n;                /* pairs */
@@ -70,6 +77,50 @@ static void run_share(void *arg) {
     for (int64_t k = s->lo; k < s->hi; k++) e->edge[k] = is_edge(e, e->a[k], e->b[k]);
 }
 
+typedef struct {
+    const edges_t *e;         /* the pairs (e->edge is not written) */
+    double h, vert;           /* the ring's half-axes (tangents, at least 1e-12) */
+    double sector;            /* 2 pi / RING */
+    uint8_t *mask;            /* per ray, or-ed: bit k = sector k probed */
+    int64_t *ambiguous;       /* room for cap per share: directed pairs left to numpy,
+                                 t (ray a toward b) or n + t (b toward a) */
+    int64_t cap;
+    int shares;               /* out: the shares the pairs were split into */
+    int64_t n_ambiguous[RLS_MAX_SHARES];  /* out, per share (more than cap: cap + 1) */
+    int64_t n_probes[RLS_MAX_SHARES];     /* out, per share: bits it set first */
+} edge_sectors_t;
+
+typedef struct {
+    edge_sectors_t *s;
+    int k;
+    int64_t lo, hi;
+} sector_share_t;
+
+static void probe_toward(edge_sectors_t *s, int k, int64_t t, int64_t i, int64_t j) {
+    int sec;
+    const double *dir = s->e->dir;
+    if (rls_sector(dir + 3 * i, dir + 3 * j, s->h, s->vert, s->sector, &sec)) {
+        int64_t *n = &s->n_ambiguous[k];
+        if (*n < s->cap) s->ambiguous[k * s->cap + *n] = t;
+        if (*n <= s->cap) (*n)++;
+        return;
+    }
+    uint8_t bit = (uint8_t)(1u << sec);
+    if (!(__atomic_fetch_or(&s->mask[i], bit, __ATOMIC_RELAXED) & bit)) s->n_probes[k]++;
+}
+
+static void run_sector_share(void *arg) {
+    sector_share_t *sh = (sector_share_t *)arg;
+    edge_sectors_t *s = sh->s;
+    const edges_t *e = s->e;
+    for (int64_t t = sh->lo; t < sh->hi; t++) {
+        int64_t i = e->a[t], j = e->b[t];
+        if (!is_edge(e, i, j)) continue;
+        probe_toward(s, sh->k, t, i, j);
+        probe_toward(s, sh->k, e->n + t, j, i);
+    }
+}
+
 /* Below this many pairs per share a thread costs more than it saves. */
 #define MIN_SHARE 65536
 
@@ -82,6 +133,20 @@ RLS_EXPORT void rls_depth_edges(const edges_t *e, int threads) {
         rls_share_bounds(e->n, shares, k, &s[k].lo, &s[k].hi);
     }
     rls_run_shares(run_share, s, sizeof(share_t), shares);
+}
+
+/* Sets the probe sectors of the pairs across an edge (s->mask, zeroed by the caller),
+ * on up to ``threads`` threads (the caller's among them). */
+RLS_EXPORT void rls_edge_sectors(edge_sectors_t *s, int threads) {
+    int shares = rls_share_count(s->e->n, threads, MIN_SHARE);
+    sector_share_t sh[RLS_MAX_SHARES];
+    s->shares = shares;
+    for (int k = 0; k < shares; k++) {
+        s->n_ambiguous[k] = s->n_probes[k] = 0;
+        sh[k] = (sector_share_t){s, k, 0, 0};
+        rls_share_bounds(s->e->n, shares, k, &sh[k].lo, &sh[k].hi);
+    }
+    rls_run_shares(run_sector_share, sh, sizeof(sector_share_t), shares);
 }
 
 /* The interface version of the depth-edge test (RLS_EDGES_ABI). */
