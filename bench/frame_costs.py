@@ -72,7 +72,7 @@ def scene_ratios(geometry, pose, preset, repeat=7, bvh_repeat=2):
     """The ratios of one scene (seconds and ratios, see the module docstring)."""
     import bpy  # noqa: F401  (mathutils)
 
-    from bench.run import bare_loop
+    from bench.baselines import bare_loop
     from rls_addon.core import assemble, ghost, returns
     from rls_addon.core.bodies import PreparedScene
     from rls_addon.core.casting import BVHCaster

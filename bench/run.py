@@ -25,6 +25,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 import numpy as np  # noqa: E402
+from bench.baselines import bare_loop  # noqa: E402
 
 DEVICES = [("Pandar64", "hesai_pandar64"), ("Pandar128", "hesai_pandar128"),
            ("Livox Avia", "livox_avia"), ("RoboSense M1", "robosense_m1")]
@@ -192,20 +193,6 @@ class Backends:
                 fn()
                 out[name] = min(out[name], time.perf_counter() - t)
         return out
-
-
-def bare_loop(tree, dirs, max_range):
-    """The bare BVHTree loop: one ``ray_cast`` per ray over prepared Python lists, the
-    least any Python-driven BVHTree scan can cost (the conversion is not timed)."""
-    dl = dirs.tolist()
-    o = (0.0, 0.0, 0.0)
-    rc = tree.ray_cast
-    m = float(max_range)
-
-    def loop():
-        for d in dl:
-            rc(o, d, m)
-    return loop
 
 
 def CountingFactory(factory):
