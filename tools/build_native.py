@@ -58,6 +58,8 @@ TARGETS = {
 }
 FLAGS = ["-O2", "-shared", "-fPIC", "-fvisibility=hidden", "-ffp-contract=off",
          "-Wall", "-Werror=implicit-function-declaration"]
+# The library's entry points: every platform's build exports these and nothing else
+# (tests/blender/test_platform_zips.py reads each zip's binary).
 EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_points_assemble", "rls_points_abi",
            "rls_depth_edges", "rls_edge_sectors", "rls_edges_abi",

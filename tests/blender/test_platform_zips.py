@@ -27,13 +27,7 @@ import build_native  # noqa: E402
 from rls_addon.core.casting import embree  # noqa: E402
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
-ENTRY_POINTS = {"rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
-                "rls_points_assemble", "rls_points_abi",
-                "rls_depth_edges", "rls_edges_abi", "rls_false_returns", "rls_weather_abi",
-                "rls_probe_sectors", "rls_ring_rays", "rls_probes_abi",
-                "rls_disk_counts", "rls_disks_abi",
-                "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",
-                "rls_static_returns", "rls_returns_abi"}
+ENTRY_POINTS = set(build_native.EXPORTS)  # what every platform's library exports
 LINKER_SYMBOLS = {"_init", "_fini", "_mh_dylib_header", "__dso_handle"}
 # Blender platform -> (format, architecture, sys.platform naming the file)
 EXPECTED = {

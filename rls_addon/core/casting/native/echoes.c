@@ -226,10 +226,11 @@ RLS_EXPORT void rls_echo_choose(const group_t *g, const choose_t *c) {
                 other = argmax(v);
             }
             two = num > 1;
-            int near = Rm[other] < Rm[strongest] ? other : strongest;
-            int far = near == strongest ? other : strongest;
-            primary = two ? near : strongest;
-            second = two ? far : strongest;
+            /* (not near and far: macros of the Windows headers) */
+            int nearer = Rm[other] < Rm[strongest] ? other : strongest;
+            int farther = nearer == strongest ? other : strongest;
+            primary = two ? nearer : strongest;
+            second = two ? farther : strongest;
         }
         c->primary[q] = primary;
         c->second[q] = second;
