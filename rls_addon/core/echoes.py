@@ -137,12 +137,8 @@ def resolve_numpy(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, 
     contains_centre[centre_key[hit[:, 0]]] = True
     # detection per echo
     beam_of_key = np.arange(n_keys) // S
-    det = has.copy()
-    if model is not None:
-        u = _uniforms(key, rays[beam_of_key], np.arange(n_keys) % S)
-        if detect is not None:
-            u = np.where(contains_centre, detect[rays[beam_of_key]], u)
-        det &= u < model.probability_of(E)
+    det = _detected(has, E, contains_centre, rays[beam_of_key], np.arange(n_keys) % S,
+                    model, detect, key)
     det2 = det.reshape(m, S)
     num = det2.sum(axis=1)
     Em = np.where(det, E, -np.inf).reshape(m, S)
@@ -152,7 +148,6 @@ def resolve_numpy(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, 
     rank = np.cumsum(det2, axis=1)                   # echoes are in range order
     mode = beam.return_mode
     primary = last if mode == "last" else strongest
-    got = num > 0
     two = np.zeros(m, bool)
     if mode == "dual":
         # the strongest and the last; when the strongest is the last, the second
@@ -166,39 +161,66 @@ def resolve_numpy(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, 
         primary = np.where(two, near, strongest)
         last = np.where(two, far, strongest)  # the extra row's echo
     pk = np.arange(m) * S + primary
-    t2e = wx.transmission2(alpha, np.where(got, R[pk], 1.0)) if alpha else 1.0
-    Rp = np.where(got, R[pk], 1.0)
-    prho = E[pk] * Rp * Rp / t2e
-    pcar = CA[pk] / t2e
-    ret.valid[rays] = got
-    sel = np.nonzero(got)[0]
-    d = dom[pk[sel]]
-    ret.dist[rays[sel]] = R[pk[sel]]
-    ret.surface[rays[sel]] = surf.reshape(-1, 2)[d]
-    ret.normals[rays[sel]] = nrm.reshape(-1, 3)[d]
-    n = len(ret.dist)
     extra = np.nonzero(two)[0]
     ek = np.arange(m)[extra] * S + last[extra]
-    t2x = wx.transmission2(alpha, R[ek]) if alpha else 1.0
-    de = dom[ek]
-    rix = np.ones(n + len(extra), np.uint8)
-    nret = np.ones(n + len(extra), np.uint8)
-    rix[rays[sel]] = rank[sel, primary[sel]]
-    nret[rays[sel]] = num[sel]
-    rix[n:] = rank[extra, last[extra]]
-    nret[n:] = num[extra]
     # mixed points: a reported echo made of more than one object's light
     lo = np.full(n_keys, np.iinfo(np.int64).max)
     hi = np.full(n_keys, -1)
     objects = obj[k][hit].astype(np.int64)  # ufunc.at is ~40x slower when it must cast
     np.minimum.at(lo, fk, objects)
     np.maximum.at(hi, fk, objects)
-    stats.update(footprint_changed_rays=int(m), multi_echo_rays=int(np.count_nonzero(num > 1)),
-                 mixed_points=int(np.count_nonzero(lo[pk[sel]] != hi[pk[sel]])),
+    d, de = dom[pk], dom[ek]
+    return _report(ret, rays, alpha, E, R, CA, num, pk, rank[np.arange(m), primary],
+                   surf.reshape(-1, 2)[d], nrm.reshape(-1, 3)[d], lo[pk] != hi[pk],
+                   extra, ek, rank[extra, last[extra]], surf.reshape(-1, 2)[de],
+                   nrm.reshape(-1, 3)[de], stats)
+
+
+def _detected(has, E, centre, rays, echo, model, detect, key):
+    """Per echo (key): it holds samples and, with a detection model, is detected: the
+    echo holding the centre ray with the ray's own uniform (``detect``), the others
+    with ``_uniforms`` of (``rays``, ``echo``)."""
+    det = has.copy()
+    if model is not None:
+        u = _uniforms(key, rays, echo)
+        if detect is not None:
+            u = np.where(centre, detect[rays], u)
+        det &= u < model.probability_of(E)
+    return det
+
+
+def _report(ret, rays, alpha, E, R, CA, num, pk, rank_p, surf_p, nrm_p, mixed_p, extra, ek,
+            rank_x, surf_x, nrm_x, stats):
+    """The reported echoes written into ``ret`` and returned as ``Echoes``: per active
+    beam (``rays``) its detected echoes ``num``, its reported echo's key ``pk``, rank,
+    surface, normal and whether it is mixed; per second echo (beams ``extra``) its key
+    ``ek``, rank, surface and normal. (echoes, stats)."""
+    got = num > 0
+    Rpk = R[pk]
+    t2e = wx.transmission2(alpha, np.where(got, Rpk, 1.0)) if alpha else 1.0
+    Rp = np.where(got, Rpk, 1.0)
+    prho = E[pk] * Rp * Rp / t2e
+    pcar = CA[pk] / t2e
+    ret.valid[rays] = got
+    sel = np.nonzero(got)[0]
+    ret.dist[rays[sel]] = Rpk[sel]
+    ret.surface[rays[sel]] = surf_p[sel]
+    ret.normals[rays[sel]] = nrm_p[sel]
+    n = len(ret.dist)
+    Rx = R[ek]
+    t2x = wx.transmission2(alpha, Rx) if alpha else 1.0
+    rix = np.ones(n + len(extra), np.uint8)
+    nret = np.ones(n + len(extra), np.uint8)
+    rix[rays[sel]] = rank_p[sel]
+    nret[rays[sel]] = num[sel]
+    rix[n:] = rank_x
+    nret[n:] = num[extra]
+    stats.update(footprint_changed_rays=len(rays),
+                 multi_echo_rays=int(np.count_nonzero(num > 1)),
+                 mixed_points=int(np.count_nonzero(mixed_p[sel])),
                  second_returns=len(extra))
-    return Echoes(rays, prho, pcar, rays[extra], R[ek], surf.reshape(-1, 2)[de],
-                  nrm.reshape(-1, 3)[de], E[ek] * R[ek] ** 2 / t2x, CA[ek] / t2x,
-                  rix, nret, stats), stats
+    return Echoes(rays, prho, pcar, rays[extra], Rx, surf_x, nrm_x, E[ek] * Rx ** 2 / t2x,
+                  CA[ek] / t2x, rix, nret, stats), stats
 
 
 def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, rmax):
@@ -250,13 +272,8 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
     n_keys = m * S
     rays = c[beam[:m]]
     E, R, CA, has = E[:n_keys], R[:n_keys], CA[:n_keys], has[:n_keys].view(bool)
-    det = has.copy()
-    if model is not None:
-        beam_of_key = np.repeat(rays, S)
-        u = _uniforms(key, beam_of_key, np.tile(np.arange(S), m))
-        if detect is not None:
-            u = np.where(centre[:n_keys].view(bool), detect[beam_of_key], u)
-        det &= u < model.probability_of(E)
+    det = _detected(has, E, centre[:n_keys].view(bool), np.repeat(rays, S),
+                    np.tile(np.arange(S), m), model, detect, key)
     primary, second = np.empty(m, np.int64), np.empty(m, np.int64)
     num, two, rank_p, rank_s = (np.empty(m, np.uint8) for _ in range(4))
     surf_p, surf_s = np.empty((m, 2), np.int32), np.empty((m, 2), np.int32)
@@ -266,34 +283,11 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
                      *(x.ctypes.data for x in (primary, second, num, two, rank_p, rank_s,
                                                surf_p, surf_s, nrm_p, nrm_s)))
     choose(ctypes.byref(g), ctypes.byref(ch))
-    got = num > 0
     pk = np.arange(m) * S + primary
-    Rpk = R[pk]
-    t2e = wx.transmission2(alpha, np.where(got, Rpk, 1.0)) if alpha else 1.0
-    Rp = np.where(got, Rpk, 1.0)
-    prho = E[pk] * Rp * Rp / t2e
-    pcar = CA[pk] / t2e
-    ret.valid[rays] = got
-    sel = np.nonzero(got)[0]
-    ret.dist[rays[sel]] = Rpk[sel]
-    ret.surface[rays[sel]] = surf_p[sel]
-    ret.normals[rays[sel]] = nrm_p[sel]
-    n = len(ret.dist)
     extra = np.nonzero(two)[0]
-    ek = extra * S + second[extra]
-    Rx = R[ek]
-    t2x = wx.transmission2(alpha, Rx) if alpha else 1.0
-    rix = np.ones(n + len(extra), np.uint8)
-    nret = np.ones(n + len(extra), np.uint8)
-    rix[rays[sel]] = rank_p[sel]
-    nret[rays[sel]] = num[sel]
-    rix[n:] = rank_s[extra]
-    nret[n:] = num[extra]
-    stats.update(footprint_changed_rays=int(m), multi_echo_rays=int(np.count_nonzero(num > 1)),
-                 mixed_points=int(np.count_nonzero(mixed[pk[sel]])),
-                 second_returns=len(extra))
-    return Echoes(rays, prho, pcar, rays[extra], Rx, surf_s[extra], nrm_s[extra],
-                  E[ek] * Rx ** 2 / t2x, CA[ek] / t2x, rix, nret, stats), stats
+    return _report(ret, rays, alpha, E, R, CA, num, pk, rank_p, surf_p, nrm_p,
+                   mixed[pk].view(bool), extra, extra * S + second[extra], rank_s[extra],
+                   surf_s[extra], nrm_s[extra], stats)
 
 
 class _GroupArgs(ctypes.Structure):
