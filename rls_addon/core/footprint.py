@@ -155,8 +155,7 @@ def probe_rays(a, b, dirs, divergence_rad):
                         2.0 * np.pi / RING, mask.ctypes.data, amb.ctypes.data)
     n_amb = PROBE_SECTORS.get()(ctypes.byref(args))
     _numpy_sectors(mask, amb[:n_amb], a, b, dirs, divergence_rad)
-    rows = np.flatnonzero(mask)
-    return _ring_rays(rows, mask[rows], dirs, divergence_rad)
+    return _ring_rays(None, mask, dirs, divergence_rad)
 
 
 def edge_probes(pattern, hit, dist, normals, dirs, origins, step, divergence_rad):

@@ -2,17 +2,14 @@
  * reference this follows operation by operation, and gives the same bytes).
  *
  * rls_probe_sectors: per directed pair (i toward j) of rays across a depth edge, the
- * ring sector of i nearest j's direction: u, v = basis(d_i) (u = cross(d_i, up)
- * normalised, up = z or x for a vertical ray; v = cross(u, d_i)), delta = d_j - d_i,
- * phi = atan2(dot(delta, v) / vert, dot(delta, u) / h), k = rint(phi / sector) mod
- * RING; bit k of the ray's mask is set. numpy's dot of einsum("ck,ck->c") is summed
- * (x0 y0 + x2 y2) + x1 y1 and its norm (x0^2 + x1^2) + x2^2 (tested); atan2 may differ
- * from numpy's in the last bits, so a pair whose phi / sector lies within 1e-9 of a
- * half (or is not finite, or has delta 0) is left to numpy (listed in ``ambiguous``).
+ * ring sector k of i nearest j's direction (rls_sector, rls_sectors.h); bit k of the
+ * ray's mask is set. A pair rls_sector leaves to numpy (a sector on a boundary to the
+ * last bits of atan2) is listed in ``ambiguous``.
  *
  * rls_ring_rays: per ray of ``rows`` (or, without rows, per ray of the frame whose mask
- * is not empty) and per set bit k of its mask, in that order, the sub-ray direction d + hc[k] u + vs[k] v normalised (ring_directions; hc and vs are
- * numpy's h cos(phi_k) and vert sin(phi_k), passed in). Built without fused
+ * is not empty) and per set bit k of its mask, in that order, the sub-ray direction
+ * d + hc[k] u + vs[k] v normalised (ring_directions; hc and vs are numpy's
+ * h cos(phi_k) and vert sin(phi_k), passed in). Built without fused
  * multiply-add; single-threaded (the pairs across edges are a few tens of thousands). */
 #include <math.h>
 #include <stdint.h>
