@@ -109,25 +109,18 @@ class Returns:
 class _Bounces:
     """Ghost points from glossy surfaces, in two steps around the frame's other work.
 
-    ``__init__`` picks a seeded share of the glossy returns (``uniforms``: one per ray
-    from the ghost generator, so one ray's fate never depends on which other rays
-    returned) and starts casting their reflected beams (see ``World.start``: with the
+    ``__init__`` picks a seeded share of the glossy returns (``tables``: the world's
+    ``ghost.glossy_tables``; ``uniforms``: one per ray from the ghost generator, so one
+    ray's fate never depends on which other rays returned) and starts casting their reflected beams (see ``World.start``: with the
     compiled Embree loop the frame's other work goes on meanwhile).
     ``finish`` turns the beams that found something into ghost points at total path
     a + b along the original beam, labelled as what the reflected beam found; glossy
     returns whose reflected beam finds nothing return nothing."""
 
-    @staticmethod
-    def any_glossy(world):
-        """Whether anything in the world is glossy (a material, or an object's label)."""
-        obj_glossy, mat_glossy, _ = ghost.glossy_tables(world.geometry, ghost.glossy_labels())
-        return bool(obj_glossy.any() or mat_glossy.any())
-
-    def __init__(self, world, uniforms, origins, dirs, times, ret, rmax):
+    def __init__(self, world, tables, uniforms, origins, dirs, times, ret, rmax):
         self.world, self.rmax = world, rmax
-        self.aim = ghost.aim(ret.valid, ret.surface,
-                             ghost.glossy_tables(world.geometry, ghost.glossy_labels()),
-                             uniforms, ret.dist, dirs, ret.normals, origins)
+        self.aim = ghost.aim(ret.valid, ret.surface, tables, uniforms, ret.dist, dirs,
+                             ret.normals, origins)
         self.chosen = self.aim.chosen
         self.stats = {"glossy_hits": self.aim.glossy_hits, "ghosts": 0,
                       "bounce_rays": len(self.chosen)}
@@ -326,9 +319,11 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     if air is not None:
         draws.medium, draws.medium_range = pick(rng.random(n)), pick(rng.random(n))
     # Which glossy returns send a ghost: the ghost generator's own uniforms, drawn only
-    # where something is glossy.
-    glossy_u = pick(ghost_rng.random(n)) if s.ghosting and _Bounces.any_glossy(world) \
+    # where something is glossy (a material, or an object's label).
+    glossy = ghost.glossy_tables(world.geometry, ghost.glossy_labels()) if s.ghosting \
         else None
+    glossy_u = pick(ghost_rng.random(n)) \
+        if glossy is not None and (glossy[0].any() or glossy[1].any()) else None
 
     dist, body, tri, normals = pending()
     reused = scene.reused > reused
@@ -342,7 +337,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     # Rays next to a depth edge cast their beam's sub-rays (before ghosts change rows)
     sub = footprint.SubRays(beam, world, pattern, origins, dirs, tscene, ret, tri, rmax) \
         if beam is not None else None
-    bounces = _Bounces(world, glossy_u, origins, dirs, tscene, ret, rmax) \
+    bounces = _Bounces(world, glossy, glossy_u, origins, dirs, tscene, ret, rmax) \
         if glossy_u is not None and ret.valid.any() else None
 
     g = world.geometry
