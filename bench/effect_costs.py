@@ -45,10 +45,10 @@ def _best(fn, repeat):
 
 def scene_costs(geometry, pose, preset, repeat):
     """{case: {"s": seconds, "points": n, "ratio": over clear}, ...} for one scene."""
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
     from rls_addon.core.casting import caster_factory
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
 
     scene = PreparedScene(geometry, pose[:3, 3], preset.range.max_m,
                           caster_factory("auto")[0])
@@ -79,7 +79,7 @@ def measure(quick=False, street=None):
         open_sky_geometry,
         street_geometry,
     )
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.device.presets import get_preset
 
     repeat = 3 if quick else 7
     if street is None:

@@ -7,11 +7,11 @@ import time
 
 import numpy as np
 
-from rls_addon.core.bodies import PreparedScene, RigidBodies, TimedScene
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.settings import ScanSettings
-from rls_addon.core.geometry import SceneGeometry
-from rls_addon.core.motion import Track
+from rls_addon.core.world.bodies import PreparedScene, RigidBodies, TimedScene
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scan.settings import ScanSettings
+from rls_addon.core.scene.geometry import SceneGeometry
+from rls_addon.core.scene.motion import Track
 
 
 def best(fn, repeat=3):
@@ -207,7 +207,7 @@ def _join(geoms):
 def infranuc_disks(disk_counts=(100, 300, 1000, 3000, 6000, 20000), seeds=12):
     """Spread (std over seeds) of InfraNUC and its time against the number of disks, on
     a LiDAR-like cloud (density falling with distance from a pole) over 20 x 30 m."""
-    from rls_addon.core.metrics import infra_lob_metrics
+    from rls_addon.core.metrics.infra import infra_lob_metrics
     from rls_addon.core.points import empty_points
 
     rng = np.random.default_rng(3)

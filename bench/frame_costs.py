@@ -43,10 +43,10 @@ def frame_casts(scene, pattern, pose, preset, settings, frame):
     them: the pattern's rays through ``World.start`` (watertight re-check, float64
     refinement), then the ghost rays of the glossy returns the frame's own seeded draws
     send on (``ghost.aim``); and how many ghost rays that is."""
-    from rls_addon.core import effects, ghost
-    from rls_addon.core.frame import sensor_axes
-    from rls_addon.core.settings import resolve_range
-    from rls_addon.core.world import World
+    from rls_addon.core.physics import effects, ghost
+    from rls_addon.core.scan.frame import sensor_axes
+    from rls_addon.core.scan.settings import resolve_range
+    from rls_addon.core.world.world import World
 
     rmin, rmax = resolve_range(preset, settings)
     origin, rot = sensor_axes(pose)
@@ -73,12 +73,13 @@ def scene_ratios(geometry, pose, preset, repeat=7, bvh_repeat=2):
     import bpy  # noqa: F401  (mathutils)
 
     from bench.baselines import bare_loop
-    from rls_addon.core import assemble, ghost, returns
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.physics import assemble, ghost
+    from rls_addon.core.world import returns
+    from rls_addon.core.world.bodies import PreparedScene
     from rls_addon.core.casting import BVHCaster
     from rls_addon.core.casting.embree import EmbreeCaster
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
 
     pattern = preset.pattern()
     rmax = preset.range.max_m
@@ -188,7 +189,7 @@ def driving_end_to_end(frames=21, repeat=2):
 def measure(street=None, quick=False):
     """Both scenes and the end-to-end drive; ``street``: the 1M street if built."""
     from bench.scene import OPEN_SKY_POSE, SENSOR_POSE, open_sky_geometry, street_geometry
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.device.presets import get_preset
 
     preset = get_preset("hesai_pandar64")
     rep = 3 if quick else 7

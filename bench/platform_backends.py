@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parent.parent
 def _scene(triangles):
     sys.path.insert(0, str(ROOT))
     from bench.scene import SENSOR_POSE, street_geometry
-    from rls_addon.core.geometry import clean_for_casting
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.scene.geometry import clean_for_casting
+    from rls_addon.core.device.presets import get_preset
 
     g = street_geometry(triangles)
     p = get_preset("hesai_pandar64")
@@ -131,9 +131,9 @@ def child(name, triangles):
     res["cast_s"], tri = _best(cast, 2 if name == "bvhtree" else 5)
     np.save(f"/tmp/rls-platform-bench-{name}.npy", tri)
     if factory is not None and name not in ("embree_1t", "open3d_1t"):
-        from rls_addon.core.bodies import PreparedScene
-        from rls_addon.core.frame import scan_frame
-        from rls_addon.core.settings import ScanSettings
+        from rls_addon.core.world.bodies import PreparedScene
+        from rls_addon.core.scan.frame import scan_frame
+        from rls_addon.core.scan.settings import ScanSettings
 
         PreparedScene.reuse_casts = False  # every frame cold, as bench/run.py times them
         scene = PreparedScene(g, pose[:3, 3], rmax, factory)

@@ -28,12 +28,12 @@ VISIBILITIES_M = (20, 35, 50, 75, 100, 150, 200, 300, 500, 1000, 2000, 5000)
 def measure(presets=PRESETS, visibilities=VISIBILITIES_M):
     """{preset: {"clear": points, "rows": [(visibility, surface share, false share)]}}."""
     from bench.scene import OPEN_SKY_POSE, open_sky_geometry
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
     from rls_addon.core.casting import caster_factory
-    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.scan.frame import scan_frame
     from rls_addon.core.labels import WEATHER_LABEL
-    from rls_addon.core.presets import get_preset
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.device.presets import get_preset
+    from rls_addon.core.scan.settings import ScanSettings
 
     geometry = open_sky_geometry()
     out = {}

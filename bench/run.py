@@ -84,7 +84,7 @@ def best(fn, repeat=3):
 
 
 def preset_or_fallback(label, pid):
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.device.presets import get_preset
 
     try:
         return get_preset(pid), None
@@ -113,8 +113,8 @@ class Backends:
 
         from rls_addon.core.casting import BVHCaster
         from rls_addon.core.casting.embree import EmbreeCaster
-        from rls_addon.core.bodies import PreparedScene
-        from rls_addon.core.geometry import clean_for_casting
+        from rls_addon.core.world.bodies import PreparedScene
+        from rls_addon.core.scene.geometry import clean_for_casting
 
         self.origin = np.asarray(origin, float)
         self.build = {}
@@ -218,7 +218,7 @@ def still_sensor_frame(scene, pattern, pose, preset, settings, repeat):
     """Best time of a frame after the first of a sensor that does not move: the static
     cast kept by ``scene`` is reused (``PreparedScene.cast``); ghosts, noise, dropout
     and points are made anew for every frame (the frame number changes their draws)."""
-    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.scan.frame import scan_frame
 
     scene.reuse_casts = True
     try:
@@ -233,9 +233,9 @@ def still_sensor_frame(scene, pattern, pose, preset, settings, repeat):
 
 def rays_cast_per_frame(geometry, pose, preset, factory):
     """Rays actually cast by one default ``scan_frame`` (and by ``PreparedScene.cast``)."""
-    from rls_addon.core.bodies import PreparedScene
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.world.bodies import PreparedScene
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
 
     cf = CountingFactory(factory)
     scene = PreparedScene(geometry, pose[:3, 3], preset.range.max_m, cf)
@@ -250,8 +250,8 @@ def rays_cast_per_frame(geometry, pose, preset, factory):
 # ---- sections --------------------------------------------------------------------------
 
 def devices_section(geometry, pose, quick):
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
 
     origin = pose[:3, 3]
     presets = []
@@ -342,8 +342,8 @@ sys.path.insert(0, {root!r})
 import numpy as np
 import bpy
 from bench.scene import street_geometry, SENSOR_POSE
-from rls_addon.core.geometry import clean_for_casting
-from rls_addon.core.presets import get_preset
+from rls_addon.core.scene.geometry import clean_for_casting
+from rls_addon.core.device.presets import get_preset
 backend, tris = sys.argv[1], int(sys.argv[2])
 g = street_geometry(tris)
 p = get_preset('hesai_pandar64')
@@ -413,7 +413,7 @@ def engine_costs_section(g, pose, preset, quick):
     from bench import engine_costs as ec
     from rls_addon.core.casting import BVHCaster
     from rls_addon.core.casting.embree import EmbreeCaster
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
 
     log("bench: BVHTree frame against the bare loop over the same rays")
     scene = PreparedScene(g, pose[:3, 3], preset.range.max_m, BVHCaster)
@@ -442,9 +442,9 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
     from rls_addon.blender.extract import read_instances
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.source import BlenderScene
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
     from rls_addon.core.casting import EmbreeCaster
-    from rls_addon.core.session import MOVER_MARGIN_M, ScanSession
+    from rls_addon.core.scan.session import MOVER_MARGIN_M, ScanSession
 
     rls_addon.register()
     try:
@@ -526,8 +526,8 @@ def frame_profile(scene, pattern, pose, preset, frames=5, top=10):
     import io
     import pstats
 
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
 
     prof = cProfile.Profile()
     prof.enable()
@@ -551,8 +551,8 @@ def ghosting_cost(scene, pattern, pose, preset, repeat=3):
     (ghost counts, glossy fraction of the scene)."""
     import dataclasses
 
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
 
     if "ghosting" not in {f.name for f in dataclasses.fields(ScanSettings)}:
         return None
@@ -598,8 +598,8 @@ def tessellation_study(preset, levels):
     from bench.scene import cylinder, uv_sphere
     from rls_addon.core.casting import BVHCaster
     from rls_addon.core.casting.embree import EmbreeCaster
-    from rls_addon.core.bodies import PreparedScene
-    from rls_addon.core.geometry import SceneGeometry
+    from rls_addon.core.world.bodies import PreparedScene
+    from rls_addon.core.scene.geometry import SceneGeometry
 
     dirs = np.ascontiguousarray(preset.pattern().directions)
     origin = np.zeros(3)
@@ -967,7 +967,7 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
              "time: with BVHTree the cars in their own frames (one shared structure built "
              "once), with Embree the static street and every car as instances of one "
              "traversal, each car moved by its track at time steps, every hit refined at "
-             "the ray's own time (rls_addon/core/instancing.py); *N "
+             "the ray's own time (rls_addon/core/world/instancing.py); *N "
              "sub-steps* is the paper's method as a simulator runs it: the cars are placed "
              "and rebuilt at the middle of each of N sub-sweeps. Error: distance of car "
              "points (ghosts excluded) from the car surface where the car really was at the "
@@ -1097,7 +1097,7 @@ def measure(quick):
 
     from bench.scene import SENSOR_POSE, street_geometry
 
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
 
     # Every frame timed here is cold: repeats of a frame would otherwise reuse the static
     # cast of the one before (a still sensor's frames do, see PreparedScene.cast), and a

@@ -23,7 +23,7 @@ and the cores other work kept busy during it (/proc/stat less the command's own 
 * That the 2-worker outputs are the 1-worker ones: sha256 of every file (the study's
   timing columns and fields set aside).
 * What the 1-worker runs say about the cost model of ``--workers auto``
-  (``rls_addon/core/cluster.py``).
+  (``rls_addon/core/scan/cluster.py``).
 """
 
 import argparse
@@ -285,8 +285,8 @@ def cost_model(dataset_summary, study_summary, traffic_frames):
     dataset's steps time each scan (``seconds``); the rest of the run (frame changes,
     ground truth, files) is the per-scan overhead. Rays are counted as
     ``commands.distribute`` counts them (the pattern's rays per scan)."""
-    from rls_addon.core import cluster
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.scan import cluster
+    from rls_addon.core.device.presets import get_preset
 
     frames = dataset_summary["frames"]
     rays = sum(len(get_preset(DEVICES[n]).pattern(frames[0])) for n in dataset_summary["sensors"])
@@ -504,7 +504,7 @@ def section(res):
     cm, be = res.get("cost_model"), d.get("break_even")
     if cm:
         c, md, ms_ = cm["constants"], cm["dataset"], cm["study"]
-        L.append(f"**`--workers auto`** (`rls_addon/core/cluster.py`) estimates a run's time "
+        L.append(f"**`--workers auto`** (`rls_addon/core/scan/cluster.py`) estimates a run's time "
                  f"in one process as scans x {c['SECONDS_PER_SCAN']:g} s + rays x "
                  f"{c['SECONDS_PER_RAY']:g} s and starts workers above "
                  f"{c['AUTO_MIN_SECONDS']:g} s. Measured in the 1-worker runs above: the "

@@ -12,7 +12,7 @@ scene object, in labelled collections) for the BVHTree pipeline on real ``bpy`` 
 
 import numpy as np
 
-from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 from rls_addon.core.labels import NAME_TO_ID
 
 MATERIALS = [MaterialInfo("default"), MaterialInfo("asphalt", 0.15),

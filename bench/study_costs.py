@@ -82,7 +82,7 @@ class BenchStudyScene:
 
     def static_geometry(self, hidden_labels):
         from bench.scene import MATERIALS
-        from rls_addon.core.geometry import ObjectInfo, SceneGeometry
+        from rls_addon.core.scene.geometry import ObjectInfo, SceneGeometry
 
         keep = [p for p in self.parts if p[1] not in hidden_labels]
         verts, tris, objs, mats, objects, off = [], [], [], [], [], 0
@@ -100,14 +100,14 @@ class BenchStudyScene:
 
 
 def _config(device, backend, k=(1, 2), exhaustive_limit=None):
-    from rls_addon.core.study import StudyConfig
+    from rls_addon.core.study.study import StudyConfig
 
     extra = {} if exhaustive_limit is None else {"exhaustive_limit": exhaustive_limit}
     return StudyConfig(device=device, k=tuple(k), backend=backend, **extra)
 
 
 def _run(candidates, device, backend, exhaustive_limit=None, scan_all=None):
-    from rls_addon.core.study import run_study
+    from rls_addon.core.study.study import run_study
 
     return run_study(BenchStudyScene(candidates), _config(device, backend,
                                                           exhaustive_limit=exhaustive_limit),
@@ -168,8 +168,8 @@ def study_memory_per_1000(candidates=(100, 400), device="generic_uniform32", bac
 
 def _cast_alone(candidates, device, backend, repeat):
     """Mean over ``candidates`` of the best of ``repeat`` bare casts of each one's rays."""
-    from rls_addon.core.settings import resolve_range
-    from rls_addon.core.study import StudyScanner, study_inputs
+    from rls_addon.core.scan.settings import resolve_range
+    from rls_addon.core.study.study import StudyScanner, study_inputs
 
     scene = BenchStudyScene(candidates)
     cfg = _config(device, backend)
@@ -214,8 +214,8 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
     frame's points), ``disks_s`` (``DiskLayout.counts`` of those) and ``scan_s`` (all
     of ``StudyScanner.scan``); and once per study, ``disk_grid_s`` (the layout's
     ``DiskCounter``, built while the scanner prepares the scene)."""
-    from rls_addon.core.disk_counter import DiskCounter
-    from rls_addon.core.study import StudyScanner, study_inputs
+    from rls_addon.core.metrics.disk_counter import DiskCounter
+    from rls_addon.core.study.study import StudyScanner, study_inputs
 
     scene = BenchStudyScene(candidates)
     cfg = _config(device, backend)

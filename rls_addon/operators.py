@@ -11,15 +11,25 @@ from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, St
 from . import properties
 from .blender import batch, preset_catalog
 from .blender.images import image_from_png
-from .blender.preview import COLOR_ATTRIBUTES, color_preview, preview_object, preview_world_points
+from .blender.preview import (
+    COLOR_ATTRIBUTES,
+    color_preview,
+    preview_object,
+    preview_world_points,
+)
 from .blender.region import LOB_PROPERTY, is_lob, lob_polygon_world
 from .blender.sensor import DEFAULT_PRESET, is_lidar, lidar_objects, lidar_props
 from .core.errors import PresetError, RLSError
-from .core.metrics import infra_lob_metrics
+from .core.metrics.infra import infra_lob_metrics
 from .core.points import empty_points
-from .core.preset_schema import ID_RE
-from .core.presets import RangeModel
-from .core.user_presets import delete_user_preset, export_preset, import_preset, save_user_preset
+from .core.device.schema import ID_RE
+from .core.device.presets import RangeModel
+from .core.device.user_presets import (
+    delete_user_preset,
+    export_preset,
+    import_preset,
+    save_user_preset,
+)
 from .properties import COLOR_ITEMS, preset_items
 
 # What the last scan operator did (for scripts and tests; reports go to the UI).

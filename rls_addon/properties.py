@@ -20,11 +20,21 @@ from .blender import preset_catalog
 from .blender.preview import COLOR_ATTRIBUTES
 from .blender.region import is_lob
 from .blender.sensor import DEFAULT_PRESET
-from .core.choices import (BACKENDS, DETECTION, FIELDS, FOOTPRINT, FORMATS, FRAME_SPACES,
-                           MOTION, RETURN_MODES, SNOW_TYPES, WEATHER)
+from .core.choices import (
+    BACKENDS,
+    DETECTION,
+    FIELDS,
+    FOOTPRINT,
+    FORMATS,
+    FRAME_SPACES,
+    MOTION,
+    RETURN_MODES,
+    SNOW_TYPES,
+    WEATHER,
+)
 from .core.errors import RLSError
-from .core.io import DEFAULT_FIELDS
-from .core.io.point_types import POINT_TYPE_CHOICES
+from .core.output.io import DEFAULT_FIELDS
+from .core.output.io.point_types import POINT_TYPE_CHOICES
 from .core.labels import DEFAULT_LABELS, label_id
 
 COLOR_ITEMS = [(a, a.title(), f"Colour preview points by {a}") for a in COLOR_ATTRIBUTES]

@@ -11,7 +11,7 @@ from .blender.extract import GEOMETRY_TYPES
 from .blender.region import is_lob
 from .blender.sensor import is_lidar, lidar_objects
 from .core.casting import backend_status
-from .core.presets import FAMILIES
+from .core.device.presets import FAMILIES
 
 FAMILY_ICONS = {"spinning": "LIGHTPROBE_SPHERE", "mems": "LIGHTPROBE_PLANE",
                 "risley": "LIGHTPROBE_VOLUME", "custom": "FILE_TEXT"}

@@ -3,8 +3,8 @@ comparison rule (exact-range agreement everywhere, identical hit/miss away from 
 
 import numpy as np
 
-from rls_addon.core.bodies import PreparedScene
-from rls_addon.core.geometry import SceneGeometry
+from rls_addon.core.world.bodies import PreparedScene
+from rls_addon.core.scene.geometry import SceneGeometry
 
 
 def geometry(vertices, triangles):

@@ -8,8 +8,8 @@ progress (Esc in the modal operators; scripts and tests may call it, e.g. from a
 frame-change handler).
 """
 
-from ..core.io.writer import make_writer
-from ..core.run import ScanRun
+from ..core.output.io.writer import make_writer
+from ..core.scan.run import ScanRun
 from .preview import show_points
 from .sensor import absolute_output, lidar_props, read_settings, sensor_job
 from .source import BlenderScene

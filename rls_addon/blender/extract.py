@@ -17,8 +17,8 @@ import itertools
 
 import numpy as np
 
-from ..core.geometry import MaterialInfo
-from ..core.instances import Instance, object_table, world_geometry
+from ..core.scene.geometry import MaterialInfo
+from ..core.scene.instances import Instance, object_table, world_geometry
 from .labels import object_label
 from .materials import material_info
 from .sensor import is_lidar

@@ -3,7 +3,7 @@
 import bpy
 import numpy as np
 
-from ..core.png import decode_png_rgba
+from ..core.output.png import decode_png_rgba
 
 IMAGE_PROPERTY = "rls_density"
 

@@ -1,6 +1,6 @@
 """LiDAR-relevant facts of Blender materials."""
 
-from ..core.geometry import MaterialInfo
+from ..core.scene.geometry import MaterialInfo
 
 REFLECTIVITY_PROPERTY = "rls_reflectivity"
 GLOSSY_PROPERTY = "rls_glossy"

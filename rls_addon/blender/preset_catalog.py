@@ -16,8 +16,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..core.errors import PresetError
-from ..core.presets import FAMILIES, builtin_presets, get_preset, load_preset
-from ..core.user_presets import user_presets
+from ..core.device.presets import FAMILIES, builtin_presets, get_preset, load_preset
+from ..core.device.user_presets import user_presets
 
 ENV_USER_DIR = "RLS_USER_PRESET_DIR"
 FAMILY_LABELS = {"spinning": "Spinning", "mems": "MEMS", "risley": "Risley", "custom": "Custom"}

@@ -6,7 +6,13 @@ region of interest is a flat rectangle marked ``rls_infralob``. The paper's thre
 placement scenes are in ``scenes/``.
 """
 
-from .scenes.build import box, collection as _collection, cylinder, plane, standard_materials
+from .scenes.build import (
+    box,
+    collection as _collection,
+    cylinder,
+    plane,
+    standard_materials,
+)
 
 
 def build_street(scene):

@@ -4,7 +4,7 @@ through ``batch.make_run`` and the core's ``ScanRun``)."""
 import bpy
 
 from ..core.casting import caster_factory
-from ..core.session import ScanSession
+from ..core.scan.session import ScanSession
 from .sensor import read_settings, sensor_job
 from .source import BlenderScene
 

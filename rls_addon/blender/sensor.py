@@ -6,8 +6,8 @@ import numpy as np
 
 from ..core.errors import OutputError, SceneError
 from ..core.labels import label_ids
-from ..core.run import SensorJob
-from ..core.settings import LidarSettings, OutputSettings, ScanSettings
+from ..core.scan.run import SensorJob
+from ..core.scan.settings import LidarSettings, OutputSettings, ScanSettings
 
 DEFAULT_PRESET = "generic_uniform32"
 

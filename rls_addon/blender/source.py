@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..core.source import Mobility, SceneRead
+from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh
 from .motion import SweepClock, may_deform, may_move, read_state, timeless
 

@@ -3,10 +3,10 @@ InfraLOB, its mounts and its static geometry. The study itself runs in the core.
 
 import bpy
 
-from ..core import study as core_study
+from ..core.study import study as core_study
 from ..core.errors import RegionError, SceneError
-from ..core.instances import object_table, world_geometry
-from ..core.source import SceneRead
+from ..core.scene.instances import object_table, world_geometry
+from ..core.scene.source import SceneRead
 from .extract import read_instances
 from .region import is_lob, lob_polygon_world
 from .scenes.build import is_mount, mount_position

@@ -72,7 +72,7 @@ class PieceResult:
 def scan_piece(blend, jobs, frames, writer):
     """Scan ``frames`` x ``jobs`` (``core.run.SensorJob``) of ``blend`` with ``writer``;
     returns a ``PieceResult`` (the steps, for the run to absorb)."""
-    from ..core.run import ScanRun
+    from ..core.scan.run import ScanRun
 
     state = _open(blend)
     run = ScanRun(state["source"], jobs, frames, writer=writer, sessions=state["sessions"],
@@ -85,7 +85,7 @@ def scan_piece(blend, jobs, frames, writer):
 def study_piece(blend, cfg, indices):
     """Scan the candidates ``indices`` of the study ``cfg`` of ``blend``; returns their
     ``core.study.CandidateScan`` s (the worker keeps the study's prepared scene)."""
-    from ..core import study as core_study
+    from ..core.study import study as core_study
 
     state = _open(blend)  # first: it imports bpy the way a worker must
     from .study import BlenderStudyScene

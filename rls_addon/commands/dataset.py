@@ -6,7 +6,7 @@ import json
 import sys
 
 from ..core.choices import BACKENDS, MOTION
-from ..core.datasets import LAYOUTS
+from ..core.output.datasets import LAYOUTS
 from ..core.errors import SceneError
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import _print_step, open_scene, parse_frames
@@ -70,9 +70,9 @@ def carrier_of(obj, classes):
 
 
 def dataset_writer(args, scene, sensors, classes):
-    from ..core.datasets.common import Split
-    from ..core.datasets.kitti import KittiWriter
-    from ..core.datasets.opv2v import Opv2vWriter, agents_for
+    from ..core.output.datasets.common import Split
+    from ..core.output.datasets.kitti import KittiWriter
+    from ..core.output.datasets.opv2v import Opv2vWriter, agents_for
 
     if args.layout == "kitti":
         val = None
@@ -95,7 +95,7 @@ def dataset_run(args):
     from ..blender.sensor import find_lidar, lidar_objects, read_settings, sensor_job
     from ..blender.source import BlenderScene
     from ..core.labels import label_ids, label_name
-    from ..core.run import ScanRun
+    from ..core.scan.run import ScanRun
 
     scene = open_scene(args.blend)
     sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)

@@ -26,9 +26,9 @@ def run(args):
     from ..blender.sample_scene import build_street
     from ..blender.sensor import read_settings, sensor_job
     from ..blender.source import BlenderScene
-    from ..core.io.writer import make_writer, picture_path
-    from ..core.presets import get_preset
-    from ..core.run import ScanRun
+    from ..core.output.io.writer import make_writer, picture_path
+    from ..core.device.presets import get_preset
+    from ..core.scan.run import ScanRun
 
     preset = get_preset(args.device)
     check_output_dir(args.out)
@@ -102,8 +102,8 @@ def run_demo_study(out_dir, device):
     from ..blender.quiet import blender_output_silenced
     from ..blender.scenes import build_scene
     from ..blender.study import run_study
-    from ..core.study import StudyConfig
-    from ..core.study_report import write_report
+    from ..core.study.study import StudyConfig
+    from ..core.study.report import write_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if not hasattr(bpy.types.Object, "rls_lidar"):

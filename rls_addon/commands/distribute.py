@@ -15,8 +15,14 @@ import os
 import sys
 import time
 
-from ..core.cluster import (ClusterError, choose_workers, cluster_client, parse_workers,
-                            run_tasks, shards)
+from ..core.scan.cluster import (
+    ClusterError,
+    choose_workers,
+    cluster_client,
+    parse_workers,
+    run_tasks,
+    shards,
+)
 from ..core.errors import SceneError
 
 PIECES_PER_WORKER = 4  # more pieces than workers: balance, and finer progress

@@ -17,7 +17,13 @@ import sys
 
 
 from ..core.errors import InputError, OutputError, RegionError
-from ..core.metrics import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, infra_lob_metrics
+from ..core.metrics.infra import (
+    DEFAULT_CELL_M,
+    DEFAULT_DISKS,
+    DEFAULT_RADIUS_M,
+    DEFAULT_SEED,
+    infra_lob_metrics,
+)
 
 
 def add_parser(sub):
@@ -74,7 +80,7 @@ def polygon_from_blend(spec):
 
 def world_points(path):
     """Read one cloud and bring it to the world frame using its sidecar."""
-    from ..core.io import read_cloud, read_sidecar
+    from ..core.output.io import read_cloud, read_sidecar
     from ..core.points import points_to_world
 
     pts = read_cloud(path)
@@ -84,7 +90,7 @@ def world_points(path):
 
 def cloud_names(paths):
     """A short name per cloud: its sidecar's sensor (device, frame) or the file's stem."""
-    from ..core.io import read_sidecar
+    from ..core.output.io import read_sidecar
 
     names = []
     for path in paths:
@@ -102,7 +108,7 @@ def cloud_names(paths):
 
 def chart_title(args, result):
     """The density chart's title: the region, the clouds, InfraD and InfraNUC."""
-    from ..core.charts import density_title
+    from ..core.metrics.charts import density_title
 
     if args.lob_polygon:
         region = f"region {os.path.basename(str(args.lob_polygon))}"
@@ -124,8 +130,8 @@ def run(args):
     out = result.to_dict()
     out["clouds"] = [str(p) for p in args.clouds]
     if args.density_png:
-        from ..core.charts import density_png
-        from ..core.io import atomic_write_bytes
+        from ..core.metrics.charts import density_png
+        from ..core.output.io import atomic_write_bytes
 
         if not args.density_png.lower().endswith(".png"):
             raise OutputError(f"--density-png must name a .png file, got {args.density_png}")

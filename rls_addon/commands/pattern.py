@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import OutputError
-from ..core.io import atomic_write_bytes
+from ..core.output.io import atomic_write_bytes
 
 
 def add_parser(sub):
@@ -24,9 +24,9 @@ def add_parser(sub):
 
 
 def run(args):
-    from ..core.patterns.base import angles_from_directions
-    from ..core.patterns.custom import write_pattern_csv
-    from ..core.presets import get_preset, pattern_span
+    from ..core.device.patterns.base import angles_from_directions
+    from ..core.device.patterns.custom import write_pattern_csv
+    from ..core.device.presets import get_preset, pattern_span
 
     preset = get_preset(args.name, args.user_dir)
     out = Path(args.out)

@@ -38,12 +38,12 @@ def _summary(p):
 
 
 def run(args):
-    from ..core import presets as pr
+    from ..core.device import presets as pr
 
     if args.action == "list":
         items = dict(pr.builtin_presets())
         if args.user_dir:
-            from ..core.user_presets import user_presets
+            from ..core.device.user_presets import user_presets
 
             for pid, p in user_presets(args.user_dir).items():
                 items.setdefault(pid, p)
@@ -74,7 +74,7 @@ def run(args):
             pat = p.pattern()
             print(f"{f}: ok ({p.id}, {p.family}, {len(pat)} rays per frame)")
         return bad
-    from ..core import user_presets as up
+    from ..core.device import user_presets as up
 
     if args.action == "import":
         p = up.import_preset(args.file, args.user_dir, overwrite=args.overwrite)

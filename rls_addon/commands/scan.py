@@ -7,10 +7,18 @@ every LiDAR of the run."""
 import json
 import sys
 
-from ..core.choices import (BACKENDS, DETECTION, FIELDS, FOOTPRINT, FORMATS, FRAME_SPACES,
-                            MOTION, RETURN_MODES)
+from ..core.choices import (
+    BACKENDS,
+    DETECTION,
+    FIELDS,
+    FOOTPRINT,
+    FORMATS,
+    FRAME_SPACES,
+    MOTION,
+    RETURN_MODES,
+)
 from ..core.errors import SceneError
-from ..core.io.point_types import POINT_TYPES
+from ..core.output.io.point_types import POINT_TYPES
 from .distribute import add_arguments as add_cluster_arguments
 
 
@@ -113,7 +121,7 @@ def _weather(text):
     if text is None:
         return None
     from ..core.errors import SettingsError
-    from ..core.weather import parse_weather
+    from ..core.physics.weather import parse_weather
 
     try:
         air = parse_weather(text)
@@ -168,7 +176,7 @@ def open_scene(path):
 
 def check_output_dir(path):
     """The output folder, created and writable, or an OutputError (one line)."""
-    from ..core.io import writable_folder
+    from ..core.output.io import writable_folder
 
     writable_folder(path)
 
@@ -195,8 +203,8 @@ def scan_run(args):
         sensor_job,
     )
     from ..blender.source import BlenderScene
-    from ..core.io.writer import make_writer
-    from ..core.run import ScanRun
+    from ..core.output.io.writer import make_writer
+    from ..core.scan.run import ScanRun
 
     scene = open_scene(args.blend)
     sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)

@@ -29,10 +29,15 @@ import sys
 
 from ..core.choices import BACKENDS
 from ..core.errors import SceneError
-from ..core.metrics import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
-from ..core.placement import DEFAULT_EXHAUSTIVE_LIMIT
-from ..core.study import parse_values
-from ..core.study_report import REPORT_FILES, write_report
+from ..core.metrics.infra import (
+    DEFAULT_CELL_M,
+    DEFAULT_DISKS,
+    DEFAULT_RADIUS_M,
+    DEFAULT_SEED,
+)
+from ..core.study.placement import DEFAULT_EXHAUSTIVE_LIMIT
+from ..core.study.study import parse_values
+from ..core.study.report import REPORT_FILES, write_report
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import check_output_dir, open_scene, parse_frames
 
@@ -87,7 +92,7 @@ def add_parser(sub):
 
 def config_from_args(args):
     from ..core.labels import label_ids, label_name
-    from ..core.study import StudyConfig
+    from ..core.study.study import StudyConfig
 
     ks = sorted({int(v) for v in parse_values(args.k, "--k")})
     if any(k < 1 or k != float(k) for k in ks):

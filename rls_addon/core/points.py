@@ -73,7 +73,7 @@ def points_to_world(points, info, where="the cloud"):
     (the sidecar's ``sensor_poses`` knots). ``InputError`` naming ``where`` when the
     sidecar cannot say."""
     from .errors import InputError
-    from .motion import poses_at
+    from .scene.motion import poses_at
 
     space = info.get("frame_space")
     if space is None and isinstance(info.get("frame"), str):

@@ -125,7 +125,7 @@ def test_a_still_lidar_builds_its_static_scene_once(scene, backend):
     joins and digests the static geometry again; an edit is seen in the next frame."""
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.source import BlenderScene
-    from rls_addon.core import session as scan_module
+    from rls_addon.core.scan import session as scan_module
     from rls_addon.core.casting import caster_factory
 
     wall = mesh_object("Wall", [(5, -5, -3), (5, 5, -3), (5, 5, 5), (5, -5, 5)],

@@ -94,7 +94,7 @@ def test_install_zip_and_scan_through_installed_operator(tmp_path):
     files = sorted(p.name for p in out.iterdir())
     clouds = [f for f in files if f.endswith(".pcd")]
     assert len(clouds) == 1 and clouds[0].replace(".pcd", ".json") in files
-    from rls_addon.core.io import read_cloud
+    from rls_addon.core.output.io import read_cloud
 
     points = read_cloud(out / clouds[0])
     assert len(points) == info["preview_points"] > 1000

@@ -155,9 +155,9 @@ def test_one_session_over_frames_keeps_every_point_on_the_moving_box(scene, back
     the car."""
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.source import BlenderScene
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
     from rls_addon.core.casting import caster_factory
-    from rls_addon.core.session import ScanSession
+    from rls_addon.core.scan.session import ScanSession
 
     lidar, start = moving_box_setup(scene)
     box("Ground", (-30, -30, -3), (30, 30, -2))
@@ -209,9 +209,9 @@ def test_a_driving_lidar_shares_one_built_scene_over_frames(scene, backend):
     gives; far enough on, the scene is prepared anew."""
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.source import BlenderScene
-    from rls_addon.core import session as scan_module
+    from rls_addon.core.scan import session as scan_module
     from rls_addon.core.casting import caster_factory
-    from rls_addon.core.session import ScanSession
+    from rls_addon.core.scan.session import ScanSession
 
     scene.render.fps, scene.render.fps_base = FPS, 1.0
     box("Street", (-60, -8, -1), (60, 8, 6))
@@ -244,7 +244,7 @@ def test_a_driving_lidars_sensor_frame_cloud_maps_onto_the_scene_with_its_sideca
     the room's walls within 1 cm; the sweep-start pose alone is metres off."""
     from rls_addon.blender.batch import make_run
     from rls_addon.commands.metrics import world_points
-    from rls_addon.core.io import read_cloud, read_sidecar
+    from rls_addon.core.output.io import read_cloud, read_sidecar
 
     scene.render.fps, scene.render.fps_base = FPS, 1.0
     box("Room", (-30, -6, -1), (30, 6, 5))

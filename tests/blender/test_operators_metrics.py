@@ -23,7 +23,7 @@ def test_add_infralob(scene):
     assert lob["rls_infralob"] is True and lob.hide_render and lob.display_type == "WIRE"
     assert scene.rls.lob == lob
     from rls_addon.blender.region import lob_polygon_world
-    from rls_addon.core.polygon import polygon_area
+    from rls_addon.core.metrics.polygon import polygon_area
 
     poly = lob_polygon_world(lob)
     assert polygon_area(poly) == pytest.approx(60.0)
@@ -32,7 +32,7 @@ def test_add_infralob(scene):
 
 def test_metrics_from_preview_points_of_all_lidars(scene):
     from rls_addon.blender.preview import preview_world_points
-    from rls_addon.core.metrics import infra_lob_metrics
+    from rls_addon.core.metrics.infra import infra_lob_metrics
     from rls_addon.core.points import empty_points
 
     _scan_two_lidars()

@@ -40,7 +40,7 @@ def test_apply_preset_to_the_active_lidar(scene, user_dir):
 
 
 def test_save_user_preset_with_overrides_and_scan_with_it(scene, user_dir, tmp_path):
-    from rls_addon.core.presets import load_preset
+    from rls_addon.core.device.presets import load_preset
     from rls_addon.operators import LAST_RUN
 
     labelled_ground()
@@ -72,7 +72,7 @@ def test_save_user_preset_with_overrides_and_scan_with_it(scene, user_dir, tmp_p
 
 
 def test_export_then_import_round_trip(scene, user_dir, tmp_path):
-    from rls_addon.core.presets import get_preset, load_preset
+    from rls_addon.core.device.presets import get_preset, load_preset
 
     obj = add_lidar_op("ouster_os1_64")
     dest = tmp_path / "share" / "os1.toml"
@@ -131,7 +131,7 @@ def test_import_of_non_toml_and_python_is_refused_and_never_run(scene, user_dir,
 
 
 def test_delete_builtin_is_refused_user_preset_is_deleted(scene, user_dir):
-    from rls_addon.core.presets import builtin_presets_dir
+    from rls_addon.core.device.presets import builtin_presets_dir
 
     obj = add_lidar_op("velodyne_vlp16")
     with pytest.raises(RuntimeError, match="built-in preset and read-only"):

@@ -60,7 +60,7 @@ def test_fov_wire_is_not_scanned(scene, tmp_path):
 
 
 def test_scan_frame_writes_only_the_chosen_fields_and_colours_the_preview(scene, tmp_path):
-    from rls_addon.core.io import read_records, read_sidecar
+    from rls_addon.core.output.io import read_records, read_sidecar
 
     labelled_ground()
     add_lidar_op(out=tmp_path, file_format="ply_binary", fields={"intensity", "label"},
@@ -119,7 +119,7 @@ def test_weather_and_detection_are_mapped_from_the_panel(scene):
 
 
 def test_motion_mode_reaches_the_sidecar(scene, tmp_path):
-    from rls_addon.core.io import read_sidecar
+    from rls_addon.core.output.io import read_sidecar
 
     labelled_ground()
     add_lidar_op(out=tmp_path, motion="snapshot", ghosting=False)

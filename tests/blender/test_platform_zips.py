@@ -24,7 +24,7 @@ sys.path.insert(0, str(ROOT / "tools"))
 import build_extension  # noqa: E402
 import build_native  # noqa: E402
 
-from rls_addon.core.casting import embree  # noqa: E402
+from rls_addon.core.casting import embree
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
 ENTRY_POINTS = set(build_native.EXPORTS)  # what every platform's library exports

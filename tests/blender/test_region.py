@@ -7,7 +7,7 @@ import pytest
 
 from rls_addon.blender.region import is_lob, lob_polygon_world
 from rls_addon.core.errors import RegionError
-from rls_addon.core.polygon import polygon_area
+from rls_addon.core.metrics.polygon import polygon_area
 
 from .conftest import bpy, mesh_object
 
@@ -44,7 +44,7 @@ def test_non_mesh_and_faceless_are_region_errors(scene):
 def test_metrics_command_reads_region_from_blend(scene, tmp_path):
     import json
 
-    from rls_addon.core.io import write_cloud
+    from rls_addon.core.output.io import write_cloud
     from rls_addon.core.points import empty_points
 
     from ..cli.conftest import rls

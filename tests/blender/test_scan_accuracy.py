@@ -100,7 +100,7 @@ def test_static_geometry_is_built_once_and_rebuilt_when_it_changes(scene):
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.source import BlenderScene
     from rls_addon.core.casting import BVHCaster
-    from rls_addon.core.session import ScanSession
+    from rls_addon.core.scan.session import ScanSession
 
     ground()
     box = mesh_object("Box", [(5, -1, 0), (5, 1, 0), (5, 1, 3), (5, -1, 3)], [(0, 1, 2, 3)])

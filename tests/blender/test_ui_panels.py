@@ -50,9 +50,9 @@ def _explode(*a, **k):
 @pytest.fixture
 def no_heavy_work(monkeypatch):
     """Patch the disk and the expensive calls so any use from draw() fails the test."""
-    import rls_addon.core.session as scan
-    import rls_addon.core.metrics as metrics
-    import rls_addon.core.presets as presets
+    import rls_addon.core.scan.session as scan
+    import rls_addon.core.metrics.infra as metrics
+    import rls_addon.core.device.presets as presets
     from rls_addon.blender import preset_catalog
 
     preset_catalog.catalog()  # the cached catalog is what draw() may use

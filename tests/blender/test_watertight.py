@@ -135,8 +135,8 @@ def test_bvhtree_skips_only_rays_that_surely_miss(origin):
     """Behind the watertight wrapper BVHTree casts only the rays that may reach a hull
     box (from one origin, by the boxes' elevation envelope; per-ray origins, by the
     octant test): the same hits, bits and re-checks as casting every ray."""
-    from rls_addon.core.bodies import PreparedScene
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.world.bodies import PreparedScene
+    from rls_addon.core.device.presets import get_preset
     from tests.core.test_assemble import open_sky
 
     preset = get_preset("hesai_pandar64")

@@ -34,7 +34,7 @@ def test_resume_skips_valid_outputs_and_redoes_broken_ones(demo_run, tmp_path):
     assert (s["resumed"], s["scanned"]) == (1, 3)
     assert [o.get("resumed", False) for o in s["outputs"]] == [True, False, False, False]
     assert "kept" in again.stderr and "from an earlier run" in again.stderr
-    from rls_addon.core.io import read_cloud, read_sidecar
+    from rls_addon.core.output.io import read_cloud, read_sidecar
 
     for f in range(1, 5):
         path = out / f"street_LiDAR_{f:06d}.pcd"
@@ -81,7 +81,7 @@ def test_ctrl_c_stops_cleanly(demo_run, tmp_path, workers):
     clouds = [n for n in names if n.endswith(".pcd")]
     assert 2 <= len(clouds) < 400
     assert sorted(n.replace(".pcd", ".json") for n in clouds) == sorted(n for n in names if n.endswith(".json"))
-    from rls_addon.core.io import read_cloud, read_sidecar
+    from rls_addon.core.output.io import read_cloud, read_sidecar
 
     for n in clouds:
         assert len(read_cloud(out / n)) == read_sidecar(out / n)["points"]

@@ -54,8 +54,8 @@ def boxes_contain(points, box, margin):
 
 
 def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
-    from rls_addon.core.datasets.kitti import read_labels
-    from rls_addon.core.io import read_cloud, read_sidecar
+    from rls_addon.core.output.datasets.kitti import read_labels
+    from rls_addon.core.output.io import read_cloud, read_sidecar
 
     out = tmp_path / "kitti"
     frames = f"{FRAMES[0]}-{FRAMES[1]}"
@@ -121,9 +121,9 @@ def test_opv2v_layout_reads_as_opencood_reads_it(junction, tmp_path):
     import open3d as o3d
     import yaml
 
-    from rls_addon.core.carla import blender_matrix, carla_matrix
+    from rls_addon.core.output.datasets.carla import blender_matrix, carla_matrix
 
-    from rls_addon.core.io import read_cloud
+    from rls_addon.core.output.io import read_cloud
 
     out = tmp_path / "opv2v"
     proc = rls("dataset", junction, "--layout", "opv2v", "--frames", "27-28", "--out", out)

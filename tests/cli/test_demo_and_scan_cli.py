@@ -98,7 +98,7 @@ def test_scan_motion_and_ghosting_overrides(demo_run, tmp_path):
 def test_scan_backends_give_the_same_points(demo_run, tmp_path):
     """Embree and BVHTree decide only which triangle a ray hits; ranges are refined
     exactly in float64, so away from edges the clouds agree to 1e-4 m."""
-    from rls_addon.core.io import read_cloud
+    from rls_addon.core.output.io import read_cloud
 
     blend = demo_run[0] / "street.blend"
     clouds = {}

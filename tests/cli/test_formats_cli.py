@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from rls_addon.core.io import pcd
+from rls_addon.core.output.io import pcd
 from tests.core import pcl_typed
 from tests.core.external_tools import require_module
 

@@ -9,8 +9,8 @@ import sys
 import numpy as np
 import pytest
 
-from rls_addon.core.io import write_cloud, write_sidecar
-from rls_addon.core.png import decode_png_rgba
+from rls_addon.core.output.io import write_cloud, write_sidecar
+from rls_addon.core.output.png import decode_png_rgba
 from rls_addon.core.points import empty_points, transform_points
 
 from .conftest import ROOT, one_line_error, rls
@@ -70,7 +70,7 @@ def test_density_chart_title_names_region_sensor_and_metrics(tmp_path, polygon_f
     from argparse import Namespace
 
     from rls_addon.commands.metrics import chart_title
-    from rls_addon.core.metrics import infra_lob_metrics
+    from rls_addon.core.metrics.infra import infra_lob_metrics
 
     cloud = write_cloud(tmp_path / "c.pcd", grid(), "pcd_binary_compressed")
     write_sidecar(cloud, {"sensor": "Pole Lidar", "frame": 7, "frame_space": "world",

@@ -41,7 +41,7 @@ def edge_blend(tmp_path_factory):
 def _scan(blend, out, *flags):
     proc = rls("scan", blend, "--frames", "1", "--out", out, *flags)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    from rls_addon.core.io import read_cloud, read_sidecar
+    from rls_addon.core.output.io import read_cloud, read_sidecar
 
     cloud = out / "edge_LiDAR_000001.pcd"
     header = cloud.read_bytes().split(b"\nDATA")[0].decode()

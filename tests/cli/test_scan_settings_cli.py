@@ -88,9 +88,9 @@ def test_scan_writes_what_the_output_panel_says_unless_a_flag_overrides(moving_b
 
 
 def test_adaptive_substeps_agree_in_ui_command_line_and_core(moving_blend, tmp_path):
-    from rls_addon.core.io import read_sidecar
-    from rls_addon.core.presets import get_preset
-    from rls_addon.core.sweep import substep_count
+    from rls_addon.core.output.io import read_sidecar
+    from rls_addon.core.device.presets import get_preset
+    from rls_addon.core.scan.sweep import substep_count
 
     preset = get_preset("generic_uniform32")
     tol = preset.range.noise_sigma_m or 0.01

@@ -33,7 +33,7 @@ def foggy_blend(tmp_path_factory):
 def _scan(blend, out, *flags):
     proc = rls("scan", blend, "--frames", "1", "--out", out, *flags)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    from rls_addon.core.io import read_cloud, read_sidecar
+    from rls_addon.core.output.io import read_cloud, read_sidecar
 
     cloud = out / "foggy_LiDAR_000001.pcd"
     return read_cloud(cloud), read_sidecar(cloud)

@@ -6,10 +6,10 @@ from dataclasses import replace
 
 import numpy as np
 
-from rls_addon.core.geometry import MaterialInfo
-from rls_addon.core.instances import Instance
-from rls_addon.core.presets import preset_from_dict
-from rls_addon.core.source import Mobility, SceneRead
+from rls_addon.core.scene.geometry import MaterialInfo
+from rls_addon.core.scene.instances import Instance
+from rls_addon.core.device.presets import preset_from_dict
+from rls_addon.core.scene.source import Mobility, SceneRead
 
 from .scenes import BOX_TRIS, box_vertices
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 
 BOX_TRIS = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])

@@ -1,4 +1,4 @@
-"""A frame's freed arrays are kept for the next frame (core/allocator.py): with the
+"""A frame's freed arrays are kept for the next frame (core/scan/allocator.py): with the
 thresholds set, a round of frame-like allocations faults almost no page in; without,
 every page again. Each case runs in a fresh interpreter, since glibc's thresholds are
 per process and move with its history."""
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rls_addon.core import allocator
+from rls_addon.core.scan import allocator
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -20,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 ROUNDS = r"""
 import json, resource, sys
 import numpy as np
-from rls_addon.core import allocator
+from rls_addon.core.scan import allocator
 state = allocator.keep_freed_pages()
 def round_():
     arrays = [np.ones((2 + k % 3) * 2 ** 17) for k in range(12)]  # 2-4 MB each

@@ -6,15 +6,16 @@ no more than a leak needs."""
 import numpy as np
 import pytest
 
-from rls_addon.core import assemble, ghost, returns
-from rls_addon.core.assemble import Draws, Effects, Hits, Rays, assemble_numpy
-from rls_addon.core.bodies import PreparedScene
+from rls_addon.core.physics import assemble, ghost
+from rls_addon.core.world import returns
+from rls_addon.core.physics.assemble import Draws, Effects, Hits, Rays, assemble_numpy
+from rls_addon.core.world.bodies import PreparedScene
 from rls_addon.core.casting import embree
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 from rls_addon.core.points import POINT_DTYPE
-from rls_addon.core.presets import get_preset
-from rls_addon.core.settings import ScanSettings
+from rls_addon.core.device.presets import get_preset
+from rls_addon.core.scan.settings import ScanSettings
 from tests.core.built import require_built
 
 
@@ -125,7 +126,7 @@ def _with_effects(hits, n, rng, medium, echoes):
 def test_compiled_records_of_the_lidar_equation_write_the_reference_bytes(native, space,
                                                                           case, fields):
     # intensity and detection in numpy (exp, log, tanh), noise, dropout and records in C
-    from rls_addon.core.detection import detection_of
+    from rls_addon.core.physics.detection import detection_of
 
     n = 60_000
     hits, rays, draws = random_frame(n, 21, per_ray_origins=space == "world")
@@ -239,7 +240,7 @@ def test_frames_are_byte_identical_compiled_or_numpy(space):
 def test_a_driving_sensor_frame_is_byte_identical_compiled_or_numpy():
     """Per-ray origins (a sensor driving at 10 m/s): the prefilter takes the origins'
     bounds, in C and in numpy alike."""
-    from rls_addon.core.motion import Track
+    from rls_addon.core.scene.motion import Track
 
     preset = get_preset("hesai_pandar64")
     start, end = np.eye(4), np.eye(4)

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from rls_addon.core import blas
+from rls_addon.core.native import blas
 
 
 def test_single_threaded_restores_the_thread_count():

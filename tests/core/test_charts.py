@@ -1,4 +1,4 @@
-"""Density charts (``core/charts.py``) of ``rls metrics --density-png`` and of the study's
+"""Density charts (``core/metrics/charts.py``) of ``rls metrics --density-png`` and of the study's
 ``density_k<K>.png``: axes in metres, a labelled colour scale, a title with the metrics,
 one colour scale for every k of a study, and the bare image when matplotlib is missing."""
 
@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from rls_addon.core import charts
-from rls_addon.core.metrics import infra_lob_metrics
+from rls_addon.core.metrics import charts
+from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.points import empty_points
 
 pytest.importorskip("matplotlib")
@@ -89,7 +89,7 @@ def test_density_png_without_matplotlib_is_the_bare_map_and_a_notice(monkeypatch
 
 
 def test_density_scale_spans_all_maps():
-    from rls_addon.core.metrics import DensityMap
+    from rls_addon.core.metrics.infra import DensityMap
 
     a = DensityMap((0, 0), 1.0, np.array([[1.0, np.nan], [3.0, 0.0]]))
     b = DensityMap((0, 0), 1.0, np.array([[7.5, 2.0], [np.nan, np.nan]]))
@@ -102,7 +102,7 @@ def test_density_scale_spans_all_maps():
 @pytest.fixture(scope="module")
 def study():
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study import StudyConfig, run_study
+    from rls_addon.core.study.study import StudyConfig, run_study
 
     from .test_study import FakeStudyScene
 
@@ -112,9 +112,9 @@ def study():
 
 
 def test_study_density_maps_share_one_scale(study, monkeypatch):
-    from rls_addon.core import study_report
+    from rls_addon.core.study import report
 
-    maps, scale = study_report.density_maps(study)
+    maps, scale = report.density_maps(study)
     assert set(maps) == {1, 2}
     own = {k: float(np.nanmax(dm.values)) for k, dm in maps.items()}
     assert own[1] != own[2]  # each map's own maximum differs: a shared scale matters
@@ -133,7 +133,7 @@ def test_study_density_maps_share_one_scale(study, monkeypatch):
         return real(fig)
 
     monkeypatch.setattr(charts, "figure_png", capture)
-    files, notice = study_report.charts_png(study)
+    files, notice = report.charts_png(study)
     assert notice is None
     assert {"pareto.png", "density_k1.png", "density_k2.png"} <= set(files)
     assert set(drawn) == {1, 2}
@@ -149,10 +149,10 @@ def test_study_density_maps_share_one_scale(study, monkeypatch):
 
 
 def test_study_charts_without_matplotlib_fall_back_to_bare_maps(study, monkeypatch):
-    from rls_addon.core import study_report
+    from rls_addon.core.study import report
 
     no_matplotlib(monkeypatch)
-    files, notice = study_report.charts_png(study)
+    files, notice = report.charts_png(study)
     assert set(files) == {"density_k1.png", "density_k2.png"}
     assert files["density_k2.png"] == study.density(study.searches[2].best.members).to_png()
     assert "matplotlib is not installed" in notice and "pareto.png skipped" in notice

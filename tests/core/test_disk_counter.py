@@ -8,9 +8,9 @@ coarser grid or no grid at all. Every test runs twice: with the compiled counts
 import numpy as np
 import pytest
 
-from rls_addon.core import disk_counter
-from rls_addon.core.disk_counter import DiskCounter
-from rls_addon.core.metrics import count_in_disks
+from rls_addon.core.metrics import disk_counter
+from rls_addon.core.metrics.disk_counter import DiskCounter
+from rls_addon.core.metrics.infra import count_in_disks
 from tests.core.built import require_built
 
 

@@ -9,9 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rls_addon.core import echoes
-from rls_addon.core.detection import DetectionModel
-from rls_addon.core.footprint import RING, Beam
+from rls_addon.core.physics import echoes
+from rls_addon.core.physics.detection import DetectionModel
+from rls_addon.core.physics.footprint import RING, Beam
 from tests.core.built import require_built
 from tests.core.test_footprint import edge_scene
 from tests.core.test_footprint_native import frame_digests

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.settings import ScanSettings
-from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
-from rls_addon.core.patterns.spinning import spinning_pattern
-from rls_addon.core.presets import DevicePreset, RangeModel
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scan.settings import ScanSettings
+from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+from rls_addon.core.device.patterns.spinning import spinning_pattern
+from rls_addon.core.device.presets import DevicePreset, RangeModel
 from rls_addon.core.casting import NumpyCaster
 
 PRESET = DevicePreset(id="t", name="t", family="spinning", source="test", frequency_hz=10.0,
@@ -100,7 +100,7 @@ def test_range_noise_is_gaussian_with_the_given_sigma():
     the statistical tolerances below are > 5 standard errors)."""
     from math import erf, sqrt
 
-    from rls_addon.core import effects
+    from rls_addon.core.physics import effects
 
     sigma, n = 0.03, 400_001
     x = effects.range_noise(np.random.default_rng(5), n, sigma).astype(np.float64)

@@ -9,20 +9,20 @@ import numpy as np
 import pytest
 
 from rls_addon.core.casting import NumpyCaster
-from rls_addon.core.detection import DetectionModel
+from rls_addon.core.physics.detection import DetectionModel
 from rls_addon.core.errors import PresetError, SettingsError
-from rls_addon.core.depth_edges import neighbour_pairs
-from rls_addon.core.footprint import RING, Beam, ring_directions
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.geometry import MaterialInfo
-from rls_addon.core.patterns.base import ScanPattern
-from rls_addon.core.presets import (
+from rls_addon.core.physics.depth_edges import neighbour_pairs
+from rls_addon.core.physics.footprint import RING, Beam, ring_directions
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scene.geometry import MaterialInfo
+from rls_addon.core.device.patterns.base import ScanPattern
+from rls_addon.core.device.presets import (
     DevicePreset,
     RangeModel,
     get_preset,
     preset_from_dict,
 )
-from rls_addon.core.settings import ScanSettings
+from rls_addon.core.scan.settings import ScanSettings
 from tests.core.scenes import box_geometry, merge
 
 DIV = 0.00089          # the Mid-40's full divergence; the ring lies at half of it

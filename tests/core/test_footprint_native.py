@@ -7,8 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from rls_addon.core import depth_edges, footprint
-from rls_addon.core.depth_edges import edges_numpy
+from rls_addon.core.physics import depth_edges, footprint
+from rls_addon.core.physics.depth_edges import edges_numpy
 from tests.core.built import require_built
 from tests.core.test_footprint import device, edge_scene, grid, scan
 

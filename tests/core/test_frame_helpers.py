@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from rls_addon.core.frame import sensor_axes
-from rls_addon.core.geometry import hit_body, pair_rows
-from rls_addon.core.motion import polar
+from rls_addon.core.scan.frame import sensor_axes
+from rls_addon.core.scene.geometry import hit_body, pair_rows
+from rls_addon.core.scene.motion import polar
 
 
 def test_hit_body_is_zero_on_hits_and_minus_one_on_misses():
@@ -46,10 +46,10 @@ def test_sensor_axes_kept_for_a_pose_give_the_same_bits_and_fresh_arrays():
 
 def _box_scan(origin, **settings):
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.patterns.spinning import spinning_pattern
-    from rls_addon.core.presets import DevicePreset, RangeModel
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.device.patterns.spinning import spinning_pattern
+    from rls_addon.core.device.presets import DevicePreset, RangeModel
+    from rls_addon.core.scan.settings import ScanSettings
     from tests.core.scenes import box_geometry
 
     preset = DevicePreset(id="t", name="t", family="spinning", source="test",

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from bench.scene import OPEN_SKY_POSE, open_sky_geometry
-from rls_addon.core.bodies import PreparedScene
+from rls_addon.core.world.bodies import PreparedScene
 from rls_addon.core.casting import caster_factory
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.motion import Track
-from rls_addon.core.presets import get_preset
-from rls_addon.core.settings import ScanSettings
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scene.motion import Track
+from rls_addon.core.device.presets import get_preset
+from rls_addon.core.scan.settings import ScanSettings
 
 
 @pytest.fixture(scope="module")

@@ -2,11 +2,11 @@
 
 import numpy as np
 
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.settings import ScanSettings
-from rls_addon.core.geometry import MaterialInfo
-from rls_addon.core.patterns.spinning import spinning_pattern
-from rls_addon.core.presets import DevicePreset, RangeModel
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scan.settings import ScanSettings
+from rls_addon.core.scene.geometry import MaterialInfo
+from rls_addon.core.device.patterns.spinning import spinning_pattern
+from rls_addon.core.device.presets import DevicePreset, RangeModel
 from rls_addon.core.casting import NumpyCaster
 
 from .scenes import box_geometry, box_sdf, merge

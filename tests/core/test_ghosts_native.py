@@ -5,7 +5,7 @@ are byte-identical with the kernels or without them (tests/core/test_assemble.py
 import numpy as np
 import pytest
 
-from rls_addon.core import ghost
+from rls_addon.core.physics import ghost
 from tests.core.built import both_ways, require_built
 
 

@@ -6,10 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from rls_addon.core.instances import check_ids, instance_id
-from rls_addon.core.motion import poses_at
-from rls_addon.core.run import ScanRun, SensorJob
-from rls_addon.core.settings import LidarSettings, OutputSettings, ScanSettings
+from rls_addon.core.scene.instances import check_ids, instance_id
+from rls_addon.core.scene.motion import poses_at
+from rls_addon.core.scan.run import ScanRun, SensorJob
+from rls_addon.core.scan.settings import LidarSettings, OutputSettings, ScanSettings
 
 from .fakes import FakeScene, numpy_factory, small_preset, translation
 

@@ -1,19 +1,19 @@
 """Moving objects traced as Embree instances in one traversal with the static scene
-(``core/instancing.py``): same points as the portable per-object path, exact against
+(``core/world/instancing.py``): same points as the portable per-object path, exact against
 analytic motion, and the caches that carry a body from frame to frame."""
 
 import numpy as np
 import pytest
 
-from rls_addon.core import instancing
-from rls_addon.core.bodies import PreparedScene, RigidBodies
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.settings import ScanSettings
-from rls_addon.core.world import World
-from rls_addon.core.geometry import ObjectInfo, SceneGeometry
-from rls_addon.core.motion import Track
-from rls_addon.core.patterns.spinning import spinning_pattern
-from rls_addon.core.presets import DevicePreset, RangeModel
+from rls_addon.core.world import instancing
+from rls_addon.core.world.bodies import PreparedScene, RigidBodies
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scan.settings import ScanSettings
+from rls_addon.core.world.world import World
+from rls_addon.core.scene.geometry import ObjectInfo, SceneGeometry
+from rls_addon.core.scene.motion import Track
+from rls_addon.core.device.patterns.spinning import spinning_pattern
+from rls_addon.core.device.presets import DevicePreset, RangeModel
 from rls_addon.core.casting import NumpyCaster, WatertightCaster
 
 from .scenes import box_geometry, box_sdf, merge

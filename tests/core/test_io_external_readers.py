@@ -5,7 +5,13 @@ import subprocess
 import numpy as np
 import pytest
 
-from rls_addon.core.io import DEFAULT_FIELDS, FORMAT_EXT, read_cloud, read_records, write_cloud
+from rls_addon.core.output.io import (
+    DEFAULT_FIELDS,
+    FORMAT_EXT,
+    read_cloud,
+    read_records,
+    write_cloud,
+)
 
 from .cloud_samples import sample_cloud, stored
 from .external_tools import require_exe, require_module

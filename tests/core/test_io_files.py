@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import InputError, OutputError
-from rls_addon.core.io import (
+from rls_addon.core.output.io import (
     FORMAT_EXT,
     FORMATS,
     atomic_write_bytes,
@@ -18,7 +18,7 @@ from rls_addon.core.io import (
     write_cloud,
     write_sidecar,
 )
-from rls_addon.core.io import atomic as atomic_mod
+from rls_addon.core.output.io import atomic as atomic_mod
 
 from .cloud_samples import sample_cloud
 

@@ -7,9 +7,15 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from rls_addon.core.errors import InputError
-from rls_addon.core.io import DEFAULT_FIELDS, FORMATS, encode_cloud, read_cloud, write_cloud
-from rls_addon.core.io import lzf
-from rls_addon.core.io.cloud import read_records
+from rls_addon.core.output.io import (
+    DEFAULT_FIELDS,
+    FORMATS,
+    encode_cloud,
+    read_cloud,
+    write_cloud,
+)
+from rls_addon.core.output.io import lzf
+from rls_addon.core.output.io.cloud import read_records
 from rls_addon.core.points import empty_points
 
 from .cloud_samples import stored
@@ -107,6 +113,6 @@ def test_empty_cloud_encodes_header_only():
 
 
 def read_cloud_bytes(blob):
-    from rls_addon.core.io import pcd, ply
+    from rls_addon.core.output.io import pcd, ply
 
     return ply.decode(blob) if blob.startswith(b"ply") else pcd.decode(blob)

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import OutputError, RLSError, SettingsError
-from rls_addon.core.instances import instance_id
-from rls_addon.core.io.las import (
+from rls_addon.core.scene.instances import instance_id
+from rls_addon.core.output.io.las import (
     ASPRS_CLASS,
     EXTRA_DIMS,
     GPS_EPOCH_UNIX,

@@ -11,16 +11,21 @@ import numpy as np
 import pytest
 from numpy.lib.recfunctions import repack_fields
 
-from rls_addon.core import weather
+from rls_addon.core.physics import weather
 from rls_addon.core.casting import NumpyCaster
-from rls_addon.core.detection import DEFAULT_WIDTH, DetectionModel
+from rls_addon.core.physics.detection import DEFAULT_WIDTH, DetectionModel
 from rls_addon.core.errors import PresetError, SettingsError
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 from rls_addon.core.labels import WEATHER_LABEL
-from rls_addon.core.patterns.base import ScanPattern
-from rls_addon.core.presets import DevicePreset, RangeModel, get_preset, preset_from_dict
-from rls_addon.core.settings import LidarSettings, ScanSettings
+from rls_addon.core.device.patterns.base import ScanPattern
+from rls_addon.core.device.presets import (
+    DevicePreset,
+    RangeModel,
+    get_preset,
+    preset_from_dict,
+)
+from rls_addon.core.scan.settings import LidarSettings, ScanSettings
 from tests.core.scenes import box_geometry, merge
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -360,8 +365,8 @@ def test_bad_detection_tables_name_the_file_and_key(table, words):
 
 
 def test_detection_tables_survive_export(tmp_path):
-    from rls_addon.core.presets import load_preset
-    from rls_addon.core.user_presets import export_preset
+    from rls_addon.core.device.presets import load_preset
+    from rls_addon.core.device.user_presets import export_preset
 
     src = get_preset("livox_avia")
     dest = export_preset(src, tmp_path / "avia.toml")
@@ -374,10 +379,10 @@ def test_detection_tables_survive_export(tmp_path):
 # ---- the sidecar ------------------------------------------------------------------------
 
 def test_the_sidecar_records_the_weather_and_the_detection_model(tmp_path):
-    from rls_addon.core.io import read_sidecar
-    from rls_addon.core.io.writer import CloudWriter
-    from rls_addon.core.run import ScanRun, SensorJob
-    from rls_addon.core.settings import OutputSettings
+    from rls_addon.core.output.io import read_sidecar
+    from rls_addon.core.output.io.writer import CloudWriter
+    from rls_addon.core.scan.run import ScanRun, SensorJob
+    from rls_addon.core.scan.settings import OutputSettings
 
     from .fakes import numpy_factory, small_preset, street
 
@@ -423,7 +428,7 @@ def test_the_sidecar_records_the_weather_and_the_detection_model(tmp_path):
     assert foggy["label_names"][str(WEATHER_LABEL)] == "weather"
 
 
-FIGURED = sorted(pid for pid, p in __import__("rls_addon.core.presets", fromlist=["x"])
+FIGURED = sorted(pid for pid, p in __import__("rls_addon.core.device.presets", fromlist=["x"])
                  .builtin_presets().items() if p.detection is not None)
 
 
@@ -436,7 +441,7 @@ def test_each_shipped_preset_detects_as_its_datasheet_figures_say(pid):
     ``DetectionModel.spread``) it returns with the figures' probability (0.9, within
     the binomial tolerance), at 0.7x that range nearly always (>= 0.97) and at 1.6x
     nearly never (<= 0.08). The transition is the noise-limited detector's (a factor
-    2.05 in power from 10 % to 90 %, see core/detection.py), so 10 % at 100 m for the
+    2.05 in power from 10 % to 90 %, see core/physics/detection.py), so 10 % at 100 m for the
     Mid-40 (figure: 90 m) still returns about 74 % of the time."""
     preset = get_preset(pid)
     m = preset.detection

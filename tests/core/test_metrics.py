@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import RegionError, RLSError
-from rls_addon.core.metrics import (
+from rls_addon.core.metrics.infra import (
     count_in_disks,
     density_map,
     infra_lob_metrics,
@@ -16,9 +16,9 @@ from rls_addon.core.metrics import (
     resolve_labels,
     select_xy,
 )
-from rls_addon.core.png import decode_png_rgba
+from rls_addon.core.output.png import decode_png_rgba
 from rls_addon.core.points import empty_points
-from rls_addon.core.polygon import (
+from rls_addon.core.metrics.polygon import (
     PreparedPolygon,
     as_polygon,
     points_in_polygon,
@@ -309,8 +309,8 @@ def test_speed_one_million_points_six_thousand_disks():
 
 def test_no_point_in_any_disk_is_an_error_not_perfect_uniformity():
     from rls_addon.core.errors import RegionError
-    from rls_addon.core.metrics import infra_nuc
-    from rls_addon.core.placement import set_metrics
+    from rls_addon.core.metrics.infra import infra_nuc
+    from rls_addon.core.study.placement import set_metrics
 
     with pytest.raises(RegionError, match="none of the 3 disks"):
         infra_nuc(np.zeros(3), 5, 0.01)

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from rls_addon.core.bodies import PreparedScene, RigidBody
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.settings import ScanSettings
-from rls_addon.core.geometry import SceneGeometry
-from rls_addon.core.motion import Track, effective_times
-from rls_addon.core.patterns.spinning import spinning_pattern
-from rls_addon.core.presets import DevicePreset, RangeModel
+from rls_addon.core.world.bodies import PreparedScene, RigidBody
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scan.settings import ScanSettings
+from rls_addon.core.scene.geometry import SceneGeometry
+from rls_addon.core.scene.motion import Track, effective_times
+from rls_addon.core.device.patterns.spinning import spinning_pattern
+from rls_addon.core.device.presets import DevicePreset, RangeModel
 from rls_addon.core.casting import NumpyCaster
 
 from .scenes import box_geometry, box_sdf
@@ -174,8 +174,8 @@ def test_several_moving_objects_in_one_group_match_separate_casts():
     """Objects share one structure side by side; a ray cast for one must never hit a
     neighbour's slot. A small box ahead and a tall board behind the sensor: rays that
     pass over the box would, laid out naively, run on into the board's slot."""
-    from rls_addon.core.bodies import RigidBodies
-    from rls_addon.core.geometry import ObjectInfo
+    from rls_addon.core.world.bodies import RigidBodies
+    from rls_addon.core.scene.geometry import ObjectInfo
 
     shapes = [((-1, -1, -1), (1, 1, 1), (10, 0, 0), V),
               ((-1, -10, -10), (1, 10, 10), (-30, 0, 0), -V),

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import PatternError, PresetError
-from rls_addon.core.patterns.base import angles_from_directions
-from rls_addon.core.patterns.custom import read_pattern_csv, write_pattern_csv
-from rls_addon.core.presets import load_preset
+from rls_addon.core.device.patterns.base import angles_from_directions
+from rls_addon.core.device.patterns.custom import read_pattern_csv, write_pattern_csv
+from rls_addon.core.device.presets import load_preset
 
 
 def test_round_trip(tmp_path):

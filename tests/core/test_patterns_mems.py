@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import PatternError
-from rls_addon.core.patterns.base import angles_from_directions
-from rls_addon.core.patterns.mems import blickfeld_pattern, lissajous_zones_pattern
-from rls_addon.core.presets import get_preset
+from rls_addon.core.device.patterns.base import angles_from_directions
+from rls_addon.core.device.patterns.mems import blickfeld_pattern, lissajous_zones_pattern
+from rls_addon.core.device.presets import get_preset
 
 
 def test_m1_rays_per_frame_follow_point_rate():

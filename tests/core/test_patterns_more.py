@@ -6,8 +6,8 @@ import numpy as np
 def test_trace_order_only_for_incoherent_firing_orders():
     """A Z-order permutation for patterns whose 16-ray packets point far apart (the M1's
     zones fire interleaved); spinning heads fire coherent columns and keep their order."""
-    from rls_addon.core.patterns.base import z_order
-    from rls_addon.core.presets import get_preset
+    from rls_addon.core.device.patterns.base import z_order
+    from rls_addon.core.device.presets import get_preset
 
     m1 = get_preset("robosense_m1").pattern()
     order = m1.trace_order

@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rls_addon.core.angle_tables import read_angle_table
+from rls_addon.core.device.angle_tables import read_angle_table
 from rls_addon.core.errors import PatternError
-from rls_addon.core.patterns.base import angles_from_directions
-from rls_addon.core.patterns.spinning import spinning_pattern, uniform_elevations_deg
-from rls_addon.core.presets import builtin_presets_dir, get_preset
+from rls_addon.core.device.patterns.base import angles_from_directions
+from rls_addon.core.device.patterns.spinning import spinning_pattern, uniform_elevations_deg
+from rls_addon.core.device.presets import builtin_presets_dir, get_preset
 
 TABLES = Path(__file__).resolve().parents[2] / "presets" / "tables"
 

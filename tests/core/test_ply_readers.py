@@ -12,9 +12,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from rls_addon.core.instances import instance_id
-from rls_addon.core.io import DEFAULT_FIELDS, read_records, write_cloud
-from rls_addon.core.io import ply as ply_mod
+from rls_addon.core.scene.instances import instance_id
+from rls_addon.core.output.io import DEFAULT_FIELDS, read_records, write_cloud
+from rls_addon.core.output.io import ply as ply_mod
 
 from .cloud_samples import sample_cloud, stored
 from .external_tools import require_exe, require_module

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import OutputError, SettingsError
-from rls_addon.core.io import pcd
-from rls_addon.core.io.point_types import (
+from rls_addon.core.output.io import pcd
+from rls_addon.core.output.io.point_types import (
     POINT_TYPE_CHOICES,
     POINT_TYPES,
     elevation_rings,

@@ -5,7 +5,7 @@ polygon is kept, and those clearly outside the arc are not."""
 import numpy as np
 import pytest
 
-from rls_addon.core.polygon import ARC_MARGIN_RAD, in_arc, polygon_arc
+from rls_addon.core.metrics.polygon import ARC_MARGIN_RAD, in_arc, polygon_arc
 
 
 def toward_polygon(poly, origin, directions):

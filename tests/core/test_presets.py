@@ -9,10 +9,21 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import OutputError, PresetError
-from rls_addon.core.presets import (builtin_presets, builtin_presets_dir, get_preset, load_preset,
-                                    pattern_span, preset_from_dict)
-from rls_addon.core.user_presets import (delete_user_preset, export_preset, import_preset,
-                                         save_user_preset, user_presets)
+from rls_addon.core.device.presets import (
+    builtin_presets,
+    builtin_presets_dir,
+    get_preset,
+    load_preset,
+    pattern_span,
+    preset_from_dict,
+)
+from rls_addon.core.device.user_presets import (
+    delete_user_preset,
+    export_preset,
+    import_preset,
+    save_user_preset,
+    user_presets,
+)
 
 EXPECTED = {
     "velodyne_vlp16", "velodyne_vlp32c", "velodyne_hdl32e", "velodyne_hdl64e",

@@ -5,7 +5,7 @@ kernel or without it (tests/core/test_assemble.py switches it with the others)."
 import numpy as np
 import pytest
 
-from rls_addon.core import returns
+from rls_addon.core.world import returns
 from tests.core.built import both_ways, require_built
 
 

@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import OutputError, RLSError, SettingsError
-from rls_addon.core.io.point_types import POINT_TYPES, point_type_dtype, to_point_type
-from rls_addon.core.io.rosbag import BagWriter, frame_stamp_ns, quaternion, ros_name
+from rls_addon.core.output.io.point_types import (
+    POINT_TYPES,
+    point_type_dtype,
+    to_point_type,
+)
+from rls_addon.core.output.io.rosbag import BagWriter, frame_stamp_ns, quaternion, ros_name
 
 from .cloud_samples import sample_cloud
 from .external_tools import require_module

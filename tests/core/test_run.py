@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from rls_addon.core.errors import OutputError, SceneError, SettingsError
-from rls_addon.core.io import read_cloud, read_records, read_sidecar
-from rls_addon.core.io.writer import CloudWriter
-from rls_addon.core.run import ScanRun, SensorJob
-from rls_addon.core.settings import LidarSettings, OutputSettings, ScanSettings
+from rls_addon.core.output.io import read_cloud, read_records, read_sidecar
+from rls_addon.core.output.io.writer import CloudWriter
+from rls_addon.core.scan.run import ScanRun, SensorJob
+from rls_addon.core.scan.settings import LidarSettings, OutputSettings, ScanSettings
 
 from .fakes import numpy_factory, small_preset, street
 
@@ -129,7 +129,7 @@ def test_adaptive_substeps_are_chosen_from_the_motion_and_recorded():
     assert info["effects"]["substeps"] == 0 and info["effects"]["substeps_used"] == want
     assert result.stats["substeps_used"] == want
     # scan_frame on its own (no session) decides the same N from the bodies it is given
-    from rls_addon.core.sweep import adaptive_substeps
+    from rls_addon.core.scan.sweep import adaptive_substeps
 
     fixed = []
     run_of(scene, [job("pole", motion="substeps", substeps=5)], [1],

@@ -5,13 +5,13 @@ again would give."""
 import numpy as np
 import pytest
 
-from rls_addon.core.bodies import PreparedScene, RigidBodies
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.settings import ScanSettings
-from rls_addon.core.geometry import MaterialInfo, SceneGeometry
-from rls_addon.core.motion import Track
-from rls_addon.core.patterns.spinning import spinning_pattern
-from rls_addon.core.presets import DevicePreset, RangeModel
+from rls_addon.core.world.bodies import PreparedScene, RigidBodies
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.scan.settings import ScanSettings
+from rls_addon.core.scene.geometry import MaterialInfo, SceneGeometry
+from rls_addon.core.scene.motion import Track
+from rls_addon.core.device.patterns.spinning import spinning_pattern
+from rls_addon.core.device.presets import DevicePreset, RangeModel
 from rls_addon.core.casting import NumpyCaster
 
 from .scenes import box_geometry, merge

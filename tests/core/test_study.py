@@ -1,4 +1,4 @@
-"""Placement-study search (core/study.py): Pareto fronts, additive counts, greedy+swap."""
+"""Placement-study search (core/study/study.py): Pareto fronts, additive counts, greedy+swap."""
 
 import itertools
 import math
@@ -6,10 +6,21 @@ import math
 import numpy as np
 import pytest
 
-from rls_addon.core.metrics import infra_lob_metrics
+from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.points import POINT_DTYPE
-from rls_addon.core.placement import CandidateCounts, DiskLayout, pareto_front, set_metrics
-from rls_addon.core.study import facing_yaw_deg, grid_positions, orientation_matrix, parse_values, pose_matrix
+from rls_addon.core.study.placement import (
+    CandidateCounts,
+    DiskLayout,
+    pareto_front,
+    set_metrics,
+)
+from rls_addon.core.study.study import (
+    facing_yaw_deg,
+    grid_positions,
+    orientation_matrix,
+    parse_values,
+    pose_matrix,
+)
 from rls_addon.core.errors import RegionError
 
 SQUARE = [(0, 0), (20, 0), (20, 10), (0, 10)]
@@ -155,8 +166,8 @@ class FakeStudyScene:
     name = "fake junction"
 
     def __init__(self):
-        from rls_addon.core.geometry import MaterialInfo, ObjectInfo
-        from rls_addon.core.instances import Instance, world_geometry
+        from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo
+        from rls_addon.core.scene.instances import Instance, world_geometry
 
         from .scenes import BOX_TRIS, box_vertices
 
@@ -195,8 +206,8 @@ class FakeStudyScene:
 
 def test_study_loop_runs_in_the_core_with_a_fake_scene():
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study import StudyConfig, run_study
-    from rls_addon.core.frame import scan_frame
+    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.scan.frame import scan_frame
 
     scene = FakeStudyScene()
     seen = []
@@ -214,9 +225,9 @@ def test_study_loop_runs_in_the_core_with_a_fake_scene():
                for p in res.searches[2].evaluated)  # one sensor per mount
     # a single candidate's metrics equal infra_lob_metrics on its own cloud
     c = max(res.candidates, key=lambda c: c.n_points)
-    from rls_addon.core.presets import get_preset
-    from rls_addon.core.settings import ScanSettings
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.device.presets import get_preset
+    from rls_addon.core.scan.settings import ScanSettings
+    from rls_addon.core.world.bodies import PreparedScene
 
     geom, _ = scene.static_geometry({11})
     settings = ScanSettings(frame_space="world", noise=False, dropout=False, motion="snapshot")
@@ -231,7 +242,7 @@ def test_study_loop_runs_in_the_core_with_a_fake_scene():
 def test_study_errors_say_what_to_do():
     from rls_addon.core.casting import NumpyCaster
     from rls_addon.core.errors import SceneError
-    from rls_addon.core.study import StudyConfig, run_study
+    from rls_addon.core.study.study import StudyConfig, run_study
 
     factory = lambda name: (NumpyCaster, None)  # noqa: E731
     with pytest.raises(SceneError, match="k = 4 needs 4 distinct mounts; the candidates have 3"):
@@ -246,7 +257,7 @@ class TrafficStudyScene(FakeStudyScene):
 
     def __init__(self, truck=True):
         super().__init__()
-        from rls_addon.core.instances import Instance
+        from rls_addon.core.scene.instances import Instance
 
         from .scenes import BOX_TRIS, box_vertices
 
@@ -266,7 +277,7 @@ class TrafficStudyScene(FakeStudyScene):
                               np.array([1]))
 
     def traffic(self, frames, labels):
-        from rls_addon.core.source import SceneRead
+        from rls_addon.core.scene.source import SceneRead
 
         out = {}
         for f in frames:
@@ -282,7 +293,7 @@ class TrafficStudyScene(FakeStudyScene):
 def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
     """A candidate a parked truck occludes ranks lower on visibility than on InfraD."""
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study import StudyConfig, run_study
+    from rls_addon.core.study.study import StudyConfig, run_study
 
     factory = lambda name: (NumpyCaster, None)  # noqa: E731
     cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,
@@ -309,8 +320,8 @@ def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
 
 def test_study_report_carries_visibility(tmp_path):
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study import StudyConfig, run_study
-    from rls_addon.core.study_report import write_report
+    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.study.report import write_report
 
     cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,
                       dropout=False, traffic_frames=(1, 3))
@@ -324,7 +335,7 @@ def test_study_report_carries_visibility(tmp_path):
     assert "share_20" in (tmp_path / "placements.csv").read_text().splitlines()[0]
     assert (tmp_path / "visibility.png").read_bytes()[:4] == b"\x89PNG"
     # a long study lists its best candidates by visibility and the best sets' members
-    from rls_addon.core.study_report import _candidates_shown
+    from rls_addon.core.study.report import _candidates_shown
 
     n = len(res.candidates)
     assert _candidates_shown(res) == list(range(n))
@@ -340,7 +351,7 @@ def test_sets_scored_in_chunks_as_in_one_batch(monkeypatch, chunk):
     """CandidateCounts.evaluate sums and scores sets a chunk at a time: the same bits
     as set_metrics over every set's summed counts at once, whatever the chunk, for
     k = 1..3 (a candidate with no points among them)."""
-    from rls_addon.core import placement
+    from rls_addon.core.study import placement
 
     rng = np.random.default_rng(3)
     n = rng.integers(0, 5000, 12)

@@ -10,10 +10,15 @@ import numpy as np
 import pytest
 
 from rls_addon.core.casting import NumpyCaster
-from rls_addon.core.frame import scan_frame
-from rls_addon.core.metrics import density_map
-from rls_addon.core.study import (CandidateScan, StudyConfig, StudyScanner, run_study,
-                                  study_inputs)
+from rls_addon.core.scan.frame import scan_frame
+from rls_addon.core.metrics.infra import density_map
+from rls_addon.core.study.study import (
+    CandidateScan,
+    StudyConfig,
+    StudyScanner,
+    run_study,
+    study_inputs,
+)
 
 from .test_study import FakeStudyScene, TrafficStudyScene
 

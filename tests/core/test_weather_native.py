@@ -5,7 +5,7 @@ np.interp, and weather frames are byte-identical with it or without it."""
 import numpy as np
 import pytest
 
-from rls_addon.core import depth_edges, weather
+from rls_addon.core.physics import depth_edges, weather
 from tests.core.built import both_ways, require_built
 from tests.core.test_footprint import edge_scene
 from tests.core.test_footprint_native import frame_digests

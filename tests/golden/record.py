@@ -31,7 +31,7 @@ def sha(data):
 # ---- core: numpy caster, no Blender ----------------------------------------------------
 
 def core_cases():
-    from rls_addon.core.io import encode_cloud
+    from rls_addon.core.output.io import encode_cloud
     from tests.golden.scenes import core_scan
 
     out = {}
@@ -44,7 +44,7 @@ def core_cases():
 
 def effect_cases():
     """Frames with the LiDAR equation, footprints and weather (``scenes.effect_scan``)."""
-    from rls_addon.core.io import encode_cloud
+    from rls_addon.core.output.io import encode_cloud
     from tests.golden.scenes import EFFECT_CASES, effect_scan
 
     out = {}
@@ -59,7 +59,7 @@ def effect_cases():
 
 def blender_cases():
 
-    from rls_addon.core.io import encode_cloud
+    from rls_addon.core.output.io import encode_cloud
     from tests.golden.scenes import blender_street_scans
 
     out = {}

@@ -5,7 +5,7 @@ import numpy as np
 
 def core_scene():
     """A ground, a glossy wall, a box and a car driving 15 m/s past a still sensor."""
-    from rls_addon.core.geometry import MaterialInfo
+    from rls_addon.core.scene.geometry import MaterialInfo
     from tests.core.scenes import box_geometry, merge
 
     mirror = MaterialInfo("mirror", 0.9, glossy=True, ghost_ratio=0.5)
@@ -19,12 +19,12 @@ def core_scene():
 
 
 def core_scan(mode, substeps, space):
-    from rls_addon.core.bodies import PreparedScene, RigidBodies
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.settings import ScanSettings
-    from rls_addon.core.motion import Track
-    from rls_addon.core.patterns.spinning import spinning_pattern
-    from rls_addon.core.presets import DevicePreset, DropoutModel, RangeModel
+    from rls_addon.core.world.bodies import PreparedScene, RigidBodies
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scan.settings import ScanSettings
+    from rls_addon.core.scene.motion import Track
+    from rls_addon.core.device.patterns.spinning import spinning_pattern
+    from rls_addon.core.device.presets import DevicePreset, DropoutModel, RangeModel
     from rls_addon.core.casting import NumpyCaster
 
     preset = DevicePreset(id="g", name="g", family="spinning", source="golden",
@@ -65,13 +65,13 @@ def effect_scan(case, space):
     to C) and checked against the code of 7bb9e5b."""
     import dataclasses
 
-    from rls_addon.core.bodies import PreparedScene
+    from rls_addon.core.world.bodies import PreparedScene
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.footprint import Beam
-    from rls_addon.core.frame import scan_frame
-    from rls_addon.core.patterns.spinning import spinning_pattern
-    from rls_addon.core.presets import get_preset
-    from rls_addon.core.settings import ScanSettings
+    from rls_addon.core.physics.footprint import Beam
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.device.patterns.spinning import spinning_pattern
+    from rls_addon.core.device.presets import get_preset
+    from rls_addon.core.scan.settings import ScanSettings
 
     preset = dataclasses.replace(get_preset("velodyne_hdl64e"),
                                  beam=Beam((0.01, 0.01), "strongest", 1.0))
@@ -113,7 +113,7 @@ def blender_street_scans():
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.source import BlenderScene
     from rls_addon.core.casting import caster_factory
-    from rls_addon.core.session import ScanSession
+    from rls_addon.core.scan.session import ScanSession
 
     out = []
     scene, lidar = _street()
@@ -135,7 +135,7 @@ def junction_study():
     import rls_addon
     from rls_addon.blender.scenes import build_scene
     from rls_addon.blender.study import run_study
-    from rls_addon.core.study import StudyConfig
+    from rls_addon.core.study.study import StudyConfig
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if not hasattr(bpy.types.Object, "rls_lidar"):

@@ -13,7 +13,7 @@ Roads are 14 m wide (four 3.5 m lanes), sidewalks 4 m wide and 0.15 m high.
 Every builder fills an empty scene and returns a dict with the region and mount names.
 """
 
-from .build import (box, car, collection, infralob, mount_pole, plane, standard_materials)
+from .build import box, car, collection, infralob, mount_pole, plane, standard_materials
 
 ROAD_HALF = 7.0
 WALK = 4.0

@@ -35,7 +35,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from ..vectors import row_dot
+from ..native.vectors import row_dot
 
 
 class Caster(Protocol):

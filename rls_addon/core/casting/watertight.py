@@ -3,7 +3,7 @@ never slip between the triangles (see ``WatertightCaster``)."""
 
 import numpy as np
 
-from ..vectors import row_dot
+from ..native.vectors import row_dot
 from .base import CasterBase, cast_exact, refine_hits
 from .envelope import ElevationEnvelope
 

@@ -1,6 +1,6 @@
 /* A study candidate's points counted in the study's fixed disks, in C (rls_disk_counts).
  *
- * rls_addon/core/disk_counter.py (DiskCounter.counts_numpy) is the readable reference
+ * rls_addon/core/metrics/disk_counter.py (DiskCounter.counts_numpy) is the readable reference
  * this follows step by step, with the tables it works out once per study: each point's
  * grid cell (points beyond the grid, or not finite, clamped into the outer ring that no
  * disk reaches), a prefix sum of the points per cell for the disks' inside runs (two

@@ -1,4 +1,4 @@
-/* A footprint's echoes, in C (rls_addon/core/echoes.py: resolve_numpy is the readable
+/* A footprint's echoes, in C (rls_addon/core/physics/echoes.py: resolve_numpy is the readable
  * reference this follows operation by operation, and gives the same bytes).
  *
  * rls_echo_group: per candidate beam, its samples (the centre ray, then RING ring

@@ -1,7 +1,7 @@
 /* Which neighbouring rays of a frame straddle a depth discontinuity, in C: one pass
  * over the pattern's neighbour pairs on a few threads (rls_depth_edges).
  *
- * rls_addon/core/depth_edges.py (edges_numpy) is the readable reference this follows
+ * rls_addon/core/physics/depth_edges.py (edges_numpy) is the readable reference this follows
  * operation by operation (the same sums in the same order, no fused multiply-add), so
  * both mark the same pairs: a pair is an edge when one ray hits and the other does
  * not, or when both hit, their ranges differ by more than the step and neither lies

@@ -1,5 +1,5 @@
 /* Ghost points from glossy surfaces, in C: the two steps around a frame's bounce cast
- * (rls_addon/core/ghost.py: aim_numpy and land_numpy are the readable references this
+ * (rls_addon/core/physics/ghost.py: aim_numpy and land_numpy are the readable references this
  * follows operation by operation, so both give the same bits).
  *
  * rls_ghost_aim, before the cast: per ray, a valid return on a glossy surface (its

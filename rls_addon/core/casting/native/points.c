@@ -1,7 +1,7 @@
 /* The per-hit stage of a frame, in C: from what each ray brought back to the point
  * records, in one pass over the rays on a few threads (rls_points_assemble).
  *
- * rls_addon/core/assemble.py (assemble_numpy) is the readable reference this follows
+ * rls_addon/core/physics/assemble.py (assemble_numpy) is the readable reference this follows
  * operation by operation, so both write the same bits: per ray, the shading
  * (reflectivity x |cos incidence|, clipped to 0..1; a ghost's comes precomputed), the
  * range with its noise, CARLA's dropout from the uniforms the scan's generator drew

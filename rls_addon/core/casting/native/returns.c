@@ -1,4 +1,4 @@
-/* What each ray of a static scene's cast brought back, in C (rls_addon/core/returns.py:
+/* What each ray of a static scene's cast brought back, in C (rls_addon/core/world/returns.py:
  * static_returns_numpy is the readable reference this follows, and gives the same
  * bytes): per ray, whether it returns a point (it hit a triangle, at a range within
  * [rmin, rmax]) and the (object, material) row of the triangle it hit, gathered from

@@ -1,0 +1,1 @@
+"""The device: presets (validated TOML data), their schema, user presets, vendor angle tables and the scan patterns they generate."""

@@ -1,0 +1,367 @@
+"""Device presets: validated data files (TOML), never code.
+
+A preset file describes one device: identity and source, range model, dropout,
+intensity attenuation and the scan pattern parameters of its family. ``load_preset``
+validates a file and returns a ``DevicePreset``; every error names the file and key.
+The file format is described in docs/presets.md; the [scan] schema of each family lives
+in ``preset_schema``.
+"""
+
+import math
+import tomllib
+from collections import OrderedDict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import schema as sch
+from .angle_tables import AngleTable, ccw_offsets_deg, read_angle_table, resolve_table_path
+from ..physics.detection import DetectionModel
+from ..errors import PatternError, PresetError
+from .patterns.base import ScanPattern
+from .patterns.custom import read_pattern_csv
+from .patterns.mems import blickfeld_pattern, lissajous_zones_pattern
+from .patterns.risley import risley_pattern
+from .patterns.spinning import spinning_pattern, uniform_elevations_deg
+
+FAMILIES = ("spinning", "mems", "risley", "custom")
+SCHEMA_VERSION = 1
+MAX_PRESET_BYTES = 2_000_000
+TOP_KEYS = {"schema", "id", "name", "family", "source", "fitted", "frequency_hz", "range",
+            "dropout", "attenuation_per_m", "detection", "beam", "scan"}
+PATTERN_CACHE_FRAMES = 4
+
+
+@dataclass(frozen=True)
+class RangeModel:
+    min_m: float = 0.0
+    max_m: float = 100.0
+    noise_sigma_m: float = 0.0
+
+
+@dataclass(frozen=True)
+class DropoutModel:
+    """CARLA-style dropout: a general rate, then intensity-dependent dropout below a limit."""
+
+    general_rate: float = 0.0
+    intensity_limit: float = 0.0
+    intensity_zero: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class DevicePreset:
+    id: str
+    name: str
+    family: str
+    source: str
+    frequency_hz: float
+    range: RangeModel = field(default_factory=RangeModel)
+    dropout: DropoutModel = field(default_factory=DropoutModel)
+    attenuation_per_m: float = 0.0
+    scan: dict = field(default_factory=dict)
+    path: str = ""
+    fitted: bool = False          # True when scan parameters were fitted, not published
+    table: AngleTable = None      # the resolved angle table of a spinning preset, if any
+    base_dir: str = ""            # folder that relative file names in [scan] resolve against
+    rays_per_frame: int = None    # estimated at validation (None for custom files)
+    # Detection by the LiDAR equation from the datasheet's range-at-reflectivity figures
+    # ([detection]); None: CARLA's model (every hit within range returns)
+    detection: DetectionModel = None
+    # The beam's divergence, return mode and echo separation ([beam], footprint.Beam);
+    # None: a thin ray with one return
+    beam: object = None
+
+    @property
+    def period(self):
+        return 1.0 / self.frequency_hz
+
+    def __getstate__(self):
+        """Pickled (sent to a worker) without its cached patterns."""
+        return {k: v for k, v in self.__dict__.items() if k != "_pattern_cache"}
+
+    def __setstate__(self, state):
+        self.__dict__.update(state)
+
+    def pattern(self, frame=0):
+        """The ``ScanPattern`` of one frame (``frame`` matters for the non-repeating
+        families: Risley prisms and MEMS mirrors keep moving between frames). Results
+        are cached per preset object and read-only; calling again is cheap."""
+        cache = self.__dict__.setdefault("_pattern_cache", OrderedDict())
+        key = int(frame) if self.family in ("risley", "mems") else 0
+        if key in cache:
+            cache.move_to_end(key)
+            return cache[key]
+        pat = _build_pattern(self, key)
+        for a in (pat.directions, pat.times, pat.channels):
+            a.setflags(write=False)
+        cache[key] = pat
+        while len(cache) > PATTERN_CACHE_FRAMES:
+            cache.popitem(last=False)
+        return pat
+
+
+# ---- pattern construction --------------------------------------------------------------
+
+def spinning_elevations_offsets(preset):
+    """(elevations_deg, azimuth offsets in our ccw convention) of a spinning preset."""
+    s = preset.scan
+    if preset.table is not None:
+        el = np.asarray(preset.table.elevations_deg, dtype=np.float64)
+        off = ccw_offsets_deg(preset.table.azimuth_offsets_deg, s["azimuth_convention"])
+    elif "elevations_deg" in s:
+        el = np.asarray(s["elevations_deg"], dtype=np.float64)
+        raw = s.get("azimuth_offsets_deg", [0.0] * len(el))
+        off = ccw_offsets_deg(raw, s.get("azimuth_convention", "ccw"))
+    else:
+        el = uniform_elevations_deg(s["channels"], s["upper_fov_deg"], s["lower_fov_deg"])
+        off = np.zeros_like(el)
+    return el, off
+
+
+def _firing_offsets_s(s, c):
+    if "firing_offsets_us" in s:
+        return np.asarray(s["firing_offsets_us"], dtype=np.float64) * 1e-6
+    if "firing_step_us" in s:
+        if "firing_groups" in s:
+            groups = np.asarray(s["firing_groups"], dtype=np.float64)
+        else:
+            groups = np.arange(c) // int(s.get("firing_group_size", 1))
+        return groups * float(s["firing_step_us"]) * 1e-6
+    return None
+
+
+def _build_pattern(p, frame):
+    s = p.scan
+    if p.family == "spinning":
+        el, off = spinning_elevations_offsets(p)
+        cycle = s.get("firing_cycle_us")
+        return spinning_pattern(
+            el, p.frequency_hz, s.get("points_per_second"), off,
+            horizontal_resolution_deg=s.get("horizontal_resolution_deg"),
+            firing_cycle_s=None if cycle is None else cycle * 1e-6,
+            firing_offsets_s=_firing_offsets_s(s, len(el)))
+    if p.family == "mems":
+        if s["model"] == "blickfeld":
+            return blickfeld_pattern(p.frequency_hz, s["points_per_second"], s["mirror_hz"],
+                                     s["h_fov_deg"], s["v_fov_deg"], s.get("phase_deg", 90.0), frame)
+        return lissajous_zones_pattern(
+            p.frequency_hz, s["points_per_second"], s["zones"], s["h_mirror_hz"],
+            s["v_mirror_hz"], s["h_amplitude_deg"], s["upper_amplitude_deg"],
+            s["lower_amplitude_deg"], s.get("v_phase_deg", 90.0), frame)
+    if p.family == "risley":
+        return risley_pattern(p.frequency_hz, s["pulse_rate_hz"], s["rotation_hz"], s["wedge_deg"],
+                              s["refractive_index"], s.get("fan_deg", [0.0]), s.get("phase_deg"),
+                              frame)
+    if p.family == "custom":
+        path = custom_pattern_path(p)
+        try:
+            return read_pattern_csv(path, p.frequency_hz)
+        except PatternError as exc:
+            raise PatternError(f"{p.path or p.id} [scan] file: {exc}") from None
+    raise PresetError(f"{p.path or p.id}: family '{p.family}' has no pattern")
+
+
+def custom_pattern_path(preset):
+    """The resolved pattern CSV of a custom-family preset."""
+    if not preset.base_dir:
+        raise PresetError(f"{preset.path or preset.id} [scan]: key 'file' needs a preset file "
+                          f"to resolve it against")
+    try:
+        return resolve_table_path(preset.scan["file"], preset.base_dir, f"{preset.path} [scan]")
+    except PresetError as exc:
+        raise PresetError(str(exc).replace("key 'table'", "key 'file'")) from None
+
+
+# ---- validation -------------------------------------------------------------------------
+
+def preset_from_dict(data, where="<preset>", base_dir=None):
+    """Validate a parsed preset mapping and build a ``DevicePreset``.
+
+    ``base_dir`` is the folder relative file names (angle tables, pattern files) resolve
+    against; it defaults to the folder of ``where`` when that names an existing file."""
+    if not isinstance(data, dict):
+        raise PresetError(f"{where}: a preset must be a table of keys")
+    if base_dir is None and where and Path(where).is_file():
+        base_dir = Path(where).parent
+    sch.no_unknown(data, TOP_KEYS, where)
+    if "schema" in data:
+        sch.integer(data, "schema", where, SCHEMA_VERSION, SCHEMA_VERSION)
+    pid = sch.string(data, "id", where, max_len=64)
+    if not sch.ID_RE.match(pid):
+        raise PresetError(f"{where}: key 'id' must be lower-case letters, digits, '_', '-' or '.' "
+                          f"(at most 64, starting with a letter or digit), got '{pid}'")
+    name = sch.string(data, "name", where, max_len=200)
+    family = sch.choice(data, "family", where, FAMILIES)
+    source = sch.string(data, "source", where, max_len=4000)
+    fitted = data.get("fitted", False)
+    if not isinstance(fitted, bool):
+        raise PresetError(f"{where}: key 'fitted' must be true or false")
+    freq = sch.num(data, "frequency_hz", where, lo=0.1, hi=1000.0)
+
+    rw = f"{where} [range]"
+    rng = sch.table_of(data, "range", where)
+    sch.no_unknown(rng, {"min_m", "max_m", "noise_sigma_m"}, rw)
+    rm = RangeModel(
+        min_m=sch.num(rng, "min_m", rw, lo=0.0, hi=1e4, default=0.0),
+        max_m=sch.num(rng, "max_m", rw, lo=0.01, hi=1e4),
+        noise_sigma_m=sch.num(rng, "noise_sigma_m", rw, lo=0.0, hi=10.0, default=0.0),
+    )
+    if rm.min_m >= rm.max_m:
+        raise PresetError(f"{rw}: 'min_m' ({rm.min_m}) must be below 'max_m' ({rm.max_m})")
+    dw = f"{where} [dropout]"
+    dr = sch.table_of(data, "dropout", where)
+    sch.no_unknown(dr, {"general_rate", "intensity_limit", "intensity_zero"}, dw)
+    dm = DropoutModel(
+        general_rate=sch.num(dr, "general_rate", dw, 0.0, 1.0, default=0.0),
+        intensity_limit=sch.num(dr, "intensity_limit", dw, 0.0, 1.0, default=0.0),
+        intensity_zero=sch.num(dr, "intensity_zero", dw, 0.0, 1.0, default=0.0),
+    )
+    detection = sch.check_detection(data["detection"], f"{where} [detection]") \
+        if "detection" in data else None
+    beam = sch.check_beam(data["beam"], f"{where} [beam]") if "beam" in data else None
+    if "scan" not in data:
+        raise PresetError(f"{where}: missing table [scan] (the scan pattern parameters)")
+    scan = sch.table_of(data, "scan", where)
+    sw = f"{where} [scan]"
+    table = None
+    if family == "spinning":
+        if "table" in scan:
+            if base_dir is None:
+                raise PresetError(f"{sw}: key 'table' needs a preset file to resolve it against")
+            tpath = resolve_table_path(scan["table"], base_dir, sw)
+            table = read_angle_table(tpath, f"{sw} table '{scan['table']}'")
+        rays = sch.check_spinning(scan, sw, freq, None if table is None else len(table.elevations_deg))
+    elif family == "mems":
+        rays = sch.check_mems(scan, sw, freq)
+    elif family == "risley":
+        rays = sch.check_risley(scan, sw, freq)
+    else:
+        rays = sch.check_custom(scan, sw)
+        if base_dir is None:
+            raise PresetError(f"{sw}: key 'file' needs a preset file to resolve it against")
+        try:
+            resolve_table_path(scan["file"], base_dir, sw)
+        except PresetError as exc:
+            raise PresetError(str(exc).replace("key 'table'", "key 'file'")) from None
+    return DevicePreset(
+        id=pid, name=name, family=family, source=source, frequency_hz=freq, range=rm, dropout=dm,
+        attenuation_per_m=sch.num(data, "attenuation_per_m", where, 0.0, 1.0, default=0.0),
+        scan=dict(scan), path=where, fitted=fitted, table=table,
+        base_dir="" if base_dir is None else str(base_dir), rays_per_frame=rays,
+        detection=detection, beam=beam,
+    )
+
+
+_LOAD_CACHE = {}
+
+
+def load_preset(path):
+    """Read and validate one preset file (TOML only; nothing in it is executed).
+    Results are cached per (path, modification time, size)."""
+    p = Path(path)
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise PresetError(f"{p}: preset file not found") from None
+    except OSError as exc:
+        raise PresetError(f"{p}: cannot read preset file ({exc.strerror})") from None
+    if not p.is_file():
+        raise PresetError(f"{p}: not a preset file")
+    if st.st_size > MAX_PRESET_BYTES:
+        raise PresetError(f"{p}: preset file is {st.st_size} bytes, more than {MAX_PRESET_BYTES}")
+    key = (str(p.resolve()), st.st_mtime_ns, st.st_size)
+    if key in _LOAD_CACHE:
+        return _LOAD_CACHE[key]
+    try:
+        with open(p, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as exc:
+        raise PresetError(f"{p}: not valid TOML ({exc})") from None
+    except UnicodeDecodeError:
+        raise PresetError(f"{p}: not UTF-8 text") from None
+    except RecursionError:
+        raise PresetError(f"{p}: TOML nested too deeply") from None
+    preset = preset_from_dict(data, str(p), base_dir=p.parent)
+    if len(_LOAD_CACHE) > 256:
+        _LOAD_CACHE.clear()
+    _LOAD_CACHE[key] = preset
+    return preset
+
+
+def builtin_presets_dir():
+    """The directory of the shipped presets: inside the installed extension, or the
+    repository's top-level ``presets/`` when run from a checkout."""
+    here = Path(__file__).resolve().parents[2]  # rls_addon/ (core/device/presets.py)
+    for cand in (here / "presets", here.parent / "presets"):
+        if cand.is_dir():
+            return cand
+    raise PresetError(f"no presets directory found next to {here}")
+
+
+def presets_in(directory):
+    """All presets (``*.toml``) in one folder by id, sorted by id; a duplicate id is an error."""
+    out = {}
+    for f in sorted(Path(directory).glob("*.toml")):
+        p = load_preset(f)
+        if p.id in out:
+            raise PresetError(f"{f}: id '{p.id}' already used by {out[p.id].path}")
+        out[p.id] = p
+    return dict(sorted(out.items()))
+
+
+def builtin_presets():
+    """All shipped presets by id, sorted by id."""
+    return presets_in(builtin_presets_dir())
+
+
+def get_preset(name, user_dir=None):
+    """Look a preset up by id or display name (case-insensitive): the shipped presets,
+    then those in ``user_dir`` if given. A path to a ``.toml`` file is loaded directly."""
+    if not isinstance(name, str) or not name.strip():
+        raise PresetError("a preset name is required")
+    if name.endswith(".toml") and Path(name).is_file():
+        return load_preset(name)
+    presets = dict(builtin_presets())
+    if user_dir is not None and Path(user_dir).is_dir():
+        for pid, p in presets_in(user_dir).items():
+            presets.setdefault(pid, p)
+    key = name.strip().lower()
+    for p in presets.values():
+        if key in (p.id.lower(), p.name.lower()):
+            return p
+    norm = _alnum(key)  # lenient: 'vlp-16', 'VLP16', 'pandar 64'
+    for p in presets.values():
+        if norm and norm in (_alnum(p.id), _alnum(p.name), _alnum(p.name.partition(" ")[2])):
+            return p
+    raise PresetError(f"unknown device preset '{name}'; known: {', '.join(presets)}")
+
+
+def _alnum(text):
+    return "".join(ch for ch in text.lower() if ch.isalnum())
+
+
+def pattern_span(preset, duration_s):
+    """Rays of ``duration_s`` seconds as (times, directions, channels), frames back to back
+    with times continuing across frames (frame k starts at k * period)."""
+    if not (isinstance(duration_s, (int, float)) and math.isfinite(duration_s) and duration_s > 0):
+        raise PatternError(f"duration must be a positive number of seconds, got {duration_s}")
+    frames = int(math.ceil(duration_s * preset.frequency_hz - 1e-9))
+    if frames * (preset.rays_per_frame or 1) > 50_000_000 or frames > 100_000:
+        raise PatternError(f"{duration_s} s of '{preset.id}' is too many rays; use a shorter duration")
+    ts, ds, cs = [], [], []
+    for k in range(frames):
+        pat = preset.pattern(k)
+        t = pat.times + k * preset.period
+        keep = t < duration_s
+        ts.append(t[keep])
+        ds.append(pat.directions[keep])
+        cs.append(pat.channels[keep])
+    return np.concatenate(ts), np.concatenate(ds), np.concatenate(cs)
+
+
+__all__ = [
+    "FAMILIES", "RangeModel", "DropoutModel", "DevicePreset", "ScanPattern", "preset_from_dict",
+    "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "get_preset",
+    "pattern_span", "spinning_elevations_offsets", "custom_pattern_path",
+]

@@ -1,0 +1,1 @@
+"""The output: point-cloud files, dataset layouts, ground-truth boxes and pictures of clouds."""

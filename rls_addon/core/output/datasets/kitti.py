@@ -1,0 +1,220 @@
+"""OpenPCDet's custom-dataset layout ("kitti" in ``rls dataset``), one root per sensor:
+
+    <out>/<sensor>/points/NNNNNN.npy     float32 (N, 4): x y z intensity
+    <out>/<sensor>/labels/NNNNNN.txt     one box a line: x y z dx dy dz heading Class
+    <out>/<sensor>/meta/NNNNNN.json      every box (seen or not) with visibility, poses
+    <out>/<sensor>/ImageSets/train.txt, val.txt
+    <out>/<sensor>/dataset.json          classes, point features, frame, split
+
+as ``pcdet/datasets/custom/custom_dataset.py`` reads it (``points/<id>.npy`` by
+``np.load``, labels ``x y z dx dy dz heading_angle category_name``, classes
+Vehicle/Pedestrian/Cyclist). Boxes and points share one frame: the sensor's own frame
+(x forward, y left, z up), or with ``level`` a gravity-aligned frame at the sensor
+(its yaw kept, pitch and roll removed; points mapped through the world, each with the
+sensor's pose at its own time). OpenPCDet assumes a level sensor: a pitched pole LiDAR
+without ``level`` has boxes turned out of the ground plane, which a heading alone
+cannot express.
+"""
+
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ...errors import RLSError
+from ..io.atomic import atomic_write_bytes
+from ..io.paths import sanitize_name
+from .common import (
+    Split,
+    check_root,
+    ensure_dir,
+    frame_id,
+    heading_in,
+    level_frame,
+    points_world,
+    seam_notice,
+    tilt_deg,
+    write_json,
+    write_text,
+)
+
+POINT_FORMATS = ("npy", "bin")
+
+
+def class_name(category):
+    """OpenPCDet's class name of an RLS label name: 'vehicle' -> 'Vehicle'."""
+    return "".join(part.capitalize() for part in str(category).split("_"))
+
+
+class KittiWriter:
+    """The scan run's writer of the layout above (see ``run.Writer``).
+
+    intensity_scale  1.0 (intensity 0..1) or 255.0 (0..255)
+    points_format    'npy' (what OpenPCDet's custom loader reads) or 'bin' (raw float32)
+    level            points and boxes in the gravity-aligned frame at the sensor
+    min_points       boxes with fewer points are kept out of the label files (they stay
+                     in meta/ with their visibility)"""
+
+    shardable = True
+
+    def __init__(self, root, scene_name, intensity_scale=1.0, points_format="npy", level=False,
+                 min_points=1, split=None, overwrite=False, resume=False):
+        if points_format not in POINT_FORMATS:
+            raise RLSError(f"points format must be one of {', '.join(POINT_FORMATS)}")
+        self.root, self.scene_name = Path(root), scene_name
+        self.scale, self.points_format = float(intensity_scale), points_format
+        self.level, self.min_points = bool(level), int(min_points)
+        self.split = split or Split()
+        self.overwrite, self.resume = bool(overwrite), bool(resume)
+        self.notices = []
+
+    def sensor_root(self, sensor):
+        return self.root / sanitize_name(sensor)
+
+    def path(self, sensor, output, frame):
+        return self.sensor_root(sensor) / "points" / f"{frame_id(frame)}.{self.points_format}"
+
+    def incomplete(self, sensor, output, frame):
+        """Points and labels of a frame whose meta (written last) is missing."""
+        if self._meta(sensor, frame).exists():
+            return []
+        return [p for p in self.planned_files(sensor, output, frame)[:2] if p.exists()]
+
+    def planned_files(self, sensor, output, frame):
+        root = self.sensor_root(sensor)
+        return [self.path(sensor, output, frame), root / "labels" / f"{frame_id(frame)}.txt",
+                self._meta(sensor, frame)]
+
+    def _meta(self, sensor, frame):
+        return self.sensor_root(sensor) / "meta" / f"{frame_id(frame)}.json"
+
+    def check(self, sensor, output, frame):
+        check_root(self.root)
+        frame_id(frame)
+
+    def existing(self, sensor, output, frame):
+        """A complete earlier frame (points, labels and meta; the points read back with
+        the meta's count), when resuming."""
+        if not self.resume:
+            return None
+        meta, pts = self._meta(sensor, frame), self.path(sensor, output, frame)
+        labels = self.sensor_root(sensor) / "labels" / f"{frame_id(frame)}.txt"
+        if not (meta.is_file() and pts.is_file() and labels.is_file()):
+            return None
+        try:
+            n = json.loads(meta.read_text())["points"]
+            rows = len(self._load(pts))
+        except (OSError, ValueError, KeyError):
+            return None
+        return n if rows == n else None
+
+    def _load(self, path):
+        if self.points_format == "npy":
+            return np.load(path, mmap_mode="r")
+        return np.fromfile(path, np.float32).reshape(-1, 4)
+
+    def write(self, sensor, output, frame, points, info):
+        root = self.sensor_root(sensor)
+        fid = frame_id(frame)
+        if info.get("frame_space") != "sensor":
+            raise RLSError("the KITTI layout needs sensor-frame points")
+        start = np.asarray(info["sensor_pose_start"], np.float64)
+        if self.level:
+            frame_to_world = level_frame(start)
+            to_frame = np.linalg.inv(frame_to_world)
+            xyz = points_world(points, info) @ to_frame[:3, :3].T + to_frame[:3, 3]
+        else:
+            frame_to_world = start
+            xyz = np.stack([points["x"], points["y"], points["z"]], 1)
+            if tilt_deg(start) > 1.0 and not any(n.startswith(f"{sensor} leans")
+                                                 for n in self.notices):
+                self.notices.append(
+                    f"{sensor} leans {tilt_deg(start):.1f} deg from level: its labels keep "
+                    "only each box's heading in the sensor frame (OpenPCDet assumes a level "
+                    "sensor); pass --level for points and boxes in a gravity-aligned frame "
+                    "(the pitched sensor's roll/pitch are lost in KITTI labels otherwise)")
+        arr = np.empty((len(points), 4), np.float32)
+        arr[:, :3] = xyz
+        arr[:, 3] = points["intensity"] * self.scale
+        lines, boxes = [], []
+        seam_notice(self.notices, sensor, info.get("objects", []))
+        for b in info.get("objects", []):
+            box = self._box(b, frame_to_world)
+            boxes.append(dict(b, frame_box=box))
+            if b["points"] >= self.min_points:
+                lines.append(" ".join(f"{v:.6f}" for v in box["xyz"] + box["lwh"]
+                                      + [box["heading"]]) + f" {class_name(b['category'])}")
+        ow = self.overwrite or self.resume
+        ensure_dir(root / "points")
+        path = self.path(sensor, output, frame)
+        if self.points_format == "npy":
+            buf = io.BytesIO()
+            np.save(buf, arr)
+            data = buf.getvalue()
+        else:
+            data = arr.tobytes()
+        atomic_write_bytes(path, data, overwrite=ow)
+        write_text(root / "labels" / f"{fid}.txt", "".join(line + "\n" for line in lines), ow)
+        # meta last: its presence marks a complete frame
+        write_json(self._meta(sensor, frame), {
+            "scene": self.scene_name, "sensor": sensor, "frame": frame,
+            "points": int(len(points)), "timestamp_s": info.get("timestamp_s"),
+            "frame_to_world": frame_to_world.tolist(),
+            "label_frame": "level" if self.level else "sensor",
+            "intensity_scale": self.scale, "objects": boxes,
+            "sensor_pose_start": info["sensor_pose_start"],
+            "sensor_poses": info.get("sensor_poses"), "device": info.get("device")}, ow)
+        return path
+
+    def _box(self, b, frame_to_world):
+        """A box (sidecar dict) in the label frame: centre, l w h, heading."""
+        if self.level:
+            to_frame = np.linalg.inv(frame_to_world)
+            centre = to_frame[:3, :3] @ np.asarray(b["world"]["centre"]) + to_frame[:3, 3]
+            heading = heading_in(frame_to_world, np.asarray(b["world"]["rotation"]))
+        else:  # the sensor frame at the box's own time
+            centre = np.asarray(b["sensor"]["centre"])
+            heading = b["sensor"]["heading_rad"]
+        return {"xyz": [float(v) for v in centre], "lwh": [float(v) for v in b["size_lwh_m"]],
+                "heading": float(heading)}
+
+    def abort(self):
+        """Frames already written are complete (a later --resume keeps them)."""
+
+    def flush(self):
+        """Files are written in place: nothing to wait for."""
+
+    def finish(self, run):
+        """Splits and the dataset description, per sensor root, over every frame there
+        (earlier runs' too)."""
+        for job in run.sensors:
+            root = self.sensor_root(job.name)
+            ids = sorted(p.stem for p in (root / "meta").glob("*.json")) \
+                if (root / "meta").is_dir() else []
+            val = set(self.split.val(ids))
+            ensure_dir(root / "ImageSets")
+            write_text(root / "ImageSets" / "train.txt",
+                       "".join(i + "\n" for i in ids if i not in val), True)
+            write_text(root / "ImageSets" / "val.txt", "".join(i + "\n" for i in sorted(val)), True)
+            classes = [class_name(c) for c in job.settings.output.object_classes]
+            write_json(root / "dataset.json", {
+                "layout": "OpenPCDet custom dataset", "scene": self.scene_name,
+                "sensor": job.name, "device": job.preset.id, "class_names": classes,
+                "point_features": ["x", "y", "z", "intensity"],
+                "points_format": self.points_format, "intensity_scale": self.scale,
+                "frame": "level (gravity-aligned at the sensor)" if self.level
+                else "sensor (x forward, y left, z up)",
+                "min_points_per_label": self.min_points, "split": self.split.to_dict(),
+                "frames": len(ids), "val_frames": len(val)}, True)
+
+
+def read_labels(path):
+    """(boxes (N, 7) float, class names) of a label file (for tests and users)."""
+    rows = [line.split() for line in Path(path).read_text().splitlines() if line.strip()]
+    if not rows:
+        return np.zeros((0, 7)), []
+    return np.array([[float(v) for v in r[:7]] for r in rows]), [r[7] for r in rows]
+
+
+__all__ = ["KittiWriter", "POINT_FORMATS", "class_name", "read_labels"]

@@ -1,0 +1,226 @@
+"""OPV2V's layout for cooperative perception, as OpenCOOD reads it ("opv2v" in
+``rls dataset``):
+
+    <out>/<scenario>/<agent id>/NNNNNN.pcd    the agent LiDAR's points
+    <out>/<scenario>/<agent id>/NNNNNN.yaml   its pose and the vehicles around it
+
+OpenCOOD (``opencood/data_utils/datasets/basedataset.py``) lists the agent folders of
+a scenario sorted, takes agents with negative ids (road-side units) as never ego, and
+per frame reads ``NNNNNN.yaml`` and ``NNNNNN.pcd``: the points with Open3D's legacy
+reader and the intensity from the colour channel (``opencood/utils/pcd_utils.py:
+pcd_to_np``: ``colors[:, 0]``). So each .pcd holds x y z and a packed ``rgb`` whose
+three channels carry round(255 * intensity).
+
+Everything is in CARLA's left-handed frame (``carla``: y mirrored): the points in the
+LiDAR's own frame, poses as ``[x, y, z, roll, yaw, pitch]`` in metres and degrees,
+turned into matrices by OpenCOOD's ``x_to_world``. A vehicle is ``location`` (its
+origin), ``center`` (from the origin to its box centre, world axes, as OpenCOOD adds
+them), ``extent`` (half length, width, height), ``angle`` ([roll, yaw, pitch]) and
+``speed`` (km/h, as OpenCDA logs it).
+
+Agents: a LiDAR on a vehicle (its parent object) is that vehicle, with the vehicle's
+instance id; a LiDAR on infrastructure is a road-side unit with a negative id derived
+from its name (stable over runs). A frame's YAML files are written once every agent
+of that frame has been scanned, since each lists the other agents' poses.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .carla import carla_pose, to_carla_points
+from ...errors import RLSError
+from ...scene.instances import instance_id
+from ..io import pcd
+from ..io.atomic import atomic_write_bytes
+from ..io.paths import sanitize_name
+from .common import check_root, ensure_dir, frame_id, seam_notice, write_text
+
+KMH = 3.6
+
+
+def rsu_id(sensor):
+    """The negative agent id of a road-side LiDAR, from its name."""
+    return -instance_id(f"rsu:{sensor}")
+
+
+def opv2v_points(points):
+    """Packed records x y z rgb (float32): sensor-frame points in CARLA's axes, the
+    intensity in all three colour channels (Open3D's legacy reader gives it as
+    ``colors[:, 0]`` in 0..1, to 1/255)."""
+    xyz = to_carla_points(np.stack([points["x"], points["y"], points["z"]], 1))
+    rec = np.empty(len(points), dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rgb", "<f4")])
+    rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    c = np.clip(np.rint(np.asarray(points["intensity"], np.float64) * 255.0), 0, 255)
+    c = c.astype(np.uint32)
+    rec["rgb"] = ((c << 16) | (c << 8) | c).view(np.float32)
+    return rec
+
+
+def vehicle_entry(box):
+    """OpenCOOD's dict of one vehicle from a ground-truth box (sidecar form)."""
+    centre = np.asarray(box["world"]["centre"], np.float64)
+    origin = np.asarray(box["world"]["origin"], np.float64)
+    pose = np.eye(4)
+    pose[:3, :3] = np.asarray(box["world"]["rotation"])
+    pose[:3, 3] = centre
+    roll, yaw, pitch = carla_pose(pose)[3:]
+    return {"location": [float(v) for v in to_carla_points(origin)[0]],
+            "center": [float(v) for v in to_carla_points(centre - origin)[0]],
+            "extent": [float(v) / 2 for v in box["size_lwh_m"]],
+            "angle": [roll, yaw, pitch],
+            "speed": float(np.linalg.norm(box["world"]["velocity_mps"]) * KMH),
+            "category": box["category"], "rls_object": box["object"],
+            "rls_points": int(box["points"]), "rls_time_s": float(box["time_s"])}
+
+
+class Opv2vWriter:
+    """The scan run's writer of the layout above (see ``run.Writer``).
+
+    agents    {sensor name: agent id}; ``agents_for`` makes it
+    carriers  {sensor name: key of the vehicle it rides on} (vehicle agents only)"""
+
+    shardable = True  # in pieces of whole frames
+
+    def __init__(self, root, scene_name, agents, carriers=None, overwrite=False, resume=False):
+        self.root = Path(root)
+        self.scene_name = scene_name
+        self.scenario = self.root / sanitize_name(scene_name)
+        self.agents, self.carriers = dict(agents), dict(carriers or {})
+        self.overwrite, self.resume = bool(overwrite), bool(resume)
+        self._pending = {}  # frame -> {sensor: yaml body without the other agents}
+        self.notices = []
+
+    def _dir(self, sensor):
+        return self.scenario / str(self.agents[sensor])
+
+    def path(self, sensor, output, frame):
+        return self._dir(sensor) / f"{frame_id(frame)}.pcd"
+
+    def incomplete(self, sensor, output, frame):
+        """A point file whose frame's YAML was never written."""
+        cloud = self.path(sensor, output, frame)
+        return [cloud] if cloud.exists() and not self._yaml(sensor, frame).exists() else []
+
+    def planned_files(self, sensor, output, frame):
+        return [self.path(sensor, output, frame), self._yaml(sensor, frame)]
+
+    def _yaml(self, sensor, frame):
+        return self._dir(sensor) / f"{frame_id(frame)}.yaml"
+
+    def check(self, sensor, output, frame):
+        if sensor not in self.agents:
+            raise RLSError(f"no OPV2V agent id for LiDAR '{sensor}'")
+        check_root(self.root)
+        frame_id(frame)
+        _yaml_module()
+
+    def existing(self, sensor, output, frame):
+        if not self.resume:
+            return None
+        cloud, side = self.path(sensor, output, frame), self._yaml(sensor, frame)
+        if not (cloud.is_file() and side.is_file()):
+            return None
+        try:
+            body = _yaml_module().safe_load(side.read_text())
+            n = len(pcd.decode(cloud.read_bytes()))
+        except Exception:  # noqa: BLE001 - anything unreadable is scanned again
+            return None
+        if n != body.get("rls", {}).get("points"):
+            return None
+        self._pending.setdefault(frame, {})[sensor] = body  # its pose, for the others
+        self._flush(frame, written=set())
+        return n
+
+    def write(self, sensor, output, frame, points, info):
+        if info.get("frame_space") != "sensor":
+            raise RLSError("the OPV2V layout needs sensor-frame points")
+        ensure_dir(self._dir(sensor))
+        path = self.path(sensor, output, frame)
+        ow = self.overwrite or self.resume
+        atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"), overwrite=ow)
+        start = np.asarray(info["sensor_pose_start"], np.float64)
+        boxes = info.get("objects", [])
+        seam_notice(self.notices, sensor, boxes)
+        carrier = self.carriers.get(sensor)
+        ego = next((b for b in boxes if b["object"] == carrier), None)
+        lidar_pose = carla_pose(start)
+        body = {
+            "lidar_pose": lidar_pose,
+            "true_ego_pos": carla_pose(_box_origin_pose(ego)) if ego else lidar_pose,
+            "predicted_ego_pos": carla_pose(_box_origin_pose(ego)) if ego else lidar_pose,
+            "ego_speed": float(np.linalg.norm(ego["world"]["velocity_mps"]) * KMH) if ego else 0.0,
+            "vehicles": {int(b["instance"]): vehicle_entry(b) for b in boxes
+                         if b["object"] != carrier},
+            "rls": {"scene": self.scene_name, "sensor": sensor, "frame": frame,
+                    "points": int(len(points)), "timestamp_s": info.get("timestamp_s"),
+                    "agent": self.agents[sensor], "carrier": carrier,
+                    "device": info.get("device", {}).get("id"),
+                    "sensor_moves": bool(info.get("sensor_moves"))},
+        }
+        self._pending.setdefault(frame, {})[sensor] = body
+        self._flush(frame, written={sensor})
+        return path
+
+    def _flush(self, frame, written):
+        """Write the frame's YAML files once every agent of it is known (scanned now or
+        kept from an earlier run): each lists all agents' LiDAR poses."""
+        bodies = self._pending.get(frame, {})
+        if set(bodies) != set(self.agents):
+            return
+        poses = {str(self.agents[s]): b["lidar_pose"] for s, b in bodies.items()}
+        yaml = _yaml_module()
+        for sensor, body in bodies.items():
+            if sensor not in written and self._yaml(sensor, frame).is_file():
+                continue
+            text = yaml.safe_dump(dict(body, rls=dict(body["rls"], agents=poses)),
+                                  sort_keys=False)
+            write_text(self._yaml(sensor, frame), text, True)
+        del self._pending[frame]
+
+    def abort(self):
+        """Frames whose YAML files are written are complete; a frame cut short keeps its
+        point files without YAML, which OpenCOOD does not list (--resume redoes it)."""
+
+    def flush(self):
+        """Files are written in place: nothing to wait for."""
+
+    def finish(self, run):
+        """A description of the scenario beside its agent folders."""
+        write_text(self.root / f"{sanitize_name(self.scene_name)}.rls.json", json.dumps({
+            "layout": "OPV2V (OpenCOOD)", "scene": self.scene_name,
+            "agents": {s: a for s, a in sorted(self.agents.items())},
+            "carriers": self.carriers, "frames": list(run.frames),
+            "coordinates": "CARLA left-handed (Blender y mirrored); poses [x, y, z, roll, "
+                           "yaw, pitch] in m and deg; vehicle speed km/h"}, indent=1) + "\n",
+            True)
+
+
+def agents_for(sensors, carriers):
+    """{sensor: agent id}: a vehicle-borne LiDAR gets its vehicle's instance id, a
+    road-side one a negative id from its name."""
+    out = {}
+    for s in sensors:
+        out[s] = instance_id(carriers[s]) if carriers.get(s) else rsu_id(s)
+    ids = list(out.values())
+    if len(set(ids)) != len(ids):
+        raise RLSError("two LiDARs ride on the same vehicle; OPV2V has one LiDAR per agent: "
+                       "scan them into separate datasets")
+    return out
+
+
+def _box_origin_pose(box):
+    m = np.eye(4)
+    m[:3, :3] = np.asarray(box["world"]["rotation"])
+    m[:3, 3] = box["world"]["origin"]
+    return m
+
+
+def _yaml_module():
+    try:
+        import yaml
+    except ImportError:
+        raise RLSError("the OPV2V layout writes YAML with PyYAML, which is not installed: "
+                       "pip install pyyaml") from None
+    return yaml

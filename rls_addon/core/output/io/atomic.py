@@ -1,0 +1,112 @@
+"""Write a file all at once or not at all.
+
+Data goes to a hidden temporary file in the target directory, which then
+replaces the target (``os.replace``; without ``overwrite`` a hard link, which
+fails if the target appeared meanwhile). Any exception, KeyboardInterrupt
+included, removes the temporary file. OS failures become ``OutputError``.
+"""
+
+import errno
+import os
+import pathlib
+import tempfile
+
+from ...errors import OutputError
+
+
+def _oserror(path, exc, action="write"):
+    if exc.errno == errno.ENOSPC:
+        return OutputError(f"disk full while writing {path}: free some space or choose another output directory")
+    if exc.errno == errno.EDQUOT:
+        return OutputError(f"disk quota exceeded while writing {path}")
+    reason = exc.strerror or str(exc)
+    return OutputError(f"cannot {action} {path}: {reason}")
+
+
+def _exists_error(path):
+    return OutputError(f"{path} already exists; pass --overwrite to replace it")
+
+
+def ensure_directory(directory):
+    """Create ``directory`` and its parents; clear ``OutputError`` if impossible."""
+    directory = pathlib.Path(directory)
+    if directory.is_dir():
+        return directory
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError as exc:
+        raise _oserror(directory, exc, "create directory") from None
+    if not directory.is_dir():
+        raise OutputError(f"cannot create directory {directory}: a file is in the way")
+    return directory
+
+
+def writable_folder(path):
+    """Create the output folder ``path`` if needed and make sure files can be written
+    there; raise ``OutputError`` saying why not. Returns the path as given."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise OutputError(f"output folder {path} is a file, not a folder")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create output folder {path}: {exc.strerror}") from None
+    if not os.access(path, os.W_OK):
+        raise OutputError(f"output folder {path} is not writable")
+    return path
+
+
+def atomic_write_bytes(path, data, overwrite=False):
+    """Write ``data`` (bytes-like, or a callable taking a binary file) to ``path``.
+
+    Returns the path. Raises ``OutputError`` if the file exists and
+    ``overwrite`` is false, or the directory cannot be created or written.
+    """
+    path = pathlib.Path(path)
+    if path.is_dir():
+        raise OutputError(f"cannot write {path}: it is a directory")
+    if path.exists() and not overwrite:
+        raise _exists_error(path)
+    ensure_directory(path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise _oserror(path, exc) from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            if callable(data):
+                data(fh)
+            else:
+                fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.chmod(tmp, 0o644)  # mkstemp makes 0600; clouds are meant to be shared
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            _link_no_clobber(tmp, path)
+    except BaseException as exc:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        if isinstance(exc, FileExistsError):
+            raise _exists_error(path) from None
+        if isinstance(exc, OSError):
+            raise _oserror(path, exc) from None
+        raise
+    return path
+
+
+def _link_no_clobber(tmp, path):
+    try:
+        os.link(tmp, path)
+    except FileExistsError:
+        raise
+    except OSError:
+        # file systems without hard links: check, then replace
+        if path.exists():
+            raise FileExistsError(errno.EEXIST, "exists", str(path)) from None
+        os.replace(tmp, path)
+        return
+    os.unlink(tmp)
+

@@ -1,0 +1,60 @@
+"""Output file names from a template such as ``{scene}/{sensor}/{frame:06d}``."""
+
+import os
+import pathlib
+import re
+
+from ...errors import OutputError
+from .fields import FORMAT_EXT, check_format
+
+_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
+_KNOWN_EXT = {".pcd", ".ply", ".bin", ".las", ".laz", ".xyz", ".npy"}
+
+
+def sanitize_name(name):
+    """A file-name-safe version of a scene or sensor name (never empty, no leading dot)."""
+    safe = _UNSAFE.sub("_", str(name)).lstrip(".")
+    return safe or "_"
+
+
+def output_path(directory, template, *, scene, sensor, frame, fmt):
+    """Render ``template`` under ``directory`` and add the format's extension.
+
+    Placeholders: ``{scene}``, ``{sensor}`` (sanitised names) and ``{frame}``
+    (an int, so ``{frame:06d}`` works). The template's own slashes make
+    sub-directories; a result that is absolute or climbs out of ``directory``
+    through ``..`` is refused with ``OutputError``.
+    """
+    check_format(fmt)
+    ext = FORMAT_EXT[fmt]
+    try:
+        rendered = str(template).format(
+            scene=sanitize_name(scene), sensor=sanitize_name(sensor), frame=int(frame)
+        )
+    except KeyError as exc:
+        raise OutputError(
+            f"output template {template!r} uses unknown placeholder {{{exc.args[0]}}}; "
+            "use {scene}, {sensor} and {frame}"
+        ) from None
+    except (ValueError, IndexError, TypeError) as exc:
+        raise OutputError(f"output template {template!r} is malformed: {exc}") from None
+    rel = pathlib.PurePosixPath(rendered.replace("\\", "/"))
+    if not rendered.strip() or rel.is_absolute() or pathlib.PureWindowsPath(rendered).drive:
+        raise OutputError(f"output template {template!r} must give a relative file name, got {rendered!r}")
+    if ".." in rel.parts:
+        raise OutputError(f"output template {template!r} leaves the output directory ({rendered!r})")
+    if rendered.endswith(("/", "\\")) or rel.name in ("", "."):
+        raise OutputError(f"output template {template!r} names a directory, not a file ({rendered!r})")
+    suffix = rel.suffix.lower()
+    if suffix != ext:
+        if suffix in _KNOWN_EXT:
+            raise OutputError(
+                f"output template {template!r} ends in {rel.suffix} but the format {fmt} writes {ext} files"
+            )
+        rel = rel.with_name(rel.name + ext)
+    base = pathlib.Path(directory)
+    out = base.joinpath(*rel.parts)
+    root = os.path.abspath(base)
+    if os.path.commonpath([root, os.path.abspath(out)]) != root:
+        raise OutputError(f"output template {template!r} leaves the output directory")
+    return out

@@ -1,0 +1,59 @@
+"""JSON metadata written next to a cloud file (same stem, ``.json``).
+
+The caller supplies the contents (device preset and source, sensor pose,
+frame, seed, effect settings, label map, software version). Readers of the
+cloud (``rls metrics``) look at two keys: ``"frame"`` (``"sensor"`` or
+``"world"``: the coordinate frame of the points) and ``"sensor_to_world"``
+(4x4 nested list, row-major, maps sensor-frame points to world).
+"""
+
+import json
+import math
+import pathlib
+
+import numpy as np
+
+from ...errors import InputError, OutputError
+from .atomic import atomic_write_bytes
+
+
+def sidecar_path(cloud_path):
+    return pathlib.Path(cloud_path).with_suffix(".json")
+
+
+def _plain(obj):
+    """JSON-ready copy: numpy values to Python, non-finite floats to null."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, np.generic):
+        return _plain(obj.item())
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, pathlib.PurePath):
+        return str(obj)
+    return obj
+
+
+def write_sidecar(cloud_path, info, overwrite=False):
+    """Write ``info`` as JSON beside ``cloud_path``; returns the JSON path."""
+    path = sidecar_path(cloud_path)
+    try:
+        text = json.dumps(_plain(info), indent=2, sort_keys=True, allow_nan=False)
+    except (TypeError, ValueError) as exc:
+        raise OutputError(f"cannot write {path}: metadata is not JSON-serialisable ({exc})") from None
+    return atomic_write_bytes(path, (text + "\n").encode("utf-8"), overwrite=overwrite)
+
+
+def read_sidecar(cloud_path):
+    """The sidecar dict of ``cloud_path``, or ``None`` if there is none."""
+    path = sidecar_path(cloud_path)
+    if not path.is_file():
+        return None
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read sidecar {path}: {exc}") from None

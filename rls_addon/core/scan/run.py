@@ -1,0 +1,321 @@
+"""One scan run, frames x sensors, behind every entry point (the UI's scan operators,
+``rls scan``, scripts): sessions that keep prepared scenes, per-frame seeds (from
+(seed, sensor, frame), see ``effects.scan_rng``), files and sidecars, resume, cancel
+and progress.
+
+Blender comes in through small interfaces: a scene source (``source.SceneSource``),
+a caster factory (``casting.caster_factory``), a writer (``io.writer.CloudWriter``
+or anything with its ``check``/``existing``/``write``) and callbacks for progress,
+results (previews) and cancelling. A run advances one (frame, sensor) step per
+``step()`` call, so a modal operator can run it between UI events and a script or the
+command line can ``run()`` it straight through.
+"""
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Protocol
+
+from ..casting import caster_factory
+from ..errors import SceneError
+from ..scene.instances import check_ids
+from ..labels import label_id, label_name
+from .session import ScanSession
+
+
+@dataclass(frozen=True)
+class SensorJob:
+    """One sensor of a run: its name in the scene, its settings, its device."""
+
+    name: str
+    settings: object   # settings.LidarSettings
+    preset: object     # presets.DevicePreset
+
+
+@dataclass
+class Step:
+    """What one (frame, sensor) step did, as progress callbacks see it."""
+
+    frame: int
+    sensor: str
+    done: int              # steps done so far, this one included
+    total: int
+    points: int
+    seconds: float         # the scan's own time (0 for a resumed step)
+    path: str = None       # the cloud written or kept (None without a writer)
+    resumed: bool = False  # kept from an earlier run
+    eta_s: float = 0.0     # estimate of the time left
+    warnings: list = field(default_factory=list)
+
+
+class Writer(Protocol):
+    shardable: bool  # pieces of a run may write on several workers
+
+    def path(self, sensor: str, output, frame: int): ...
+
+    def planned_files(self, sensor: str, output, frame: int) -> list:
+        """Every file a scan of (sensor, frame) writes (its path first)."""
+
+    def incomplete(self, sensor: str, output, frame: int) -> list:
+        """Files a write of (sensor, frame) cut short by a killed process left behind."""
+
+    def check(self, sensor: str, output, frame: int) -> None: ...
+
+    def existing(self, sensor: str, output, frame: int) -> int | None: ...
+
+    def write(self, sensor: str, output, frame: int, points, info: dict): ...
+
+    def finish(self, run) -> None:
+        """After the last step of a run that was not cancelled (run-level files)."""
+
+    def abort(self) -> None:
+        """The run ended early: drop what only a complete run may leave."""
+
+    def flush(self) -> None:
+        """Wait for files still being written (a writer that writes in the background);
+        called when a run or a piece of one ends."""
+
+
+class ScanRun:
+    """Scan ``frames`` x ``sensors`` (``SensorJob``) of ``source``.
+
+    writer     where clouds go (None: scan only, e.g. a preview)
+    progress   called with a ``Step`` after every step
+    on_result  called with (job, frame, ScanResult, info) after every scan (previews)
+    cancelled  a function polled before every scan (after the frame is set, so a
+               frame-change handler may ask to stop); True ends the run there
+    factory    ``casting.caster_factory``-like: name -> (backend class, notice)
+    sessions   {backend name: ScanSession} to keep prepared scenes in over runs (a
+               worker's pieces of a sharded run)
+    piece      True for one piece of a sharded run: the run-level files are written by
+               whoever assembles the pieces (``absorb``), not here
+
+    A run can also be spread over workers (``commands.distribute``): ``pieces`` splits
+    its plan, each piece runs as a run of its own on a worker, and ``absorb`` takes
+    their steps back in plan order, so the summary and the run-level files are what a
+    whole run gives; seeds come from (seed, sensor, frame), so the clouds are too.
+    """
+
+    def __init__(self, source, sensors, frames, writer=None, progress=None, on_result=None,
+                 cancelled=None, factory=caster_factory, sessions=None, piece=False):
+        if not sensors:
+            raise SceneError(f"scene '{source.name}' has no LiDAR objects "
+                             f"(add one with Add > LiDAR)")
+        if not frames:
+            raise SceneError("no frames to scan (the frame range is empty)")
+        self.source, self.sensors, self.frames = source, list(sensors), list(frames)
+        self.writer, self.progress, self.on_result = writer, progress, on_result
+        self._cancelled = cancelled or (lambda: False)
+        self.plan = [(f, job) for f in self.frames for job in self.sensors]
+        if writer is not None:  # fail before scanning anything
+            for job in self.sensors:
+                writer.check(job.name, job.settings.output, self.frames[0])
+        self.sessions, self.notices = ({} if sessions is None else sessions), []
+        self.piece = piece
+        for job in self.sensors:
+            backend = job.settings.backend
+            if backend not in self.sessions:
+                backend_cls, notice = factory(backend)
+                self.sessions[backend] = ScanSession(backend_cls)
+                if notice and notice not in self.notices:
+                    self.notices.append(notice)
+        self.original_frame = source.current_frame()
+        self.index = 0
+        self.scanned = self.resumed = self.points = 0
+        self.paths, self.outputs, self.frames_done = [], [], []
+        self.warnings = list(self.notices)
+        self.cancelled = False
+        self.last = None
+        self.id_map = {}  # instance id -> {object name: label id}, over the whole run
+        self._frame_set = None
+        self._scan_time = 0.0
+        self.t0 = time.perf_counter()
+
+    @property
+    def total(self):
+        return len(self.plan)
+
+    @property
+    def finished(self):
+        return self.cancelled or self.index >= len(self.plan)
+
+    @property
+    def structure_builds(self):
+        return sum(s.builds for s in self.sessions.values())
+
+    def eta(self):
+        """Seconds left, estimated from the steps scanned so far."""
+        if not self.scanned:
+            return 0.0
+        return self._scan_time / self.scanned * (self.total - self.index)
+
+    def status(self):
+        frame, job = self.plan[min(self.index, len(self.plan) - 1)]
+        return (f"LiDAR scan: frame {frame} ({job.name}), {self.index}/{self.total} done, "
+                f"about {self.eta():.0f} s left (Esc to cancel)")
+
+    def step(self):
+        """Do the next (frame, sensor); False when nothing is left or a cancel was
+        asked for before this step's scan began."""
+        if self.finished:
+            return False
+        frame, job = self.plan[self.index]
+        out = job.settings.output
+        kept = self.writer.existing(job.name, out, frame) if self.writer is not None else None
+        if kept is not None:
+            self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
+                                        str(self.writer.path(job.name, out, frame)), True))
+            self.resumed += 1
+            return not self.finished
+        if self._frame_set != frame or self.source.current_frame() != frame:
+            self.source.set_frame(frame)
+            self._frame_set = frame
+        if self._cancelled():
+            self.cancelled = True
+            return False
+        t = time.perf_counter()
+        session = self.sessions[job.settings.backend]
+        out = job.settings.output
+        classes = [label_id(c) for c in out.object_classes] if out.ground_truth else None
+        result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
+                                    object_classes=classes)
+        info["frame_rate_hz"] = self.source.fps
+        info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
+        for iid, o in info["labels"].items():
+            self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
+        path = None
+        if self.writer is not None:
+            path = str(self.writer.write(job.name, out, frame, result.points, info))
+            self.paths.append(path)
+        if self.on_result is not None:
+            self.on_result(job, frame, result, info)
+        self.scanned += 1
+        self._scan_time += time.perf_counter() - t
+        warnings = [f"{job.name} frame {frame}: {w}" for w in result.warnings]
+        self.warnings += warnings
+        self.last = (result, info)
+        self._done(frame, job, Step(frame, job.name, self.index + 1, self.total,
+                                    len(result.points), result.seconds, path, False,
+                                    warnings=warnings))
+        return not self.finished
+
+    def _done(self, frame, job, step):
+        self.index += 1
+        self.points += step.points
+        step.eta_s = self.eta()
+        self.outputs.append(step)
+        if self.index == len(self.plan) or self.plan[self.index][0] != frame:
+            self.frames_done.append(frame)
+        if self.index == len(self.plan):
+            self._complete()
+        if self.progress is not None:
+            self.progress(step)
+
+    def instance_table(self):
+        """The run's objects by stable instance id (what every sidecar's ``labels``
+        lists for its own scan), for the writer to store once per run."""
+        return {str(i): {"object": name, "label": label, "label_name": label_name(label)}
+                for i, names in sorted(self.id_map.items()) for name, label in names.items()}
+
+    def _complete(self):
+        if self.piece:
+            return
+        self.warnings += check_ids({i: set(n) for i, n in self.id_map.items()})
+        if self.writer is not None:
+            self.writer.finish(self)
+
+    # ---- a run spread over workers ------------------------------------------------------
+
+    def pieces(self, count, by_sensor=True):
+        """The plan split into at most ``count`` pieces of [(sensor names, frames)]:
+        per sensor, runs of consecutive frames (a worker keeps a still sensor's cast
+        and a sensor's prepared scene over its frames); with ``by_sensor=False`` runs
+        of frames with every sensor (layouts whose files need a whole frame)."""
+        from .cluster import shards
+
+        if not by_sensor:
+            return [([j.name for j in self.sensors], f) for f in shards(self.frames, count)]
+        per = max(1, -(-count // len(self.sensors)))
+        return [([j.name], f) for j in self.sensors for f in shards(self.frames, per)]
+
+    def absorb(self, steps, id_map, warnings=()):
+        """Take a piece's steps (run elsewhere) into this run, then, once every step of
+        the plan is in, order them as a whole run would and complete the run."""
+        for step in steps:
+            self.outputs.append(step)
+            self.points += step.points
+            if step.resumed:
+                self.resumed += 1
+            else:
+                self.scanned += 1
+                self._scan_time += step.seconds
+                if step.path:
+                    self.paths.append(step.path)
+        for iid, names in id_map.items():
+            self.id_map.setdefault(int(iid), {}).update(names)
+        self.warnings += [w for w in warnings if w not in self.warnings]
+        self.index = len(self.outputs)
+        if self.index == len(self.plan):
+            order = {(f, j.name): k for k, (f, j) in enumerate(self.plan)}
+            self.outputs.sort(key=lambda s: order[(s.frame, s.sensor)])
+            self.paths = [s.path for s in self.outputs if s.path and not s.resumed]
+            for k, s in enumerate(self.outputs):
+                s.done = k + 1
+            self.frames_done = list(self.frames)
+            self._complete()
+
+    def free_outputs(self):
+        """Without --overwrite or --resume, an existing file of this run is an error
+        before anything is scanned (pieces run again after a failed worker then keep
+        what they wrote the first time)."""
+        from ..errors import OutputError
+
+        for frame, job in self.plan:
+            path = self.writer.path(job.name, job.settings.output, frame)
+            if os.path.exists(path):
+                raise OutputError(f"{path} already exists; pass --overwrite to replace it "
+                                  "or --resume to keep it")
+
+    def run(self, interrupt_cancels=False):
+        """Every step to the end; Ctrl+C ends the run as a cancel when
+        ``interrupt_cancels`` (scripts in Blender), else it propagates (the command
+        line reports it). The source is put back at its frame either way."""
+        try:
+            while self.step():
+                pass
+        except KeyboardInterrupt:
+            if not interrupt_cancels:
+                raise
+            self.cancelled = True
+        finally:
+            self.finish()
+        return self
+
+    def finish(self):
+        """Put the scene back at the frame it was at when the run began; a run that
+        ends before its last step (cancelled, interrupted, failed) drops what only a
+        complete run may leave (a bag)."""
+        if self.index < len(self.plan) and self.writer is not None and not self.piece:
+            self.writer.abort()
+        if self.writer is not None:  # a piece's files, complete
+            self.writer.flush()
+        if self.source.current_frame() != self.original_frame:
+            self.source.set_frame(self.original_frame)
+
+    def summary(self):
+        """The run as plain data (the command line prints it as JSON)."""
+        return {"scene": self.source.name, "frames": self.frames,
+                "sensors": [j.name for j in self.sensors],
+                "structure_builds": self.structure_builds, "points": self.points,
+                "seconds": round(time.perf_counter() - self.t0, 3),
+                "scanned": self.scanned, "resumed": self.resumed,
+                "cancelled": self.cancelled,
+                "outputs": [self._output(s) for s in self.outputs]}
+
+    @staticmethod
+    def _output(s):
+        out = {"sensor": s.sensor, "frame": s.frame, "points": s.points,
+               "seconds": round(s.seconds, 4), "file": s.path}
+        if s.resumed:
+            out["resumed"] = True
+        return out

@@ -1,0 +1,271 @@
+"""A scan session: one frame of one sensor at a time from a scene source, keeping what
+can be kept between frames and sensors.
+
+- Static geometry is built into a ray-casting structure once and reused while it is
+  unchanged (the same meshes, matrices, materials and labels; else its digest decides).
+- A lidar that may move (is animated) gets its static scene prepared around grid
+  points ``DRIVING_SLACK`` of its range apart, that much wider: a driving lidar's
+  frames share one built structure per grid cell instead of one per frame. What is
+  prepared depends on the frame alone, never on the frames before: a run split over
+  workers writes the same bytes as a whole one.
+- Each group of rigidly moving objects keeps its own structure; deforming objects are
+  rebuilt per sub-step.
+"""
+
+import dataclasses
+
+import numpy as np
+
+from ..world.bodies import PreparedScene, RigidBodies, TimedScene
+from ..physics.detection import detection_info
+from ..physics.footprint import footprint_info
+from .frame import scan_frame
+from ..output.ground_truth import object_boxes
+from ..scene.instances import object_table, static_key, world_geometry
+from ..labels import DEFAULT_LABELS
+from ..scene.motion import pose_knots
+from .settings import resolve_range, scan_pattern
+from .sweep import SweepMotion, classify, substep_count
+from ..physics.weather import parse_weather
+
+MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
+DRIVING_SLACK = 0.25
+KEEP_PREPARED = 16     # prepared scenes and body groups kept per session
+
+
+class ScanSession:
+    """Scans frames of sensors from scene sources with one ray-casting backend
+    (``caster_factory``, see ``casting``)."""
+
+    def __init__(self, caster_factory):
+        self.caster_factory = caster_factory
+        self._prepared = {}
+        self._bodies = {}
+        self.builds = 0
+
+    def _cached(self, store, key, make):
+        item = store.get(key)
+        if item is None:
+            if len(store) >= KEEP_PREPARED:  # bounded: a moving sensor keeps seeing new geometry
+                store.pop(next(iter(store)))
+            item = store[key] = make()
+            self.builds += 1
+        return item
+
+    def prepared(self, geometry, centre, reach, key=None):
+        """The ``PreparedScene`` of ``geometry`` (or of ``geometry()``, a function that
+        builds it, when ``key`` identifies it without its digest)."""
+        if key is None:
+            geometry = geometry() if callable(geometry) else geometry
+            key = geometry.fingerprint()
+        key = (key, tuple(np.round(centre, 9)), reach)
+        return self._cached(self._prepared, key, lambda: PreparedScene(
+            geometry() if callable(geometry) else geometry, centre, reach, self.caster_factory))
+
+    @staticmethod
+    def anchor(centre, rmax, may_move):
+        """(centre, reach) to prepare a sensor's static scene for, from where it is now
+        alone (no history, so a run split into pieces prepares what a whole run does):
+        a sensor that cannot move, where it stands with its range; one that may (it is
+        animated), around the point of a grid of ``DRIVING_SLACK`` of its range nearest
+        to it, reaching that much farther, so its frames share one built scene while it
+        drives through a cell."""
+        if not may_move:
+            return centre, rmax
+        cell = DRIVING_SLACK * rmax
+        anchor = np.round(np.asarray(centre, np.float64) / cell) * cell
+        return anchor, rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M
+
+    def scan(self, source, sensor, preset, settings, frame, object_classes=None):
+        """Scan ``frame`` (the source is already at it) of sensor ``sensor`` with device
+        ``preset`` and ``ScanSettings`` ``settings``. Returns (ScanResult, info dict
+        for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
+        objects of these classes go into the info (``ground_truth``)."""
+        pose = source.sensor_pose(sensor)
+        rmin, rmax = resolve_range(preset, settings)
+        centre = pose[:3, 3]
+        anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
+        read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
+        instances, materials = read.instances, read.materials
+        objects = object_table(instances)
+        motion = SweepMotion()
+        if settings.motion != "snapshot":
+            with source.sweep(frame, preset.period) as sweep:
+                motion = classify(sweep, preset.period, instances,
+                                  source.mobility(instances, sensor), sensor)
+                n_used, substeps = self._substep_counts(preset, settings, instances, motion)
+                moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
+                                         motion, substeps)
+        else:
+            n_used, substeps, moving = None, {}, []
+        # "substeps" motion with N = 0: the sweep is cast with the N chosen above.
+        cast_settings = settings if n_used is None else dataclasses.replace(settings,
+                                                                            substeps=n_used)
+        track = motion.sensor
+        if track is not None:
+            sweep_path = track.matrices[:, :3, 3]
+            if np.linalg.norm(sweep_path - anchor, axis=1).max() + rmax > reach:
+                # The sweep leaves the anchored scene: one around this sweep alone.
+                anchor = centre
+                reach = rmax + float(np.linalg.norm(sweep_path - centre, axis=1).max())
+        static_sel = set(range(len(instances))) - motion.moved
+        # Joined (and digested) only when the session has not built it before.
+        scene = self.prepared(
+            lambda: world_geometry(instances, objects, materials, select=static_sel), anchor,
+            reach, static_key(instances, objects, materials, static_sel))
+        classes = set(object_classes or ())
+        boxes = bool(classes) and any(i.label in classes for i in instances)
+        result = scan_frame(scene, scan_pattern(preset, settings, frame), pose, preset,
+                            cast_settings,
+                            frame=frame, sensor=sensor, sensor_track=track, moving=moving,
+                            keep_rays=boxes)
+        info = self._info(preset, settings, sensor, frame, pose, rmin, rmax, motion, instances,
+                          substeps, n_used, objects, scene, result, read)
+        info.update(sensor_pose_record(pose, track, preset.period))
+        if object_classes is not None:
+            info["objects"] = [b.to_dict() for b in object_boxes(
+                instances, objects, motion.tracks if settings.motion != "snapshot" else {},
+                classes, result, _pose_function(pose, track), rmax,
+                _noise_sigma(preset, settings), preset.period)] if boxes else []
+            info["object_classes"] = sorted(classes)
+        result.rays_cast = None  # large; the boxes hold what was wanted from it
+        return result, info
+
+    @staticmethod
+    def _substep_counts(preset, settings, instances, motion):
+        """(N of "substeps" motion or None, {deforming instance index: N}). Both follow
+        ``settings.substeps``: fixed, or (0) chosen from how far things move."""
+        tol = settings.motion_tolerance_m or preset.range.noise_sigma_m or 0.01
+        n_used = None
+        if settings.motion == "substeps":
+            n_used = substep_count(motion.max_travel(instances), tol, settings.substeps)
+        deforming = {k: n_used if n_used is not None else substep_count(m, tol, settings.substeps)
+                     for k, m in motion.deforming}
+        return n_used, deforming
+
+    def _bodies_of(self, sweep, period, instances, objects, materials, motion, substeps):
+        """The moving bodies of a sweep: each deforming instance's sub-steps, then one
+        group of the rigid ones (kept by the session while their meshes are the same)."""
+        bodies = []
+        for k, _ in motion.deforming:
+            bodies += self._substeps(sweep, period, instances[k], k, objects, materials,
+                                     substeps[k])
+        if motion.rigid:
+            rigid = [(instances[k].key,
+                      world_geometry(instances, objects, materials, select={k}, local=True),
+                      track) for k, track in motion.rigid]
+            key = tuple((name, local.fingerprint()) for name, local, _ in rigid)
+            group = self._cached(self._bodies, key, lambda: RigidBodies(
+                [(local, tr) for _, local, tr in rigid], self.caster_factory))
+            group.tracks = [tr for _, _, tr in rigid]  # this sweep's motion
+            bodies.append(group)
+        return bodies
+
+    def _substeps(self, sweep, period, inst, k, objects, materials, n):
+        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps."""
+        out = []
+        step = period / n
+        for j in range(n):
+            snap = sweep.instance_at((j + 0.5) * step, inst)
+            if snap is None:
+                continue
+            geom = world_geometry([snap], [objects[k]], materials)
+            scene = PreparedScene(geom, snap.matrix[:3, 3], np.inf, self.caster_factory)
+            self.builds += 1
+            t1 = (j + 1) * step if j < n - 1 else np.inf
+            out.append(TimedScene(scene, j * step if j else -np.inf, t1))
+        return out
+
+    @staticmethod
+    def _info(preset, settings, sensor, frame, pose, rmin, rmax, motion, instances, substeps,
+              n_used, objects, scene, result, read):
+        keys = {k: instances[k].key for k in range(len(instances))}
+        summary = {"rigid": [keys[k] for k, _ in motion.rigid],
+                   "deforming": [keys[k] for k, _ in motion.deforming],
+                   "samples": motion.samples,
+                   "substeps": {keys[k]: n for k, n in substeps.items()},
+                   "sensor_moves": motion.sensor is not None}
+        return {
+            "device": {"id": preset.id, "name": preset.name, "source": preset.source,
+                       "detection": detection_info(preset, settings),
+                       "beam": footprint_info(preset, settings)},
+            **_channels(preset),
+            "sensor": sensor,
+            "frame": frame,
+            "frame_space": settings.frame_space,
+            "sensor_to_world": pose.tolist(),
+            "seed": settings.seed,
+            "effects": {"noise": settings.noise, "dropout": settings.dropout,
+                        "range_m": [rmin, rmax],
+                        "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
+                        "motion": settings.motion, "substeps": settings.substeps,
+                        "sweep_start_deg": settings.sweep_start_deg,
+                        "substeps_used": n_used, "ghosting": settings.ghosting,
+                        "detection": settings.detection,
+                        "weather": _weather_info(settings),
+                        "footprint": settings.footprint,
+                        "return_mode": settings.return_mode},
+            "motion": summary,
+            "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
+            "backend": scene.backend,
+            "rays": result.rays,
+            "points": int(len(result.points)),
+            "triangles_cast": result.triangles,
+            "objects_read": read.stats.get("objects", len(instances)),
+            "objects_culled_by_range": read.stats.get("culled_by_range", 0),
+            "ghosts": result.stats.get("ghosts", 0),
+            "weather_returns": result.stats.get("weather_returns", 0),
+            "footprint": {k: result.stats.get(k, 0) for k in (
+                "footprint_rays", "footprint_changed_rays", "multi_echo_rays",
+                "second_returns", "mixed_points")},
+            "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
+            "warnings": result.warnings,
+        }
+
+
+def _weather_info(settings):
+    """The sidecar's weather: None (clear) or the spec, extinction coefficient and false
+    return model (``weather.Weather.to_dict``)."""
+    air = parse_weather(settings.weather)
+    return None if air is None else air.to_dict()
+
+
+def _channels(preset):
+    """A spinning device's channel-table elevations (degrees, by ring), for readers
+    that number rings by elevation (io.point_types)."""
+    if preset.family != "spinning":
+        return {}
+    from ..device.presets import spinning_elevations_offsets
+
+    return {"channel_elevations_deg": [float(e) for e in spinning_elevations_offsets(preset)[0]]}
+
+
+def _noise_sigma(preset, settings):
+    if not settings.noise:
+        return 0.0
+    return preset.range.noise_sigma_m if settings.noise_sigma_m is None else settings.noise_sigma_m
+
+
+def _pose_function(pose, track):
+    """f(times) -> (N, 4, 4) sensor poses: the track's, or the still pose."""
+    if track is None:
+        return lambda t: np.broadcast_to(pose, (len(np.atleast_1d(t)), 4, 4))
+    return track.at
+
+
+def sensor_pose_record(pose, track, period):
+    """The sidecar's poses: at the sweep start and end, and for a moving sensor knots
+    that give its pose at any firing time within half a millimetre (``poses_at``:
+    linear translation, slerp rotation)."""
+    if track is None:
+        return {"sensor_pose_start": pose.tolist(), "sensor_pose_end": pose.tolist(),
+                "sensor_moves": False, "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
+    times, mats = pose_knots(track)
+    return {"sensor_pose_start": track.at([0.0])[0].tolist(),
+            "sensor_pose_end": track.at([period])[0].tolist(), "sensor_moves": True,
+            "sensor_poses": {"times_s": times.tolist(), "matrices": mats.tolist(),
+                             "interpolation": "between knots: translation linear, rotation "
+                                              "by quaternion slerp; within 0.5 mm of the "
+                                              "sensor's path"},
+            "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
+

@@ -1,0 +1,167 @@
+"""What a user chooses for a LiDAR, as plain values: one ``LidarSettings`` per LiDAR.
+
+The Blender layer reads a LiDAR's properties into one of these, once
+(``blender.sensor.lidar_settings_of``); the command line overrides it field by field
+(``LidarSettings.override``); the core scans and writes with it. Every enumerated
+value is checked against ``choices`` here, so a typo anywhere ends in one
+``SettingsError`` that lists the valid values.
+"""
+
+import dataclasses
+from dataclasses import dataclass, field
+
+from ..choices import (
+    BACKENDS,
+    DETECTION,
+    FIELDS,
+    FOOTPRINT,
+    FORMATS,
+    FRAME_SPACES,
+    MOTION,
+    RETURN_MODES,
+)
+from ..errors import SettingsError
+from ..output.io.fields import DEFAULT_FIELDS, resolve_fields
+from ..output.io.point_types import POINT_TYPE_CHOICES
+from ..labels import OBJECT_CLASSES, label_id, label_name
+from ..physics.weather import weather_spec
+
+DEFAULT_TEMPLATE = "{scene}_{sensor}_{frame:06d}"
+DEFAULT_OUTPUT_DIR = "//lidar/"
+
+
+@dataclass(frozen=True)
+class ScanSettings:
+    """How a scan behaves, beyond the device preset.
+
+    Range and noise fields left as None take the preset's values."""
+
+    seed: int = 0
+    frame_space: str = "sensor"  # see choices.FRAME_SPACES
+    noise: bool = True
+    dropout: bool = True
+    min_range_m: float | None = None
+    max_range_m: float | None = None
+    noise_sigma_m: float | None = None
+    attenuation_per_m: float | None = None
+    # Motion distortion (choices.MOTION): "exact" (every ray at its own time),
+    # "substeps" (the paper's N partial sweeps) or "snapshot" (one scene state per
+    # frame, as CARLA).
+    motion: str = "exact"
+    # Sub-steps of "substeps" motion and of deforming objects: 0 chooses N so that
+    # nothing moves more than the motion tolerance within one sub-step; N: fixed.
+    substeps: int = 0
+    motion_tolerance_m: float | None = None  # adaptive sub-step tolerance (None: preset)
+    ghosting: bool = True  # ghost points from glossy surfaces
+    # Spinning devices: the azimuth (degrees, counter-clockwise from the sensor's +X)
+    # where each sweep starts and the last one ended; None: the head's forward (0).
+    # An object on this seam is scanned at the start and at the end of the sweep.
+    sweep_start_deg: float | None = None
+    # Weather as a spec ('fog:visibility=50', 'rain:rate=10', 'snow:rate=2'; see
+    # ``weather``), kept in its canonical form; None: clear air
+    weather: str | None = None
+    # choices.DETECTION: "auto" (the LiDAR equation for presets with datasheet figures)
+    # or "carla" (CARLA's model for every preset, as before the LiDAR equation)
+    detection: str = "auto"
+    # choices.FOOTPRINT: "auto" (a beam is a cone of the preset's divergence, sampled
+    # near depth edges; presets without one: a thin ray) or "off" (a thin ray always)
+    footprint: str = "auto"
+    # choices.RETURN_MODES: "preset" (the device's), "strongest", "last" or "dual"
+    return_mode: str = "preset"
+
+    def __post_init__(self):
+        FRAME_SPACES.check(self.frame_space)
+        MOTION.check(self.motion)
+        DETECTION.check(self.detection)
+        FOOTPRINT.check(self.footprint)
+        RETURN_MODES.check(self.return_mode)
+        object.__setattr__(self, "weather", weather_spec(self.weather))
+        if int(self.substeps) != self.substeps or self.substeps < 0:
+            raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "
+                                f"got {self.substeps}")
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """Where and how a LiDAR's clouds are written (its Output panel)."""
+
+    directory: str = DEFAULT_OUTPUT_DIR  # '//' is the folder of the .blend file
+    format: str = "pcd_binary"           # see choices.FORMATS
+    fields: tuple = DEFAULT_FIELDS  # x, y, z and every field but 'range'
+    template: str = DEFAULT_TEMPLATE
+    # Ground truth in the sidecar: boxes of the objects of these classes (label names)
+    ground_truth: bool = True
+    object_classes: tuple = OBJECT_CLASSES
+    # Absolute time (s, e.g. a Unix time) of the scene's first frame: frame f starts
+    # at start_time_s + (f - first frame) / frame rate
+    start_time_s: float = 0.0
+    # PCD, PLY and bags: the fields of a vendor ROS driver's point (io.point_types) or
+    # RLS's own ("rls": ``fields`` choose among them)
+    point_type: str = "rls"
+    # LAS: world offset (m, x y z; None: per file, its minimum floored to whole km) and
+    # the world frame's CRS ('EPSG:<code>' or None)
+    las_offset: tuple | None = None
+    crs: str | None = None
+
+    def __post_init__(self):
+        FORMATS.check(self.format)
+        POINT_TYPE_CHOICES.check(self.point_type)
+        if self.las_offset is not None and len(tuple(self.las_offset)) != 3:
+            raise SettingsError(f"a LAS offset is x, y, z in metres, got {self.las_offset!r}")
+        for f in self.fields:
+            if f not in ("x", "y", "z"):
+                FIELDS.check(f)
+        # x, y, z first and always; the rest in the files' own order
+        object.__setattr__(self, "fields", resolve_fields(tuple(self.fields)))
+        object.__setattr__(self, "object_classes", tuple(label_name(label_id(c))
+                                                         for c in self.object_classes))
+
+
+@dataclass(frozen=True)
+class LidarSettings:
+    """Everything about one LiDAR but its pose: the device, the scan, the output."""
+
+    preset: str = "generic_uniform32"    # device preset id
+    scan: ScanSettings = field(default_factory=ScanSettings)
+    output: OutputSettings = field(default_factory=OutputSettings)
+    backend: str = "auto"                # see choices.BACKENDS
+
+    def __post_init__(self):
+        BACKENDS.check(self.backend)
+
+    def override(self, **changes):
+        """A copy with the given fields replaced; a change of None keeps the value (so
+        unset command-line flags pass straight through). Names are those of this
+        class, ``ScanSettings`` or ``OutputSettings``; an unknown name is an error."""
+        changes = {k: v for k, v in changes.items() if v is not None}
+        scan_names = {f.name for f in dataclasses.fields(ScanSettings)}
+        out_names = {f.name for f in dataclasses.fields(OutputSettings)}
+        own = {"preset", "backend"}
+        unknown = sorted(set(changes) - scan_names - out_names - own)
+        if unknown:
+            raise SettingsError(f"unknown setting(s) {', '.join(unknown)}")
+        scan = dataclasses.replace(self.scan, **{k: v for k, v in changes.items()
+                                                 if k in scan_names})
+        output = dataclasses.replace(self.output, **{k: v for k, v in changes.items()
+                                                     if k in out_names})
+        return dataclasses.replace(self, scan=scan, output=output,
+                                   **{k: v for k, v in changes.items() if k in own})
+
+
+def scan_pattern(preset, settings, frame):
+    """The ``ScanPattern`` a scan casts: the preset's for ``frame``, its sweep started
+    where ``settings.sweep_start_deg`` says (spinning devices only)."""
+    pattern = preset.pattern(frame)
+    if settings.sweep_start_deg is None:
+        return pattern
+    if preset.family != "spinning":
+        raise SettingsError(f"'{preset.id}' is a {preset.family} device: a sweep start is "
+                            "only defined for spinning devices")
+    return pattern.started_at(settings.sweep_start_deg)
+
+
+def resolve_range(preset, settings):
+    """(min, max) range in metres after the settings' overrides."""
+    rmin = preset.range.min_m if settings.min_range_m is None else settings.min_range_m
+    rmax = preset.range.max_m if settings.max_range_m is None else settings.max_range_m
+    return rmin, rmax

@@ -1,0 +1,178 @@
+"""Motion over one sweep: sampling a scene source's animation and classifying what moves.
+
+Objects that may change (``SceneSource.mobility``) and a sensor that may move are
+sampled at a few times across the sweep (``Sweep.state``); samples are doubled until
+interpolating between them reproduces the animation within ``INTERP_TOLERANCE_M``.
+Each object is then static (nothing changed: costs nothing more), rigid (only its
+matrix changed: cast exactly in its own frame) or deforming (its mesh changed:
+sub-steps, each a mesh built at the middle of its part of the sweep).
+
+How many sub-steps: a fixed N, or (N = 0) enough that nothing moves more than the
+tolerance within one sub-step (``substep_count``). In "substeps" motion mode the whole
+sweep uses one N, recorded in the sidecar; in "exact" mode only deforming objects are
+sub-stepped, each with its own N.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..scene.motion import Track
+
+INTERP_TOLERANCE_M = 1e-4  # max error of pose interpolation between samples
+MAX_SAMPLES = 65
+MAX_SUBSTEPS = 64
+
+
+def _interp_error(times, mats, probe_t, probe_m, points):
+    """Largest distance between interpolated and evaluated positions of ``points``."""
+    tr = Track(times, mats)
+    got = tr.at(probe_t)
+    p = np.c_[points, np.ones(len(points))]
+    a = np.einsum("kij,nj->kni", got[:, :3, :], p)
+    b = np.einsum("kij,nj->kni", probe_m[:, :3, :], p)
+    return float(np.linalg.norm(a - b, axis=2).max())
+
+
+def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, track_sensor):
+    """Sample candidate instances (indices into ``instances``) and the sensor over a
+    sweep of ``period`` seconds. Returns (times, {index: (K,4,4)}, {index: [local
+    vertices per sample]}, sensor (K,4,4) or None)."""
+    keys = {instances[k].key: k for k in candidates}
+    deform_keys = {instances[k].key for k in candidates} & set(deform_keys)
+
+    def state_at(t):
+        return sweep.state(t, keys, deform_keys, sensor)
+
+    n = 5
+    times = np.linspace(0.0, period, n)
+    states = [state_at(t) for t in times]
+    while n < MAX_SAMPLES:
+        mids = (times[:-1] + times[1:]) / 2
+        mid_states = [state_at(t) for t in mids]
+        worst = 0.0
+        for key, k in keys.items():
+            inst = instances[k]
+            corners = np.array([inst.vertices.min(0), inst.vertices.max(0)])
+            mats = np.array([s[0].get(key, inst.matrix) for s in states])
+            probe = np.array([s[0].get(key, inst.matrix) for s in mid_states])
+            worst = max(worst, _interp_error(times, mats, mids, probe, corners))
+        if track_sensor:
+            mats = np.array([s[2] for s in states])
+            probe = np.array([s[2] for s in mid_states])
+            worst = max(worst, _interp_error(times, mats, mids, probe, np.zeros((1, 3))))
+        merged_t = np.empty(2 * n - 1)
+        merged_t[0::2], merged_t[1::2] = times, mids
+        merged = [None] * (2 * n - 1)
+        merged[0::2], merged[1::2] = states, mid_states
+        times, states, n = merged_t, merged, 2 * n - 1
+        if worst <= INTERP_TOLERANCE_M:
+            break
+    matrices = {k: np.array([s[0].get(instances[k].key, instances[k].matrix) for s in states])
+                for k in candidates}
+    vertices = {k: [s[1].get(instances[k].key) for s in states] for k in candidates
+                if instances[k].key in deform_keys}
+    sensor_mats = np.array([s[2] for s in states]) if track_sensor else None
+    return times, matrices, vertices, sensor_mats
+
+
+def deformation(vertex_samples):
+    """Largest displacement of any vertex between the first sample and any other (0 when
+    the mesh never changes; inf when its topology changes)."""
+    first = vertex_samples[0]
+    worst = 0.0
+    for v in vertex_samples[1:]:
+        if v is None or first is None or v.shape != first.shape:
+            return math.inf
+        worst = max(worst, float(np.abs(v - first).max()) if len(v) else 0.0)
+    return worst
+
+
+def substep_count(max_motion_m, tolerance_m, fixed=0):
+    """Sub-steps: ``fixed``, or (0) enough that nothing moves more than the tolerance
+    within one sub-step (at least 1, at most ``MAX_SUBSTEPS``)."""
+    if fixed:
+        return int(fixed)
+    if not math.isfinite(max_motion_m):
+        return MAX_SUBSTEPS
+    return int(min(MAX_SUBSTEPS, max(1, math.ceil(max_motion_m / max(tolerance_m, 1e-6)))))
+
+
+def adaptive_substeps(bodies, sensor_track, tolerance_m):
+    """The sub-step count of "substeps" motion with N = 0, for bodies already built:
+    enough that no rigid body's box corner nor the sensor moves more than
+    ``tolerance_m`` within one sub-step (deforming bodies were sub-stepped when they
+    were built)."""
+    from ..world.bodies import RigidBodies
+
+    worst = 0.0
+    for b in bodies:
+        if isinstance(b, RigidBodies):
+            for k, track in enumerate(b.tracks):
+                worst = max(worst, track.max_displacement(np.array(b.boxes[k])))
+    if sensor_track is not None:
+        worst = max(worst, sensor_track.max_displacement(np.zeros((1, 3))))
+    return substep_count(worst, tolerance_m)
+
+
+def box_corners(vertices):
+    """The two extreme corners of local vertices (what ``Track.max_displacement``
+    needs to bound a body's travel)."""
+    return np.array([vertices.min(0), vertices.max(0)])
+
+
+@dataclass
+class SweepMotion:
+    """What moves in one sweep, classified."""
+
+    times: np.ndarray = None
+    rigid: list = field(default_factory=list)      # [(instance index, Track)]
+    deforming: list = field(default_factory=list)  # [(instance index, motion in m)]
+    tracks: dict = field(default_factory=dict)     # {instance index: Track of its matrix}
+    sensor: Track = None                           # a moving sensor's track, or None
+    samples: int = 1
+
+    @property
+    def moved(self):
+        """Instance indices that are not static in this sweep."""
+        return {k for k, _ in self.rigid} | {k for k, _ in self.deforming}
+
+    def max_travel(self, instances):
+        """The farthest anything moves over the sweep (metres): rigid bodies' box
+        corners, deforming meshes (their own change plus their travel) and the sensor.
+        What an adaptive sub-step count is chosen from."""
+        worst = 0.0
+        for k, track in self.rigid:
+            worst = max(worst, track.max_displacement(box_corners(instances[k].vertices)))
+        for _, motion in self.deforming:
+            worst = max(worst, motion)
+        if self.sensor is not None:
+            worst = max(worst, self.sensor.max_displacement(np.zeros((1, 3))))
+        return worst
+
+
+def classify(sweep, period, instances, mobility, sensor):
+    """Sample the sweep and say what moves (a ``SweepMotion``); nothing is sampled when
+    nothing may move."""
+    cand = list(mobility.candidates)
+    if not cand and not mobility.sensor_moves:
+        return SweepMotion()
+    times, mats, verts, sensor_mats = sample_sweep(sweep, period, instances, cand,
+                                                   mobility.deformable, sensor,
+                                                   mobility.sensor_moves)
+    out = SweepMotion(times=times, samples=len(times))
+    for k in cand:
+        inst = instances[k]
+        m = mats[k]
+        moved = bool(np.abs(m - m[0]).max() > 1e-12)
+        deform = deformation(verts[k]) if k in verts else 0.0
+        if deform > 1e-9:
+            out.tracks[k] = track = Track(times, m)
+            out.deforming.append((k, deform + track.max_displacement(box_corners(inst.vertices))))
+        elif moved:
+            out.tracks[k] = track = Track(times, m)
+            out.rigid.append((k, track))
+    if sensor_mats is not None and np.abs(sensor_mats - sensor_mats[0]).max() > 1e-12:
+        out.sensor = Track(times, sensor_mats)
+    return out

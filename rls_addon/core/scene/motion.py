@@ -1,0 +1,297 @@
+"""Motion over one sweep: poses sampled at a few times, interpolated per ray.
+
+A ``Track`` holds 4x4 matrices at increasing times (seconds from the start of the
+sweep). ``Track.at(t)`` interpolates per query time: translation by cubic Hermite
+(finite-difference tangents), rotation by quaternion slerp, and the remaining
+scale/shear part linearly; between samples this is exact for constant linear and
+angular velocity. The Blender layer chooses the
+samples (densifying until interpolation matches the evaluated animation).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..choices import MOTION
+from ..errors import SettingsError
+
+
+def quat_from_matrix(r):
+    """Unit quaternions (w, x, y, z) of rotation matrices (..., 3, 3), by Shepperd's
+    method (divide by the largest component, so no precision is lost near 0 or 180 deg)."""
+    r = np.asarray(r, dtype=np.float64)
+    shape = r.shape[:-2]
+    r = r.reshape(-1, 3, 3)
+    m00, m11, m22 = r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]
+    trace = np.stack([m00 + m11 + m22, m00, m11, m22], axis=1)
+    case = np.argmax(trace, axis=1)
+    q = np.empty((len(r), 4))
+    for c in range(4):
+        sel = case == c
+        if not sel.any():
+            continue
+        m = r[sel]
+        if c == 0:
+            s = 2.0 * np.sqrt(1.0 + m[:, 0, 0] + m[:, 1, 1] + m[:, 2, 2])
+            q[sel] = np.stack([s / 4, (m[:, 2, 1] - m[:, 1, 2]) / s,
+                               (m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 1, 0] - m[:, 0, 1]) / s], 1)
+        elif c == 1:
+            s = 2.0 * np.sqrt(1.0 + m[:, 0, 0] - m[:, 1, 1] - m[:, 2, 2])
+            q[sel] = np.stack([(m[:, 2, 1] - m[:, 1, 2]) / s, s / 4,
+                               (m[:, 0, 1] + m[:, 1, 0]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s], 1)
+        elif c == 2:
+            s = 2.0 * np.sqrt(1.0 - m[:, 0, 0] + m[:, 1, 1] - m[:, 2, 2])
+            q[sel] = np.stack([(m[:, 0, 2] - m[:, 2, 0]) / s, (m[:, 0, 1] + m[:, 1, 0]) / s,
+                               s / 4, (m[:, 1, 2] + m[:, 2, 1]) / s], 1)
+        else:
+            s = 2.0 * np.sqrt(1.0 - m[:, 0, 0] - m[:, 1, 1] + m[:, 2, 2])
+            q[sel] = np.stack([(m[:, 1, 0] - m[:, 0, 1]) / s, (m[:, 0, 2] + m[:, 2, 0]) / s,
+                               (m[:, 1, 2] + m[:, 2, 1]) / s, s / 4], 1)
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    return q.reshape(*shape, 4)
+
+
+def matrix_from_quat(q):
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+    ], -2)
+
+
+def slerp(q0, q1, a):
+    """Spherical interpolation between unit quaternions, row-wise."""
+    dot = np.einsum("ij,ij->i", q0, q1)
+    q1 = np.where(dot[:, None] < 0, -q1, q1)
+    dot = np.abs(dot)
+    a = a[:, None]
+    theta = np.arccos(np.clip(dot, -1.0, 1.0))[:, None]
+    small = theta < 1e-9
+    s = np.sin(theta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w0 = np.where(small, 1 - a, np.sin((1 - a) * theta) / s)
+        w1 = np.where(small, a, np.sin(a * theta) / s)
+    q = w0 * q0 + w1 * q1
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def polar(linear):
+    """Split 3x3 matrices into rotation R (det +1 where possible) and S = R^T A."""
+    u, _, vt = np.linalg.svd(linear)
+    r = u @ vt
+    flip = np.linalg.det(r) < 0
+    if np.any(flip):
+        u = u.copy()
+        u[flip, :, -1] *= -1
+        r = u @ vt
+    return r, np.swapaxes(r, -1, -2) @ linear
+
+
+def hermite(p0, v0, p1, v1, a, span):
+    """Cubic Hermite between (p0, v0) and (p1, v1), row-wise, at fractions ``a`` of
+    segments of length ``span`` (seconds)."""
+    a = a[:, None]
+    a2, a3 = a * a, a * a * a
+    dt = span[:, None]
+    return ((2 * a3 - 3 * a2 + 1) * p0 + (a3 - 2 * a2 + a) * dt * v0
+            + (3 * a2 - 2 * a3) * p1 + (a3 - a2) * dt * v1)
+
+
+@dataclass
+class Track:
+    """Poses of one body over a sweep.
+
+    times     (K,) float64 increasing seconds since the start of the sweep
+    matrices  (K, 4, 4) float64 world matrices at those times
+    """
+
+    times: np.ndarray
+    matrices: np.ndarray
+
+    def __post_init__(self):
+        self.times = np.asarray(self.times, dtype=np.float64).reshape(-1)
+        self.matrices = np.asarray(self.matrices, dtype=np.float64).reshape(-1, 4, 4)
+        rot, self._scale = polar(self.matrices[:, :3, :3])
+        self._quat = quat_from_matrix(rot)
+        for k in range(1, len(self._quat)):  # keep neighbouring quaternions on one side
+            if np.dot(self._quat[k - 1], self._quat[k]) < 0:
+                self._quat[k] = -self._quat[k]
+
+    @classmethod
+    def fixed(cls, matrix):
+        return cls(np.zeros(1), np.asarray(matrix, np.float64)[None])
+
+    @property
+    def is_static(self):
+        return bool(np.all(self.matrices == self.matrices[0]))
+
+    def at(self, t):
+        """(N, 4, 4) matrices at times t (clamped to the sampled span)."""
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        out = np.empty((t.shape[0], 4, 4))
+        out[:] = np.eye(4)
+        if len(self.times) == 1 or self.is_static:
+            out[:] = self.matrices[0]
+            return out
+        i, a, span = self._segments(t)
+        out[:, :3, 3] = self._hermite(i, a, span)
+        rot = matrix_from_quat(slerp(self._quat[i], self._quat[i + 1], a))
+        scale = self._scale[i] * (1 - a)[:, None, None] + self._scale[i + 1] * a[:, None, None]
+        out[:, :3, :3] = rot @ scale
+        return out
+
+    def positions_at(self, t):
+        """(N, 3) translations at times t: ``at(t)[:, :3, 3]`` without the rotations
+        (a track whose ``linear_is_constant`` needs no more)."""
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        if len(self.times) == 1 or self.is_static:
+            return np.repeat(self.matrices[:1, :3, 3], len(t), axis=0)
+        return self._hermite(*self._segments(t))
+
+    def _segments(self, t):
+        t = np.asarray(t, dtype=np.float64).reshape(-1)
+        k = len(self.times)
+        i = np.clip(np.searchsorted(self.times, t, side="right") - 1, 0, k - 2)
+        span = self.times[i + 1] - self.times[i]
+        a = np.clip((t - self.times[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+        return i, a, span
+
+    @property
+    def linear_is_constant(self):
+        """True when only the translation changes (a car driving straight, a sliding door)."""
+        lin = self.matrices[:, :3, :3]
+        return bool(np.all(lin == lin[0]))
+
+    def inverse_at(self, t):
+        """World-to-local maps at times t: (A, b) with x_local = A x_world + b, A (N, 3, 3)
+        or one shared (3, 3) when the rotation and scale never change (then no per-ray
+        matrix is built at all)."""
+        if len(self.times) == 1 or self.is_static:
+            inv = np.linalg.inv(self.matrices[0])
+            return inv[:3, :3], np.broadcast_to(inv[:3, 3], (np.size(t), 3))
+        i, a, span = self._segments(t)
+        trans = self._hermite(i, a, span)
+        if self.linear_is_constant:
+            a_inv = np.linalg.inv(self.matrices[0, :3, :3])
+            return a_inv, -trans @ a_inv.T
+        rot = matrix_from_quat(slerp(self._quat[i], self._quat[i + 1], a))
+        scale = self._scale[i] * (1 - a)[:, None, None] + self._scale[i + 1] * a[:, None, None]
+        rt = np.swapaxes(rot, 1, 2)
+        if np.allclose(self._scale, np.eye(3), atol=1e-12):
+            a_inv = rt
+        else:
+            a_inv = np.linalg.inv(scale) @ rt
+        return a_inv, -np.einsum("nij,nj->ni", a_inv, trans)
+
+    def rays_to_local(self, t, origins, directions):
+        """Rays o + s d (world; ``origins`` one (1, 3) or one per ray) carried into the
+        object's frame at times ``t``: (local origins, local directions, the linear map
+        A of ``inverse_at``, shared (3, 3) or per ray). The ray parameter s is kept,
+        so a hit at s in the object's frame lies s along the world ray."""
+        a, b = self.inverse_at(t)
+        d = np.asarray(directions, np.float64)
+        if a.ndim == 2:  # one linear map for every ray: no per-ray matrices
+            return origins @ a.T + b, d @ a.T, a
+        o = np.broadcast_to(origins, d.shape)
+        return np.einsum("nij,nj->ni", a, o) + b, np.einsum("nij,nj->ni", a, d), a
+
+    @property
+    def velocities(self):
+        """(K, 3) finite-difference velocities at the samples (second order), cached."""
+        v = self.__dict__.get("_velocity")
+        if v is None:
+            p, t = self.matrices[:, :3, 3], self.times
+            if len(t) > 2:
+                v = np.gradient(p, t, axis=0, edge_order=2)
+            elif len(t) == 2:
+                v = np.repeat(((p[1] - p[0]) / max(t[1] - t[0], 1e-300))[None], 2, axis=0)
+            else:
+                v = np.zeros_like(p)
+            self._velocity = v
+        return v
+
+    def _hermite(self, i, a, span):
+        """Translation by cubic Hermite interpolation with finite-difference tangents
+        (exact for constant velocity, O(dt^4) for smooth motion: far fewer samples than
+        linear interpolation for eased keyframes)."""
+        p, v = self.matrices[:, :3, 3], self.velocities
+        return hermite(p[i], v[i], p[i + 1], v[i + 1], a, span)
+
+    def max_displacement(self, points):
+        """Largest distance any of ``points`` (local coordinates) travels between the
+        first and any later sample."""
+        p = np.c_[np.asarray(points, np.float64).reshape(-1, 3), np.ones(len(points))]
+        w = np.einsum("kij,nj->kni", self.matrices[:, :3, :], p)
+        return float(np.linalg.norm(w - w[:1], axis=2).max()) if len(p) else 0.0
+
+
+def effective_times(times, period, mode, substeps):
+    """Scene time at which each ray sees the world.
+
+    exact     the ray's own time
+    substeps  the middle of its sub-sweep of period/N (the paper's N partial sweeps,
+              error at most v*T/(2N))
+    snapshot  the start of the sweep (one scene state per frame, as CARLA)
+
+    ``substeps`` is N >= 1 (the scan chooses N first when the user asked for 0:
+    ``sweep.substep_count``)."""
+    t = np.asarray(times, dtype=np.float64)
+    MOTION.check(mode)
+    if mode == "exact":
+        return t
+    if mode == "snapshot":
+        return np.zeros_like(t)
+    n = int(substeps)
+    if n < 1:
+        raise SettingsError(f"sub-steps must be at least 1 here, got {substeps}")
+    step = period / n
+    return (np.minimum(np.floor(t / step), n - 1) + 0.5) * step
+
+
+KNOT_TOLERANCE_M = 5e-4  # pose knots: interpolation within half a millimetre
+
+
+def pose_knots(track, tolerance_m=KNOT_TOLERANCE_M, reach_m=1.0):
+    """Times and 4x4 poses of a moving sensor at enough knots over its sweep that
+    ``poses_at`` (linear translation, slerp rotation between knots) stays within
+    ``tolerance_m`` of the track, measured at the sensor and at ``reach_m`` along
+    each axis (a rotation error shows as a distance there). What the sidecar carries so
+    a sensor-frame cloud can be mapped to the world point by point."""
+    lo, hi = float(track.times[0]), float(track.times[-1])
+    probe = np.array([[0, 0, 0, 1], [reach_m, 0, 0, 1], [0, reach_m, 0, 1], [0, 0, reach_m, 1]],
+                     float).T
+    times = np.array([lo, hi]) if hi > lo else np.array([lo])
+    while len(times) < 4097:
+        mats = track.at(times)
+        if len(times) == 1:
+            return times, mats
+        mids = (times[1:] + times[:-1]) / 2
+        err = np.linalg.norm((poses_at(times, mats, mids) - track.at(mids)) @ probe, axis=1)
+        bad = err.max(axis=1) > tolerance_m
+        if not bad.any():
+            return times, mats
+        times = np.sort(np.concatenate([times, mids[bad]]))
+    return times, track.at(times)
+
+
+def poses_at(times, matrices, t):
+    """(N, 4, 4) poses at times ``t`` from knots (``times`` increasing, ``matrices``
+    (K, 4, 4) rigid): translation linear, rotation by slerp between neighbouring knots,
+    clamped to the knots' span. The interpolation the sidecar's ``sensor_poses``
+    state, in numpy (any quaternion library gives the same)."""
+    times = np.asarray(times, np.float64).reshape(-1)
+    m = np.asarray(matrices, np.float64).reshape(-1, 4, 4)
+    t = np.asarray(t, np.float64).reshape(-1)
+    out = np.empty((len(t), 4, 4))
+    out[:] = np.eye(4)
+    if len(times) == 1:
+        out[:] = m[0]
+        return out
+    i = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
+    span = times[i + 1] - times[i]
+    a = np.clip((t - times[i]) / np.where(span > 0, span, 1.0), 0.0, 1.0)
+    q = quat_from_matrix(m[:, :3, :3])
+    out[:, :3, :3] = matrix_from_quat(slerp(q[i], q[i + 1], a))
+    out[:, :3, 3] = m[i, :3, 3] * (1 - a)[:, None] + m[i + 1, :3, 3] * a[:, None]
+    return out

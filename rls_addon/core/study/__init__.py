@@ -1,0 +1,1 @@
+"""The placement study: candidate mounts scanned once, sets of sensors searched, and its report."""

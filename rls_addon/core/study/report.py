@@ -1,0 +1,300 @@
+"""A placement study's report: tables, JSON and charts (``rls study`` writes them).
+
+  candidates.csv   one row per candidate: pose, points in the region, InfraD, InfraNUC
+                   (and with traffic: visibility shares, mean points, ranks)
+  placements.csv   every evaluated k-set: members, InfraD, InfraNUC, Pareto flag, best
+                   (and with traffic: visibility of the set)
+  study.json       settings, timing, candidates, per-k Pareto front and best set, the
+                   best sets' density maps; with traffic the best set by visibility
+  pareto.png       InfraD against InfraNUC for all candidates and sets, fronts marked
+  density_k<K>.png density map (points / m² per cell, world x/y in metres) of the best
+                   set of each k, sensors and region outline marked, cells outside the
+                   region grey; every k on one colour scale (0 to the densest cell of any)
+  visibility.png   with traffic: InfraD, InfraNUC and visibility of each candidate
+                   and of the best sets, side by side
+
+Charts need matplotlib (Agg); without it the density maps are written with RLS's own
+PNG writer (no axes or scale, each map scaled to its own maximum) and the other charts
+are skipped (a notice says so). The density charts are drawn by ``core/metrics/charts.py``.
+"""
+
+import csv
+import io
+import json
+import math
+import os
+
+from ..metrics import charts
+from ..metrics.visibility import RANK_BY
+
+
+def _fmt(v, nd=6):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return ""
+    return round(v, nd) if isinstance(v, float) else v
+
+
+def _csv(rows, fields):
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
+    w.writeheader()
+    for r in rows:
+        w.writerow({f: _fmt(r.get(f)) for f in fields})
+    return buf.getvalue().encode("utf-8")
+
+
+def placement_rows(result):
+    names = [c.name for c in result.candidates]
+    rows = []
+    for k, s in sorted(result.searches.items()):
+        front = {p.members for p in s.front}
+        for p in sorted(s.evaluated, key=lambda p: (-p.infra_d, p.infra_nuc)):
+            row = {"k": k, "sensors": " + ".join(names[i] for i in p.members),
+                   "members": " ".join(str(i) for i in p.members),
+                   "points_in_lob": p.n_points, "infra_d": p.infra_d,
+                   "infra_nuc": p.infra_nuc, "pareto": int(p.members in front),
+                   "best": int(p.members == s.best.members), "method": s.method}
+            if result.visibility is not None:
+                row.update(result.visibility.sets[k][p.members].to_dict())
+            rows.append(row)
+    return rows
+
+
+def report_dict(result):
+    names = [c.name for c in result.candidates]
+    cfg = result.config
+    out = {
+        "scene": result.scene, "frame": result.frame, "device": result.device,
+        "region": {"polygon_xy": result.polygon.tolist(), "area_m2": result.layout.area_m2,
+                   "labels": cfg.labels, "disks": cfg.disks, "radius_m": cfg.radius,
+                   "disk_seed": cfg.disk_seed, "disk_placement": cfg.disk_placement},
+        "settings": {"k": list(cfg.k), "pitch_deg": list(cfg.pitches), "yaw_deg": list(cfg.yaws),
+                     "yaw_mode": cfg.yaw_mode, "roll_deg": cfg.roll, "scan_seed": cfg.scan_seed,
+                     "noise": cfg.noise, "dropout": cfg.dropout,
+                     "one_sensor_per_mount": cfg.one_per_mount,
+                     "traffic_removed": not cfg.keep_traffic},
+        "hidden_traffic": result.hidden_traffic,
+        "backend": result.backend, "structure_builds": result.structure_builds,
+        "timing_s": {k: round(v, 4) for k, v in result.timing.items()},
+        "candidates": candidate_rows(result),
+        "placements": {},
+    }
+    vis = result.visibility
+    if vis is not None:
+        out["visibility"] = {
+            "frames": vis.frames, "vehicle_frames": len(vis.vehicle_frames),
+            "vehicles": len({key for _, key in vis.vehicle_frames}),
+            "labels": list(cfg.visibility_labels), "thresholds": list(cfg.visibility_thresholds),
+            "ranked_by": f"share of vehicle-frames with >= {RANK_BY} points",
+            "best": {str(k): dict(v.to_dict(), members=list(v.members),
+                                  sensors=[names[i] for i in v.members])
+                     for k, v in sorted(vis.best.items())},
+            "rank_disagreements": [
+                {"candidate": names[i], "rank_infra_d": int(vis.rank_infra_d[i]),
+                 "rank_visibility": int(vis.rank_visibility[i])}
+                for i in range(len(names)) if vis.rank_infra_d[i] != vis.rank_visibility[i]],
+        }
+    for k, s in sorted(result.searches.items()):
+        out["placements"][str(k)] = {
+            "method": s.method, "sets": s.sets_total, "evaluated": len(s.evaluated),
+            "pareto_front": [p.to_dict(names) for p in s.front],
+            "best": s.best.to_dict(names),
+            "best_density": result.density(s.best.members).to_dict(),
+        }
+    return out
+
+
+REPORT_FILES = ("candidates.csv", "placements.csv", "study.json", "pareto.png")
+VISIBILITY_FIELDS = ("share_5", "share_20", "share_50", "mean_points", "never_seen")
+VISIBILITY_ROWS = 30  # candidates listed in visibility.png (the best, and best-set members)
+
+
+def candidate_rows(result):
+    """One dict per candidate; with traffic its visibility and its ranks by InfraD and
+    by visibility (1 = best)."""
+    rows = [c.row() for c in result.candidates]
+    vis = result.visibility
+    if vis is not None:
+        for i, r in enumerate(rows):
+            r.update(vis.candidates[i].to_dict(), rank_infra_d=int(vis.rank_infra_d[i]),
+                     rank_visibility=int(vis.rank_visibility[i]))
+    return rows
+
+
+def write_report(result, out_dir, overwrite=False, notices=None):
+    """Write the report files into ``out_dir``; returns a summary dict. Notices (e.g.
+    matplotlib missing) are appended to ``notices`` when given."""
+    from ..output.io import atomic_write_bytes
+
+    rows = candidate_rows(result)
+    files = {}
+    files["candidates.csv"] = _csv(rows, list(rows[0].keys()))
+    vis_fields = list(VISIBILITY_FIELDS) if result.visibility is not None else []
+    files["placements.csv"] = _csv(placement_rows(result),
+                                   ["k", "sensors", "members", "points_in_lob", "infra_d",
+                                    "infra_nuc", "pareto", "best", "method"] + vis_fields)
+    report = report_dict(result)
+    charts, notice = charts_png(result)
+    files.update(charts)
+    report["charts"] = sorted(charts)
+    if notice:
+        report["notice"] = notice
+        if notices is not None:
+            notices.append(notice)
+    files["study.json"] = (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8")
+    written = []
+    for name in sorted(files):
+        path = os.path.join(out_dir, name)
+        atomic_write_bytes(path, files[name], overwrite=overwrite)
+        written.append(os.path.abspath(path))
+    names = [c.name for c in result.candidates]
+    return {
+        "scene": result.scene, "device": result.device["id"],
+        "candidates": len(result.candidates),
+        "seconds": round(result.timing["total_s"], 3),
+        "per_candidate_s": round(result.timing["per_candidate_s"], 4),
+        "structure_builds": result.structure_builds,
+        "best": {str(k): {"sensors": [names[i] for i in s.best.members],
+                          "infra_d": round(s.best.infra_d, 4),
+                          "infra_nuc": round(s.best.infra_nuc, 4), "method": s.method}
+                 for k, s in sorted(result.searches.items())},
+        **({"best_by_visibility": {
+            str(k): dict(v.to_dict(), sensors=[names[i] for i in v.members])
+            for k, v in sorted(result.visibility.best.items())}}
+           if result.visibility is not None else {}),
+        "report": os.path.abspath(os.path.join(out_dir, "study.json")),
+        "files": written,
+    }
+
+
+def density_maps(result):
+    """{k: DensityMap of the best set of k}, and the (vmin, vmax) colour scale all of
+    them are drawn with (0 to the densest cell of any), so colours compare across k."""
+    maps = {k: result.density(s.best.members) for k, s in sorted(result.searches.items())}
+    return maps, charts.density_scale(maps.values())
+
+
+def charts_png(result):
+    """{file name: PNG bytes}, and a notice when matplotlib is missing."""
+    maps, scale = density_maps(result)
+    if charts.pyplot() is None:
+        out = {f"density_k{k}.png": dm.to_png() for k, dm in maps.items()}
+        return out, (f"{charts.MATPLOTLIB_MISSING}: pareto.png skipped, density maps drawn "
+                     "without axes or scale, each scaled to its own maximum (pip install "
+                     "matplotlib)")
+    out = {"pareto.png": _pareto_png(result),
+           **{f"density_k{k}.png": charts.figure_png(density_figure(result, k, maps[k], scale))
+              for k in maps}}
+    if result.visibility is not None:
+        out["visibility.png"] = _visibility_png(result)
+    return out, None
+
+
+def _visibility_png(result):
+    """Per candidate and per best set (by InfraD/NUC and by visibility): InfraD,
+    InfraNUC and the share of vehicle-frames seen by >= 20 points, in three panels with
+    one row each, so where the traffic-free metrics and visibility disagree shows."""
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    vis, names = result.visibility, [c.name for c in result.candidates]
+    shown = _candidates_shown(result)
+    rows = [(result.candidates[i].name, result.candidates[i].infra_d,
+             result.candidates[i].infra_nuc, vis.candidates[i].score) for i in shown]
+    counts = result.counts
+    for k, s in sorted(result.searches.items()):
+        if k == 1:
+            continue
+        for tag, members in (("best InfraD/NUC", s.best.members), ("best visibility",
+                                                                    vis.best[k].members)):
+            p = counts.evaluate([members])[0]
+            v = vis.sets[k].get(tuple(members)) or vis.counts.evaluate([members])[0]
+            rows.append((f"k={k} {tag}: " + " + ".join(names[i] for i in members),
+                         p.infra_d, p.infra_nuc, v.score))
+    labels = [r[0] for r in rows]
+    y = np.arange(len(rows))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 0.42 * len(rows) + 1.8), sharey=True)
+    panels = (("InfraD (points / m², higher is denser)", 1, "tab:blue"),
+              ("InfraNUC (lower is more uniform)", 2, "tab:orange"),
+              (f"vehicle-frames seen by >= {RANK_BY} points (share)", 3, "tab:green"))
+    for ax, (title, col, colour) in zip(axes, panels):
+        vals = np.array([r[col] if r[col] is not None else np.nan for r in rows], float)
+        ax.barh(y, np.nan_to_num(vals), color=colour)
+        ax.set_xlabel(title)
+        ax.grid(axis="x", alpha=0.3)
+        for yi, v in zip(y, vals):
+            ax.text(v if np.isfinite(v) else 0, yi, f" {v:.3g}", va="center", fontsize=7)
+    axes[0].set_yticks(y)
+    axes[0].set_yticklabels(labels, fontsize=7)
+    axes[0].invert_yaxis()
+    more = len(result.candidates) - len(shown)
+    fig.suptitle(f"{result.scene}: traffic-free metrics and visibility of the traffic over "
+                 f"{len(vis.frames)} frames ({len(vis.vehicle_frames)} vehicle-frames)"
+                 + (f"\n{len(shown)} of {len(result.candidates)} candidates: the best by "
+                    "visibility and the best sets' members (all in candidates.csv)" if more else ""))
+    fig.tight_layout()
+    return _fig_bytes(fig)
+
+
+def _candidates_shown(result, limit=VISIBILITY_ROWS):
+    """Indices of the candidates the visibility chart lists, in the study's order: all
+    of them up to ``limit``, else the ``limit`` best by visibility and every member of
+    a best set (a chart of hundreds of rows is neither readable nor quick to draw)."""
+    n = len(result.candidates)
+    if n <= limit:
+        return list(range(n))
+    vis = result.visibility
+    keep = set(sorted(range(n), key=lambda i: (-vis.candidates[i].score, i))[:limit])
+    for k, s in result.searches.items():
+        keep.update(s.best.members)
+        if k in vis.best:
+            keep.update(vis.best[k].members)
+    return sorted(keep)
+
+
+def _fig_bytes(fig):
+    return charts.figure_png(fig)
+
+
+def _pareto_png(result):
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    colours = plt.get_cmap("tab10")
+    for j, (k, s) in enumerate(sorted(result.searches.items())):
+        d = np.array([p.infra_d for p in s.evaluated])
+        u = np.array([p.infra_nuc for p in s.evaluated])
+        ax.scatter(d, u, s=14, alpha=0.45, color=colours(j), label=f"k = {k} ({s.method})")
+        fd = [p.infra_d for p in s.front]
+        fu = [p.infra_nuc for p in s.front]
+        ax.plot(fd, fu, "-o", color=colours(j), markersize=6, markerfacecolor="none",
+                label=f"Pareto front, k = {k}")
+        ax.scatter([s.best.infra_d], [s.best.infra_nuc], marker="*", s=160, color=colours(j),
+                   edgecolor="black", zorder=5)
+    ax.set_xlabel("InfraD (points / m², higher is denser)")
+    ax.set_ylabel("InfraNUC (lower is more uniform)")
+    ax.set_title(f"{result.scene}: {result.device['name']}, {len(result.candidates)} candidates"
+                 " (★ best)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _fig_bytes(fig)
+
+
+def density_figure(result, k, dm, scale):
+    """The density chart of the best set of k (``dm``), on the study's shared ``scale``."""
+    search = result.searches[k]
+    b = search.best
+    names = [c.name for c in result.candidates]
+    sensors = [(c.name, c.position[0], c.position[1], c.yaw_deg if c.pitch_deg else None)
+               for c in (result.candidates[i] for i in b.members)]
+    ks = ", ".join(str(j) for j in sorted(result.searches))
+    note = (f"one scale for k = {ks}: {scale[0]:g} to {scale[1]:.3g}" if len(result.searches) > 1
+            else f"scale {scale[0]:g} to {scale[1]:.3g}")
+    title = charts.density_title(
+        f"{result.scene}, {result.device['name']}: best set of k = {k}: "
+        + " + ".join(names[i] for i in b.members),
+        b.infra_d, b.infra_nuc, f"{b.n_points:,} points in the region, {search.method} search")
+    return charts.density_figure(dm, title, polygon=result.polygon, sensors=sensors,
+                                 scale=scale, scale_note=note)
