@@ -90,7 +90,7 @@ def wheel_for_platform(wheel_name, platform):
 
 
 def _is_loop(name):
-    return name.startswith("_rls_embree_loop.") and not name.endswith((".c", ".h"))
+    return name.startswith("_rls_native.") and not name.endswith((".c", ".h"))
 
 
 def stage(dest, platform, native_lib):
@@ -109,7 +109,7 @@ def stage(dest, platform, native_lib):
         if (ROOT / extra).exists():
             shutil.copy2(ROOT / extra, dest / extra)
     if native_lib is not None:
-        shutil.copy2(native_lib, dest / "core" / "casting" / "native" / native_lib.name)
+        shutil.copy2(native_lib, dest / "core" / "native" / "c" / native_lib.name)
 
 
 def _pip_download(req, tag, dest):

@@ -5,7 +5,7 @@ machine in place, or for the platforms the extension zips are built for.
     python tools/build_native.py --platforms all      every zip platform, into build/native
     python tools/build_native.py --platforms linux-x64,windows-x64
 
-In place: ``rls_addon/core/casting/native/_rls_embree_loop.so`` (``.dylib`` on macOS,
+In place: ``rls_addon/core/native/c/_rls_native.so`` (``.dylib`` on macOS,
 ``.dll`` on Windows), what the tests and ``python -m rls_addon`` use here. Needs a C
 compiler (gcc/cc); without one, or on failure, it says so and exits 0: the extension
 then casts Embree packets from Python (slower with several threads).
@@ -36,7 +36,7 @@ import tempfile
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-NATIVE = ROOT / "rls_addon" / "core" / "casting" / "native"
+NATIVE = ROOT / "rls_addon" / "core" / "native" / "c"
 # One library: the Embree loop, the per-hit stage of a frame (points.c), the
 # footprint's depth-edge test and its probe sectors (edges.c) and probe sub-rays
 # (probes.c), the weather's false returns (weather.c), a study candidate's disk counts
@@ -75,10 +75,10 @@ def library_name(sys_platform):
     """The loop's file name on ``sys_platform`` (the loader's own rule)."""
     sys.path.insert(0, str(ROOT))
     try:
-        from rls_addon.core.casting.embree import native_library_name
+        from rls_addon.core.native.library import library_name
     finally:
         sys.path.remove(str(ROOT))
-    return native_library_name(sys_platform)
+    return library_name(sys_platform)
 
 
 def host_platform():
@@ -102,7 +102,7 @@ def _loads(path):
     newer than a checkout's sources but older than their interface)."""
     sys.path.insert(0, str(ROOT))
     try:
-        from rls_addon.core.casting.embree import load_native
+        from rls_addon.core.casting.embree_loop import load_native
 
         load_native(str(path))
         return True

@@ -24,7 +24,8 @@ sys.path.insert(0, str(ROOT / "tools"))
 import build_extension  # noqa: E402
 import build_native  # noqa: E402
 
-from rls_addon.core.casting import embree
+from rls_addon.core.casting import embree, embree_loop
+from rls_addon.core.native.library import library_name
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
 ENTRY_POINTS = set(build_native.EXPORTS)  # what every platform's library exports
@@ -255,7 +256,7 @@ def test_zip_holds_its_compiled_loop_only_of_the_right_format(platform):
     fmt, arch, sys_platform = EXPECTED[platform]
     with zipfile.ZipFile(zip_path(platform)) as z:
         binaries = _binaries(z)
-    name = "core/casting/native/" + embree.native_library_name(sys_platform)
+    name = "core/native/c/" + library_name(sys_platform)
     assert list(binaries) == [name], f"{platform}: compiled files {sorted(binaries)}"
     data = binaries[name]
     if fmt == "elf":
@@ -300,10 +301,10 @@ def test_linux_zip_loop_casts_the_same_bits_as_the_in_tree_loop(tmp_path, monkey
         pytest.fail("embreex and the in-tree compiled loop are needed (make test builds them)")
     from rls_addon.core.casting import triangle_planes
 
-    name = "core/casting/native/" + embree.native_library_name("linux")
+    name = "core/native/c/" + library_name("linux")
     with zipfile.ZipFile(zip_path("linux-x64")) as z:
         (tmp_path / "zip.so").write_bytes(z.read(name))
-    shipped = embree.load_native(str(tmp_path / "zip.so"))
+    shipped = embree_loop.load_native(str(tmp_path / "zip.so"))
     rng = np.random.default_rng(11)
     c = rng.uniform(-30, 30, (20000, 3))
     v = (c[:, None] + rng.normal(0, 1.0, (20000, 3, 3))).reshape(-1, 3)
@@ -314,7 +315,7 @@ def test_linux_zip_loop_casts_the_same_bits_as_the_in_tree_loop(tmp_path, monkey
     caster = embree.EmbreeCaster(v, t, threads=2)
     planes = triangle_planes(v, t)
     here = caster.cast_refined(o, d, 40.0, planes)
-    monkeypatch.setattr(embree, "_NATIVE", shipped)
+    monkeypatch.setattr(embree_loop, "_NATIVE", shipped)
     there = caster.cast_refined(o, d, 40.0, planes)
     assert (here[1] >= 0).any() and (here[1] < 0).any()
     for a, b in zip(here, there):
@@ -336,17 +337,17 @@ def test_loader_refuses_stale_builds(tmp_path):
     old = "void *rls_embree_launch(void) { return 0; }\nvoid rls_embree_finish(void *b) {}\n"
     no_abi = _compile(tmp_path, "no_abi", old)
     with pytest.raises(OSError, match="stale build"):
-        embree.load_native(no_abi)
+        embree_loop.load_native(no_abi)
     other = _compile(tmp_path, "abi1", old + "int rls_embree_abi(void) { return 1; }\n")
-    with pytest.raises(OSError, match=f"interface 1, this RLS needs {embree.NATIVE_ABI}"):
-        embree.load_native(other)
+    with pytest.raises(OSError, match=f"interface 1, this RLS needs {embree_loop.NATIVE_ABI}"):
+        embree_loop.load_native(other)
     ok = _compile(tmp_path, "abi_ok", old + "int rls_embree_abi(void) { return %d; }\n"
-                  % embree.NATIVE_ABI)
-    start, finish = embree.load_native(ok)
+                  % embree_loop.NATIVE_ABI)
+    start, finish = embree_loop.load_native(ok)
     assert start.argtypes and finish.argtypes
-    assert embree.native_library_name("win32") == "_rls_embree_loop.dll"
-    assert embree.native_library_name("darwin") == "_rls_embree_loop.dylib"
-    assert embree.native_library_name("linux") == "_rls_embree_loop.so"
+    assert library_name("win32") == "_rls_native.dll"
+    assert library_name("darwin") == "_rls_native.dylib"
+    assert library_name("linux") == "_rls_native.so"
 
 
 def test_a_target_that_fails_is_reported_and_its_zip_still_built(tmp_path, monkeypatch, capsys):

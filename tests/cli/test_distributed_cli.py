@@ -97,7 +97,7 @@ def cluster(tmp_path):
 
     c = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                      dashboard_address=None, silence_logs=50,
-                     env={"PYTHONPATH": str(ROOT), "RLS_EMBREE_THREADS": "1"})
+                     env={"PYTHONPATH": str(ROOT), "RLS_THREADS": "1"})
     client = Client(c)
     yield c, client
     client.close()

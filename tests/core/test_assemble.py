@@ -1,5 +1,5 @@
-"""The compiled per-hit stage (native/points.c) and the compiled watertight re-check
-(native/embree_loop.c) write the same bytes as their numpy references
+"""The compiled per-hit stage (native/c/points.c) and the compiled watertight re-check
+(native/c/embree_loop.c) write the same bytes as their numpy references
 (``assemble.assemble_numpy``, ``WatertightCaster._recheck``), and the re-check casts
 no more than a leak needs."""
 

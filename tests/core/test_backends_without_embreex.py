@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core import casting
-from rls_addon.core.casting import NumpyCaster, emblite, embree, open3d_caster
+from rls_addon.core.casting import NumpyCaster, emblite, embree, embree_api, embree_loop, open3d_caster
 from rls_addon.core.errors import CastingError
 from tests import parity
 
@@ -172,13 +172,13 @@ def test_status_says_how_embree_runs(monkeypatch):
     if embree._native_loop() is not None:
         assert why.startswith("Embree with the compiled loop on ")
     casting.backend_status.cache_clear()
-    monkeypatch.setattr(embree, "_native_loop", lambda: None)
-    monkeypatch.setattr(embree, "native_loop_error",
-                        lambda: "no compiled loop for this platform (_rls_embree_loop.dll is missing)")
+    monkeypatch.setattr(embree_loop, "_native_loop", lambda: None)
+    monkeypatch.setattr(embree_loop, "native_loop_error",
+                        lambda: "no compiled loop for this platform (_rls_native.dll is missing)")
     backend, why = casting.backend_status("embree")
     assert backend == "embree" and "packets from Python" in why and ".dll is missing" in why
     casting.backend_status.cache_clear()
-    monkeypatch.setattr(embree, "_packet_library", lambda: None)
+    monkeypatch.setattr(embree_api, "_packet_library", lambda: None)
     monkeypatch.setattr(embree, "packet_mode_error", lambda: "OSError: libembree4 not found")
     backend, why = casting.backend_status("embree")
     assert backend == "embree" and "one core" in why and "libembree4 not found" in why

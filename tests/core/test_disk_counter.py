@@ -3,7 +3,7 @@ against the reference ``metrics.count_in_disks``: the same integer counts for ra
 points, points on the circles (in or out by a rounding, and exactly on them), on the
 grid's cell borders, far from the origin, beyond the grid, and with no points, a
 coarser grid or no grid at all. Every test runs twice: with the compiled counts
-(native/disks.c) and with their numpy reference (``DiskCounter.counts_numpy``)."""
+(native/c/disks.c) and with their numpy reference (``DiskCounter.counts_numpy``)."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""A footprint's echoes grouped and chosen in C (native/echoes.c) are the numpy
+"""A footprint's echoes grouped and chosen in C (native/c/echoes.c) are the numpy
 reference's (echoes.resolve_numpy) to the last bit: the reported echoes, their
 intensities and ranks, the second echoes of dual return, the returns written back,
 and whole frames."""

@@ -1,4 +1,4 @@
-"""The footprint's compiled stages (native/edges.c) give what their numpy references
+"""The footprint's compiled stages (native/c/edges.c) give what their numpy references
 give: the same depth-edge pairs, and whole frames byte-identical either way."""
 
 import hashlib

@@ -1,4 +1,4 @@
-"""The ghost bounces' compiled set-up and landing (native/ghosts.c) are their numpy
+"""The ghost bounces' compiled set-up and landing (native/c/ghosts.c) are their numpy
 references' (``ghost.aim_numpy``, ``ghost.land_numpy``) to the bit; frames with ghosts
 are byte-identical with the kernels or without them (tests/core/test_assemble.py)."""
 

@@ -1,4 +1,4 @@
-"""A static cast's returns in C (native/returns.c) are their numpy reference's
+"""A static cast's returns in C (native/c/returns.c) are their numpy reference's
 (``returns.static_returns_numpy``) to the bit; whole frames are byte-identical with the
 kernel or without it (tests/core/test_assemble.py switches it with the others)."""
 

@@ -1,4 +1,4 @@
-"""The weather's compiled false returns (native/weather.c) are their numpy reference's
+"""The weather's compiled false returns (native/c/weather.c) are their numpy reference's
 (``weather.false_returns_numpy``) to the bit, its inversion of the CDF is numpy's own
 np.interp, and weather frames are byte-identical with it or without it."""
 

@@ -18,7 +18,8 @@ import functools
 
 from ..choices import BACKENDS
 from ..errors import SettingsError
-from . import embree, emblite
+from ..native.threads import default_threads
+from . import embree, embree_api, embree_loop, emblite
 from .base import GRAZING, Caster, CasterBase, cast_exact, refine_hits, triangle_planes
 from .bvhtree import BVHCaster
 from .embree import EmbreeCaster
@@ -92,14 +93,14 @@ def backend_status(name="auto"):
                if not (embree.available() or emblite.available()) else "as chosen")
         return "open3d", f"Open3D: Embree inside Open3D's RaycastingScene, all cores ({why})"
     if factory is embree.EmbreeCaster:
-        threads = embree.default_threads()
+        threads = default_threads()
         cores = f"{threads} core{'s' if threads != 1 else ''}"
-        if embree._packet_library() is None:  # e.g. an embreex on Embree 2 or 3
+        if embree_api._packet_library() is None:  # e.g. an embreex on Embree 2 or 3
             return "embree", ("Embree: embreex's own ray loop, one core (packets need "
                               "Embree 4: " + embree.packet_mode_error() + ")")
-        if embree._native_loop() is None:
+        if embree_loop._native_loop() is None:
             return "embree", (f"Embree: packets from Python on {cores}, slower ("
-                              + embree.native_loop_error() + ")")
+                              + embree_loop.native_loop_error() + ")")
         return "embree", f"Embree with the compiled loop on {cores}"
     if (name or "auto").strip().lower() == "bvhtree":
         return "bvhtree", "BVHTree: as chosen (one core)"

@@ -137,7 +137,7 @@ def plane_ranges(planes, origins, directions, rows):
     o = np.asarray(origins, np.float64).reshape(-1, 3)
     o = o if o.shape[0] == 1 else o[rows]
     d = directions[rows]
-    # Summed in the compiled loop's order (native/embree_loop.c), for the same bits.
+    # Summed in the compiled loop's order (native/c/embree_loop.c), for the same bits.
     denom = row_dot(n, d)
     no = row_dot(n, o)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -12,87 +12,45 @@ float32; the engine recomputes every range exactly in float64 afterwards
 Two ways to drive Embree, chosen automatically (``mode="auto"``):
 
 ``packets``  Calls ``rtcIntersect16`` of the Embree library that the ``embreex`` wheel
-             bundles. With the compiled loop (``native/_rls_embree_loop.so``, ``.dll``
-             or ``.dylib`` beside this file: ``native_library_name``; built by
-             ``tools/build_native.py`` for each platform's zip, and refused when its
-             interface version is not ``NATIVE_ABI``) one ``ctypes`` call
-             casts every ray on its own threads without the GIL; without it, 16-ray
-             packets laid out by numpy go through ``ctypes`` from a thread pool (the
-             GIL changes hands every packet, which scales poorly). The packet layout is
-             checked once per process by a probe ray before either is trusted.
+             bundles (``embree_api``). With RLS's compiled library (``core/native``,
+             ``native.library.library_name``; built by ``tools/build_native.py`` for
+             each platform's zip, and refused when its interface version is not
+             ``embree_loop.NATIVE_ABI``) one ``ctypes`` call casts every ray on its own
+             threads without the GIL (``embree_loop``); without it, 16-ray packets laid
+             out by numpy go through ``ctypes`` from a thread pool (the GIL changes
+             hands every packet, which scales poorly). The packet layout is checked
+             once per process by a probe ray before either is trusted.
 ``embreex``  ``embreex``'s own ``EmbreeScene.run``: one ray at a time in a Cython loop.
              Measured with embreex 4.4.0.post1: it holds the GIL for the whole call,
              so threads do not help and it uses one core.
 """
 
 import ctypes
-import glob
 from collections import deque
 from itertools import repeat
-import os
-import sys
 import threading
 
 import numpy as np
 
 from ..errors import CastingError, SettingsError
+from ..native.threads import default_threads
+from . import embree_api
 from .base import CasterBase
+from .embree_api import (_GEOM, _LOCK, _INVALID_ID, _K, _PRIM, _STRIDE, _TFAR, _MotionScene, _Scene,
+                         _aligned, _fill, _packet_library)
+from .embree_api import available, unavailable_reason  # noqa: F401 (the backend's own questions)
+from .embree_loop import _launch, _native_loop
 
-_LOCK = threading.RLock()
-_LIB = None          # ctypes handle on libembree4, or False when not usable
-_LIB_ERROR = ""
 _POOLS = {}
 
-# Embree 4 constants (rtcore_common.h, rtcore_buffer.h, rtcore_geometry.h, rtcore_scene.h).
-_GEOMETRY_TYPE_TRIANGLE = 0
-_GEOMETRY_TYPE_INSTANCE = 121
-_FORMAT_FLOAT3X4_ROW_MAJOR = 0x9134
-_MAX_TIME_STEPS = 129  # RTC_MAX_TIME_STEP_COUNT
-_BUFFER_TYPE_INDEX = 0
-_BUFFER_TYPE_VERTEX = 1
-_FORMAT_UINT3 = 0x5003
-_FORMAT_FLOAT3 = 0x9003
-_SCENE_FLAG_ROBUST = 1 << 2
-_INVALID_ID = 0xFFFFFFFF
 
-# RTCRayHit16: structure-of-arrays, 16 lanes each, offsets in 4-byte words.
-_K = 16
-_ORG, _TNEAR, _DIR, _TIME, _TFAR, _MASK, _ID, _FLAGS = 0, 48, 64, 112, 128, 144, 160, 176
-_PRIM, _GEOM, _INST = 272, 288, 304
-_STRIDE = 384          # words per packet slot: RTCRayHit16 is 336 words in Embree 4.4
 _CHUNK_PACKETS = 2048  # at most 32768 rays per task (3 MiB of packet buffer per thread)
+
+
 _SERIAL_BELOW = 8192  # small batches (moving objects, re-checks): the pool's handoff costs more
+
+
 _TASKS_PER_THREAD = 2  # few tasks: each one costs GIL-bound numpy work; 2 per thread balances load
-
-
-def available():
-    """True when the ``embreex`` module can be imported."""
-    try:
-        import embreex.rtcore_scene  # noqa: F401
-    except Exception:  # ImportError, or a broken binary wheel (OSError)
-        return False
-    return True
-
-
-def unavailable_reason():
-    """Why ``available()`` is False ('' when it is True)."""
-    try:
-        import embreex.rtcore_scene  # noqa: F401
-    except Exception as exc:
-        return f"{type(exc).__name__}: {exc}"
-    return ""
-
-
-def default_threads():
-    """The CPUs this process may use, or ``RLS_EMBREE_THREADS`` when set (a worker of
-    a local cluster gets its share of the cores)."""
-    forced = os.environ.get("RLS_EMBREE_THREADS", "").strip()
-    if forced.isdigit() and int(forced) > 0:
-        return int(forced)
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not Linux
-        return max(1, os.cpu_count() or 1)
 
 
 def _pool(threads):
@@ -106,395 +64,6 @@ def _pool(threads):
             pool = _POOLS[threads] = ThreadPoolExecutor(threads,
                                                         thread_name_prefix="rls-embree")
         return pool
-
-
-def _find_library():
-    """Path of the libembree4 that ``embreex`` loaded (same process, same copy)."""
-    import embreex
-    import embreex.rtcore_scene  # loads libembree4 into the process
-
-    try:
-        with open("/proc/self/maps") as f:
-            for line in f:
-                if "libembree4" in line or "embree4.so" in line:
-                    return line.split(None, 5)[-1].strip()
-    except OSError:
-        pass
-    pkg = os.path.dirname(embreex.__file__)
-    site = os.path.dirname(pkg)
-    patterns = [os.path.join(site, "embreex.libs", "*embree4*"),
-                os.path.join(pkg, ".dylibs", "*embree4*"),
-                os.path.join(pkg, "*embree4*")]
-    for pat in patterns:
-        found = sorted(p for p in glob.glob(pat) if not p.endswith((".pxd", ".py", ".pyi")))
-        if found:
-            return found[0]
-    return None
-
-
-def _bind(lib):
-    vp, u, i, sz = ctypes.c_void_p, ctypes.c_uint, ctypes.c_int, ctypes.c_size_t
-    sigs = {
-        "rtcNewDevice": (vp, [ctypes.c_char_p]),
-        "rtcReleaseDevice": (None, [vp]),
-        "rtcGetDeviceError": (i, [vp]),
-        "rtcNewScene": (vp, [vp]),
-        "rtcSetSceneFlags": (None, [vp, i]),
-        "rtcSetSceneBuildQuality": (None, [vp, i]),
-        "rtcCommitScene": (None, [vp]),
-        "rtcReleaseScene": (None, [vp]),
-        "rtcNewGeometry": (vp, [vp, i]),
-        "rtcSetNewGeometryBuffer": (vp, [vp, i, u, i, sz, sz]),
-        "rtcCommitGeometry": (None, [vp]),
-        "rtcAttachGeometry": (u, [vp, vp]),
-        "rtcReleaseGeometry": (None, [vp]),
-        "rtcIntersect16": (None, [vp, vp, vp, vp]),
-        "rtcSetGeometryInstancedScene": (None, [vp, vp]),
-        "rtcSetGeometryTimeStepCount": (None, [vp, u]),
-        "rtcSetGeometryTransform": (None, [vp, u, i, vp]),
-    }
-    for name, (res, args) in sigs.items():
-        fn = getattr(lib, name)
-        fn.restype, fn.argtypes = res, args
-
-
-_NATIVE = None  # (launch, finish) of the compiled loop next to this file, or False
-_NATIVE_ERROR = ""
-# The interface version the loop must report (RLS_EMBREE_ABI in native/embree_loop.c).
-NATIVE_ABI = 3
-
-
-def native_library_name(platform=None):
-    """File name of the compiled loop for ``platform`` (``sys.platform`` style; default:
-    this one): ``_rls_embree_loop`` + .dll on Windows, .dylib on macOS, else .so.
-    ``tools/build_native.py`` names its builds with this function."""
-    plat = sys.platform if platform is None else platform
-    if plat.startswith(("win", "cygwin")):
-        ext = ".dll"
-    elif plat == "darwin":
-        ext = ".dylib"
-    else:
-        ext = ".so"
-    return "_rls_embree_loop" + ext
-
-
-def native_library_path():
-    """Where this platform's compiled loop is looked for: ``native/`` beside this file."""
-    return os.path.join(os.path.dirname(os.path.abspath(__file__)), "native",
-                        native_library_name())
-
-
-def load_native(path):
-    """(launch, finish) of the compiled loop at ``path``, bound for ctypes; OSError
-    when it cannot be loaded or is stale: a build without ``rls_embree_abi`` (older
-    than the arguments ``_launch`` passes) or reporting another version than
-    ``NATIVE_ABI``. Never calls into a build it has not checked."""
-    lib = ctypes.CDLL(path)
-    try:
-        abi = lib.rls_embree_abi
-        start, finish = lib.rls_embree_launch, lib.rls_embree_finish
-    except AttributeError as exc:
-        raise OSError(f"stale build of the compiled loop ({exc}); rebuild it with "
-                      "tools/build_native.py") from None
-    abi.restype, abi.argtypes = ctypes.c_int, []
-    got = abi()
-    if got != NATIVE_ABI:
-        raise OSError(f"stale build of the compiled loop (interface {got}, this RLS "
-                      f"needs {NATIVE_ABI}); rebuild it with tools/build_native.py")
-    vp = ctypes.c_void_p
-    args = [vp, vp, vp, ctypes.c_int, vp, vp, ctypes.c_int64, ctypes.c_float,
-            vp, vp, vp, vp, vp, ctypes.c_int, vp, vp, vp, vp, ctypes.c_int, vp]
-    start.restype, start.argtypes = ctypes.c_void_p, args
-    finish.restype, finish.argtypes = None, [ctypes.c_void_p]
-    return start, finish
-
-
-def _native_loop():
-    """The compiled packet loop (tools/build_native.py), or None when it is not built
-    for this platform, or is stale: then packets are cast from Python on a thread
-    pool (the reason in ``native_loop_error``)."""
-    global _NATIVE, _NATIVE_ERROR
-    with _LOCK:
-        if _NATIVE is None:
-            path = native_library_path()
-            if not os.path.exists(path):
-                _NATIVE, _NATIVE_ERROR = False, (f"no compiled loop for this platform "
-                                                 f"({os.path.basename(path)} is missing)")
-            else:
-                try:
-                    _NATIVE = load_native(path)
-                except OSError as exc:
-                    _NATIVE, _NATIVE_ERROR = False, str(exc)
-        return _NATIVE or None
-
-
-def native_loop_error():
-    """Why the compiled loop is not used ('' when it is, or has not been looked for)."""
-    return _NATIVE_ERROR
-
-
-def _aligned(words, dtype=np.float32):
-    raw = np.empty(words * 4 + 64, dtype=np.uint8)
-    off = (-raw.ctypes.data) % 64
-    return raw[off:off + words * 4].view(dtype)
-
-
-def _packet_library():
-    """The checked ctypes handle on libembree4, or None (reason in ``_LIB_ERROR``)."""
-    global _LIB, _LIB_ERROR
-    with _LOCK:
-        if _LIB is None:
-            try:
-                path = _find_library()
-                if not path:
-                    raise OSError("libembree4 not found next to embreex")
-                lib = ctypes.CDLL(path)
-                _bind(lib)
-                _probe(lib)
-                _LIB = lib
-            except Exception as exc:  # any surprise: fall back to embreex's own loop
-                _LIB, _LIB_ERROR = False, f"{type(exc).__name__}: {exc}"
-        return _LIB or None
-
-
-def _probe(lib):
-    """Cast one packet at a known triangle and check what Embree wrote and where, so
-    a library with a different packet layout is never used blindly."""
-    scene = _Scene(lib, np.array([[-1, -1, 0], [3, -1, 0], [-1, 3, 0]], np.float32),
-                   np.array([[0, 1, 2]], np.uint32))
-    try:
-        buf = _aligned(2 * _STRIDE).reshape(2, _STRIDE)
-        words = buf.view(np.uint32)
-        words[:] = 0x7FC0BEEF  # sentinel: a NaN no field would hold
-        o = np.zeros((_K, 3), np.float32)
-        o[:, 2] = 2.0
-        d = np.zeros((_K, 3), np.float32)
-        d[:, 2] = -1.0
-        d[1, 2] = 1.0  # lane 1 looks away: a miss
-        _fill(buf[:1], o, d, 100.0, _K)
-        valid = _aligned(_K, np.int32)
-        valid[:] = -1
-        lib.rtcIntersect16(valid.ctypes.data, scene.handle, buf.ctypes.data, None)
-        changed = np.nonzero(words[0] != 0x7FC0BEEF)[0]
-        tfar, prim, geom = buf[0, _TFAR:_TFAR + _K], words[0, _PRIM:_PRIM + _K], \
-            words[0, _GEOM:_GEOM + _K]
-        ok = (abs(tfar[0] - 2.0) < 1e-5 and prim[0] == 0 and geom[0] == 0
-              and geom[1] == _INVALID_ID and tfar[1] == np.float32(100.0)
-              and changed.max() < _STRIDE and (words[1] == 0x7FC0BEEF).all())
-        if not ok:
-            raise OSError("Embree packet layout check failed")
-    finally:
-        scene.release()
-
-
-def _fill(buf, origins, dirs, max_dist, n):
-    """Lay ``n`` rays (padded to whole packets) into packet slots ``buf`` (P, _STRIDE)."""
-    p = buf.shape[0]
-    words = buf.view(np.uint32)
-    pad = p * _K - n
-    for k in range(3):
-        col = dirs[:, k]
-        if pad:
-            col = np.concatenate([col, np.full(pad, 1.0 if k == 0 else 0.0, np.float32)])
-        buf[:, _DIR + k * _K:_DIR + (k + 1) * _K] = col.reshape(p, _K)
-        if origins.shape[0] == 1:
-            buf[:, _ORG + k * _K:_ORG + (k + 1) * _K] = origins[0, k]
-        else:
-            oc = origins[:, k]
-            if pad:
-                oc = np.concatenate([oc, np.zeros(pad, np.float32)])
-            buf[:, _ORG + k * _K:_ORG + (k + 1) * _K] = oc.reshape(p, _K)
-    buf[:, _TNEAR:_TNEAR + _K] = 0.0
-    buf[:, _TIME:_TIME + _K] = 0.0
-    buf[:, _TFAR:_TFAR + _K] = max_dist
-    words[:, _MASK:_MASK + _K] = _INVALID_ID  # mask: every bit
-    words[:, _ID:_FLAGS + _K] = 0
-    words[:, _PRIM:_GEOM + _K] = _INVALID_ID
-
-
-_DEVICES = {}
-
-
-def _device(lib):
-    """The process's one Embree device (scenes must share a device to instance each
-    other); kept for the life of the process."""
-    with _LOCK:
-        dev = _DEVICES.get(id(lib))
-        if dev is None:
-            dev = lib.rtcNewDevice(None)
-            if not dev:
-                raise OSError("rtcNewDevice failed")
-            _DEVICES[id(lib)] = dev
-        return dev
-
-
-class _SceneBase:
-    """An Embree scene on the shared device, released explicitly."""
-
-    def _open(self, lib):
-        self.lib = lib
-        self.device = _device(lib)
-        self.handle = lib.rtcNewScene(self.device)
-
-    def _attach(self, geom):
-        self.lib.rtcCommitGeometry(geom)
-        self.lib.rtcAttachGeometry(self.handle, geom)
-        self.lib.rtcReleaseGeometry(geom)
-
-    def _commit(self, what):
-        self.lib.rtcCommitScene(self.handle)
-        err = self.lib.rtcGetDeviceError(self.device)
-        if err:
-            self.release()
-            raise OSError(f"Embree error {err} while building {what}")
-
-    def release(self):
-        lib, self.lib = self.lib, None
-        if lib is not None and self.handle:
-            lib.rtcReleaseScene(self.handle)
-
-
-class _Scene(_SceneBase):
-    """One committed Embree triangle scene."""
-
-    def __init__(self, lib, vertices32, triangles_u32, robust=True, quality=None):
-        self._open(lib)
-        if robust:
-            lib.rtcSetSceneFlags(self.handle, _SCENE_FLAG_ROBUST)
-        if quality is not None:  # RTC_BUILD_QUALITY_LOW 0, MEDIUM 1 (default), HIGH 2
-            lib.rtcSetSceneBuildQuality(self.handle, int(quality))
-        geom = lib.rtcNewGeometry(self.device, _GEOMETRY_TYPE_TRIANGLE)
-        vb = lib.rtcSetNewGeometryBuffer(geom, _BUFFER_TYPE_VERTEX, 0, _FORMAT_FLOAT3, 12,
-                                         len(vertices32))
-        ib = lib.rtcSetNewGeometryBuffer(geom, _BUFFER_TYPE_INDEX, 0, _FORMAT_UINT3, 12,
-                                         len(triangles_u32))
-        if not vb or not ib:
-            lib.rtcReleaseGeometry(geom)
-            self.release()
-            raise MemoryError("Embree could not allocate the geometry buffers")
-        ctypes.memmove(vb, np.ascontiguousarray(vertices32).ctypes.data, vertices32.nbytes)
-        ctypes.memmove(ib, np.ascontiguousarray(triangles_u32).ctypes.data, triangles_u32.nbytes)
-        self._attach(geom)
-        self._commit("the scene")
-
-
-class _MotionScene(_SceneBase):
-    """A top-level Embree scene of instances: each an Embree scene placed by one
-    transform, or by transforms at evenly spaced time steps over ray times [0, 1]
-    (Embree interpolates the matrices linearly between steps and bounds the motion)."""
-
-    def __init__(self, lib, instances):
-        self._open(lib)
-        for scene, matrices in instances:
-            m = np.ascontiguousarray(np.asarray(matrices, np.float64).reshape(-1, 4, 4)[:, :3, :],
-                                     dtype=np.float32)
-            if not 1 <= len(m) <= _MAX_TIME_STEPS:
-                self.release()
-                raise CastingError(f"an instance needs 1 to {_MAX_TIME_STEPS} time steps")
-            geom = lib.rtcNewGeometry(self.device, _GEOMETRY_TYPE_INSTANCE)
-            lib.rtcSetGeometryInstancedScene(geom, scene.handle)
-            lib.rtcSetGeometryTimeStepCount(geom, len(m))
-            for k in range(len(m)):
-                lib.rtcSetGeometryTransform(geom, k, _FORMAT_FLOAT3X4_ROW_MAJOR, m[k].ctypes.data)
-            self._attach(geom)
-        self._commit("the instance scene")
-
-    def __del__(self):
-        try:
-            self.release()
-        except Exception:
-            pass
-
-
-class Recheck(ctypes.Structure):
-    """``recheck_t`` of native/embree_loop.c: the watertight re-check of misses done in
-    the loop's threads (``watertight.WatertightCaster`` fills it; ``retried`` comes
-    back)."""
-
-    _fields_ = [("hull", ctypes.c_void_p), ("boxes", ctypes.c_void_p),
-                ("has", ctypes.c_void_p), ("max_dist", ctypes.c_double),
-                ("vertices", ctypes.c_void_p), ("triangles", ctypes.c_void_p),
-                ("tol", ctypes.c_double), ("nudge", ctypes.c_double),
-                ("axis", ctypes.c_double * 3), ("retried", ctypes.c_int64)]
-
-
-def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=None,
-            times=None, instances=None, threads=1, keep=None, recheck=None):
-    """Start a cast of ``scene`` (a ``_Scene`` or ``_MotionScene``) on the compiled
-    loop's threads: a ``_Batch`` giving (dist, tri, normals[, instance]), or None
-    when the loop is not available. ``planes`` (``triangle_count`` rows) refine hits
-    on the scene's own triangles; for a ``_MotionScene`` pass ``instances`` instead
-    (``_instance_tables``). ``times`` are per-ray times in [0, 1] for instances with
-    motion time steps."""
-    native = _native_loop()
-    if native is None:
-        return None
-    start, finish = native
-    d = np.ascontiguousarray(directions, dtype=np.float64).reshape(-1, 3)
-    o = np.ascontiguousarray(origins, dtype=np.float64).reshape(-1, 3)
-    n = d.shape[0]
-    if o.shape[0] not in (1, n):
-        raise CastingError("origins must be (1, 3) or one per direction")
-    pl = None
-    if planes is not None:
-        pl = np.ascontiguousarray(planes, dtype=np.float64)
-        if pl.shape != (triangle_count, 4):
-            raise CastingError("planes must hold one (nx, ny, nz, offset) row per triangle")
-    if order is not None:
-        order = np.ascontiguousarray(order, dtype=np.int64)
-        if order.shape != (n,):
-            raise CastingError("order must hold one index per ray")
-    tm = None
-    if times is not None:
-        tm = np.ascontiguousarray(np.clip(np.broadcast_to(times, (n,)), 0.0, 1.0),
-                                  dtype=np.float32)
-    dist = np.empty(n)
-    tri = np.empty(n, dtype=np.int64)
-    refine = pl is not None or instances is not None
-    normals = np.empty((n, 3)) if refine else None
-    inst = np.empty(n, dtype=np.int32) if instances is not None else None
-    outputs = (dist, tri, normals) + ((inst,) if inst is not None else ())
-    if n == 0:
-        if refine:
-            outputs = (dist, tri, np.zeros((0, 3))) + outputs[3:]
-        return lambda: outputs
-    tfar = np.float32(min(float(max_dist), 3.0e38))
-    ptr = lambda a: None if a is None else a.ctypes.data  # noqa: E731
-    steps, info, planes_of = instances if instances is not None else (None, None, None)
-    batch = start(ctypes.cast(scene.lib.rtcIntersect16, ctypes.c_void_p).value,
-                  scene.handle, o.ctypes.data, int(o.shape[0] == n and n > 1),
-                  d.ctypes.data, ptr(order), n, tfar, ptr(tm), ptr(inst), ptr(steps),
-                  ptr(info), None if planes_of is None else ctypes.addressof(planes_of),
-                  0 if info is None else len(info), ptr(pl),
-                  dist.ctypes.data, tri.ctypes.data, ptr(normals),
-                  threads, None if recheck is None else ctypes.addressof(recheck))
-    if not batch:
-        return None
-    return _Batch(finish, batch, (keep, scene, o, d, pl, order, tm, instances, recheck),
-                  outputs)
-
-
-class _Batch:
-    """A cast running on the compiled loop's threads. Calling it waits and returns the
-    results; the arrays the workers read and write stay referenced until then, and a
-    batch dropped without being called still waits (in ``__del__``) before they go."""
-
-    def __init__(self, finish, handle, inputs, outputs):
-        self._finish, self._handle = finish, handle
-        self._inputs, self._outputs = inputs, outputs
-
-    def __call__(self):
-        self._wait()
-        return self._outputs
-
-    def _wait(self):
-        handle, self._handle = self._handle, None
-        if handle:
-            self._finish(handle)
-            self._inputs = None
-
-    def __del__(self):
-        self._wait()
 
 
 class EmbreeCaster(CasterBase):
@@ -516,7 +85,7 @@ class EmbreeCaster(CasterBase):
         self.use_native = bool(native)
         lib = _packet_library() if mode in ("auto", "packets") else None
         if mode == "packets" and lib is None:
-            raise CastingError(f"Embree packet mode is not usable here ({_LIB_ERROR})")
+            raise CastingError(f"Embree packet mode is not usable here ({embree_api.packet_mode_error()})")
         if mode not in ("auto", "packets", "embreex"):
             raise SettingsError(f"unknown Embree mode {mode!r}; choose one of auto, "
                                 "packets, embreex")
@@ -785,4 +354,4 @@ def _instancing_works():
 
 def packet_mode_error():
     """Why packet mode is not used ('' when it is, or has not been tried yet)."""
-    return _LIB_ERROR
+    return embree_api.packet_mode_error()

@@ -202,7 +202,7 @@ class WatertightCaster(CasterBase):
         hull_scene = getattr(self.hull, "native_scene", lambda: None)()
         if not self.compiled or primary_scene is None or hull_scene is None:
             return None
-        from .embree import Recheck
+        from .embree_loop import Recheck
 
         boxes, has = (np.ascontiguousarray(a) for a in self.octant_boxes(o))
         rc = Recheck(hull=hull_scene, boxes=boxes.ctypes.data, has=has.ctypes.data,

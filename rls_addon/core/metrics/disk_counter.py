@@ -29,7 +29,7 @@ A point is one complex number x + iy in the per-pair work: numpy is several time
 slower on (n, 2) arrays than on (n,) ones, and a complex difference is the two float
 differences, the same bits.
 
-``counts`` runs in C (``native/disks.c``, in the library of the compiled Embree loop)
+``counts`` runs in C (``native/c/disks.c``, in RLS's compiled library)
 where that library is built: about 0.3 ms for the bench study's candidate against
 0.8-1.2 ms in numpy (10k points, 6,000 disks, measured alone); the numpy
 ``counts_numpy`` above is the reference it follows step by step, and the tests hold the
@@ -191,7 +191,7 @@ class DiskCounter:
 
 
 class _DisksArgs(ctypes.Structure):
-    """``disks_t`` of native/disks.c."""
+    """``disks_t`` of native/c/disks.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("xy", ctypes.c_void_p), ("lo_x", ctypes.c_double),
                 ("lo_y", ctypes.c_double), ("h", ctypes.c_double), ("nx", ctypes.c_int64),

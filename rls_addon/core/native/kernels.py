@@ -1,5 +1,5 @@
-"""The compiled kernels beside the Embree loop, in its library: the per-hit stage
-(``native/points.c``), the footprint's edges and probes (``edges.c``, ``probes.c``),
+"""The compiled kernels of RLS's library (``library.py``) beside the Embree loop: the
+per-hit stage (``points.c``), the footprint's edges and probes (``edges.c``, ``probes.c``),
 the weather's false returns (``weather.c``), a study's disk counts (``disks.c``), the
 ghost bounces' set-up and landing (``ghosts.c``), a static cast's returns
 (``returns.c``) and a footprint's echoes (``echoes.c``).
@@ -10,6 +10,9 @@ reference, which gives the same bytes)."""
 import ctypes
 import os
 import threading
+
+from .library import library_path
+from .threads import default_threads
 
 
 class Kernel:
@@ -42,9 +45,7 @@ class Kernel:
         """The bound function, or None (the reason in ``error``)."""
         with self._lock:
             if self._fn is None:
-                from ..casting.embree import native_library_path
-
-                path = native_library_path()
+                path = library_path()
                 try:
                     if not os.path.exists(path):
                         raise OSError(f"{os.path.basename(path)} is not built")
@@ -56,8 +57,6 @@ class Kernel:
 
 def threads():
     """The threads a kernel may use: the Embree loop's (the CPUs this process may run
-    on, or a cluster worker's share of them, ``embree.default_threads``)."""
-    from ..casting.embree import default_threads
-
+    on, or a cluster worker's share of them, ``threads.default_threads``)."""
     return default_threads()
 

@@ -1,6 +1,6 @@
 """Row-wise vector arithmetic on (N, 3) arrays, in one fixed order of operations.
 
-The numpy references and the compiled kernels (native/embree_loop.c, points.c,
+The numpy references and the compiled kernels (native/c/embree_loop.c, points.c,
 edges.c, ghosts.c) sum a dot product left to right, ((x0 y0 + x1 y1) + x2 y2), so
 both give the same bits. numpy's einsum sums in an order of its own build's choosing
 ((x0 y0 + x2 y2) + x1 y1 on the project's machine), so the references use this."""

@@ -2,7 +2,7 @@
 
 Per ray: the intensity (reflectivity x |cos incidence|, CARLA's attenuation when set;
 ghosts bring their own), the range with its noise, CARLA's dropout, and for the rays
-kept their point records. ``assemble`` runs it in C (``native/points.c``, in the
+kept their point records. ``assemble`` runs it in C (``native/c/points.c``, in the
 library of the compiled Embree loop, on all cores) where that library is built, else
 in numpy (``assemble_numpy``): the readable reference the C code follows operation by
 operation, so both write the same bytes (tests/core/test_assemble.py). Every random
@@ -268,7 +268,7 @@ def _assemble_lidar_equation(fn, hits, rays, draws, effects, frame_space, fields
 
 
 class _PointsArgs(ctypes.Structure):
-    """``points_t`` of native/points.c."""
+    """``points_t`` of native/c/points.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("dist", ctypes.c_void_p), ("valid", ctypes.c_void_p),
                 ("surface", ctypes.c_void_p), ("normal", ctypes.c_void_p),

@@ -3,7 +3,7 @@ beam's footprint only there): the neighbour pairs of a pattern, and the pairs ac
 an edge in one frame.
 
 ``candidates`` tests every neighbour pair (about two per ray) each frame, so it runs
-in C (``native/edges.c``, in the library of the compiled Embree loop, on all cores)
+in C (``native/c/edges.c``, in the library of the compiled Embree loop, on all cores)
 where that library is built, else in numpy (``edges_numpy``): the readable reference
 the C code follows operation by operation, so both mark the same pairs
 (tests/core/test_footprint_native.py).
@@ -105,7 +105,7 @@ def edges_numpy(a, b, hit, dist, normals, dirs, origins, step):
 
 
 class _EdgesArgs(ctypes.Structure):
-    """``edges_t`` of native/edges.c."""
+    """``edges_t`` of native/c/edges.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("a", ctypes.c_void_p), ("b", ctypes.c_void_p),
                 ("hit", ctypes.c_void_p), ("dist", ctypes.c_void_p),

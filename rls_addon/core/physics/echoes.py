@@ -9,7 +9,7 @@ point between them), its surface the sub-ray that sent the most. Each echo is de
 as ``detection`` says (presets with datasheet figures), or always (CARLA's model); the
 device reports the strongest, the last, or both (``dual``) of the detected echoes.
 
-``resolve`` groups and chooses in C where it is built (``native/echoes.c``), with the
+``resolve`` groups and chooses in C where it is built (``native/c/echoes.c``), with the
 detection curve and the air's transmission in numpy between; ``resolve_numpy`` is the
 readable reference it follows operation by operation, and both give the same bytes
 (tests/core/test_echoes_native.py).
@@ -240,7 +240,7 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
     n_c, S = len(c), 1 + RING
     stats = {"footprint_rays": int(n_c), "footprint_sub_rays": int(sub.cast)}
     t2 = ex = None
-    if alpha or atten:  # the air's exponentials, in numpy (see native/echoes.c)
+    if alpha or atten:  # the air's exponentials, in numpy (see native/c/echoes.c)
         d = np.concatenate([ret.dist[c][:, None], sub.dist.reshape(n_c, RING)], axis=1)
         with np.errstate(invalid="ignore", over="ignore"):
             t2 = np.ascontiguousarray(wx.transmission2(alpha, d)) if alpha else None
@@ -291,7 +291,7 @@ def resolve(sub, ret, dirs, skip, refl, model, detect, key, alpha, atten, rmin, 
 
 
 class _GroupArgs(ctypes.Structure):
-    """``group_t`` of native/echoes.c."""
+    """``group_t`` of native/c/echoes.c."""
 
     _fields_ = [("n_c", ctypes.c_int64)] + [
         (name, ctypes.c_void_p) for name in (
@@ -304,7 +304,7 @@ class _GroupArgs(ctypes.Structure):
 
 
 class _ChooseArgs(ctypes.Structure):
-    """``choose_t`` of native/echoes.c."""
+    """``choose_t`` of native/c/echoes.c."""
 
     _fields_ = [("m", ctypes.c_int64), ("mode", ctypes.c_int)] + [
         (name, ctypes.c_void_p) for name in (

@@ -35,7 +35,7 @@ RING_SHARE = (1.0 - CENTRE_SHARE) / RING
 # VLS-128 User Manual 63-9483 Rev A, 6.2.3 Dual Return Mode).
 ECHO_SEPARATION_M = 1.0
 RETURN_MODES = ("strongest", "last", "dual")
-RLS_MAX_SHARES = 64         # native/rls_shares.h
+RLS_MAX_SHARES = 64         # native/c/rls_shares.h
 _AMBIGUOUS_CAP = 1024       # directed pairs per share left to numpy (else: two steps)
 # Neighbouring rays whose hits lie off each other's plane by more than this share of the
 # echo separation (0.1 m for 1 m) mark a depth step worth sampling: smaller steps move
@@ -143,7 +143,7 @@ def probe_rays_numpy(a, b, dirs, divergence_rad):
 
 
 def probe_rays(a, b, dirs, divergence_rad):
-    """``probe_rays_numpy``'s (pi, pk, pdir), in C where it is built (native/probes.c)."""
+    """``probe_rays_numpy``'s (pi, pk, pdir), in C where it is built (native/c/probes.c)."""
     if not compiled or PROBE_SECTORS.get() is None or RING_RAYS.get() is None:
         return probe_rays_numpy(a, b, dirs, divergence_rad)
     dirs = np.ascontiguousarray(dirs, np.float64)
@@ -161,7 +161,7 @@ def probe_rays(a, b, dirs, divergence_rad):
 def edge_probes(pattern, hit, dist, normals, dirs, origins, step, divergence_rad):
     """(pi, pk, pdir): the probes of the pattern's neighbour pairs across a depth edge
     (``probe_rays`` of ``depth_edges.candidates``' pairs). In C where it is built, in
-    one pass (native/edges.c: rls_edge_sectors): the pairs' rays are read once and no
+    one pass (native/c/edges.c: rls_edge_sectors): the pairs' rays are read once and no
     list of the pairs across an edge is made."""
     fused = EDGE_SECTORS.get() if compiled and depth_edges.compiled else None
     if fused is None or RING_RAYS.get() is None:
@@ -235,7 +235,7 @@ def _ring_rays(rows, mask, dirs, divergence_rad, total=None):
 
 
 class _SectorsArgs(ctypes.Structure):
-    """``sectors_t`` of native/probes.c."""
+    """``sectors_t`` of native/c/probes.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("a", ctypes.c_void_p), ("b", ctypes.c_void_p),
                 ("dir", ctypes.c_void_p), ("h", ctypes.c_double), ("vert", ctypes.c_double),
@@ -244,7 +244,7 @@ class _SectorsArgs(ctypes.Structure):
 
 
 class _RingArgs(ctypes.Structure):
-    """``ring_t`` of native/probes.c."""
+    """``ring_t`` of native/c/probes.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("rows", ctypes.c_void_p), ("mask", ctypes.c_void_p),
                 ("dir", ctypes.c_void_p), ("hc", ctypes.c_void_p), ("vs", ctypes.c_void_p),
@@ -253,7 +253,7 @@ class _RingArgs(ctypes.Structure):
 
 
 class _EdgeSectorsArgs(ctypes.Structure):
-    """``edge_sectors_t`` of native/edges.c."""
+    """``edge_sectors_t`` of native/c/edges.c."""
 
     _fields_ = [("e", ctypes.POINTER(depth_edges._EdgesArgs)), ("h", ctypes.c_double),
                 ("vert", ctypes.c_double), ("sector", ctypes.c_double),

@@ -70,7 +70,7 @@ class Aim:
 def aim(valid, surface, tables, uniforms, dist, dirs, normals, origins):
     """Which valid returns on glossy surfaces bounce (their ghost ``uniforms`` below the
     material's ghost ratio; ``tables``: ``glossy_tables``) and where their reflected
-    beams go. ``origins``: one row, or one per ray. In C (native/ghosts.c) where it is
+    beams go. ``origins``: one row, or one per ray. In C (native/c/ghosts.c) where it is
     built, else ``aim_numpy``: the same bytes."""
     fn = AIM.get() if compiled else None
     if fn is None:
@@ -117,7 +117,7 @@ def land(bounce, b, tri, n2, rmax, valid, dist, normals, surface, reflectivity):
     the total path a + b measured from the mirror point itself, ``normals`` the second
     surface's; the other bounced rays leave ``valid``. Updates those three in place;
     returns (which bounces became ghosts, a per-ray uint8 ghost flag, their last legs'
-    directions, their mirrors' reflectivity). In C (native/ghosts.c) where it is built,
+    directions, their mirrors' reflectivity). In C (native/c/ghosts.c) where it is built,
     else ``land_numpy``: the same bytes."""
     fn = LAND.get() if compiled else None
     arrays = (valid, dist, normals)
@@ -163,7 +163,7 @@ def land_numpy(bounce, b, tri, n2, rmax, valid, dist, normals, surface, reflecti
 
 
 class _AimArgs(ctypes.Structure):
-    """``aim_t`` of native/ghosts.c."""
+    """``aim_t`` of native/c/ghosts.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("valid", ctypes.c_void_p),
                 ("surface", ctypes.c_void_p), ("obj_glossy", ctypes.c_void_p),
@@ -178,7 +178,7 @@ class _AimArgs(ctypes.Structure):
 
 
 class _LandArgs(ctypes.Structure):
-    """``land_t`` of native/ghosts.c."""
+    """``land_t`` of native/c/ghosts.c."""
 
     _fields_ = [("m", ctypes.c_int64), ("chosen", ctypes.c_void_p),
                 ("a", ctypes.c_void_p), ("r", ctypes.c_void_p), ("p", ctypes.c_void_p),

@@ -211,7 +211,7 @@ def false_returns(alpha, u_medium, u_range, hit, dist, r_near, r_far):
     """(rows, ranges) of the rays whose return is a false one from the air: drawn with
     probability ``false_return_probability`` (uniforms ``u_medium``), at a range from
     ``false_return_ranges`` (uniforms ``u_range``), and only where that is nearer than
-    the first surface the ray meets (``hit``, at ``dist``). In C (native/weather.c)
+    the first surface the ray meets (``hit``, at ``dist``). In C (native/c/weather.c)
     where it is built, else ``false_returns_numpy``: the same bytes."""
     fn = FALSE_RETURNS.get() if compiled else None
     if fn is None:
@@ -242,7 +242,7 @@ def false_returns_numpy(alpha, u_medium, u_range, hit, dist, r_near, r_far):
 
 
 class _AirArgs(ctypes.Structure):
-    """``air_t`` of native/weather.c."""
+    """``air_t`` of native/c/weather.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("u_medium", ctypes.c_void_p),
                 ("u_range", ctypes.c_void_p), ("p", ctypes.c_double),

@@ -126,7 +126,7 @@ def cluster_client(workers, scheduler=None, threads=None):
         finally:
             client.close()
         return
-    env = {"RLS_EMBREE_THREADS": str(threads or threads_per_worker(workers)),
+    env = {"RLS_THREADS": str(threads or threads_per_worker(workers)),
            "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
     # Dask's nannies start workers with MALLOC_TRIM_THRESHOLD_=65536 (its
     # ``distributed.nanny.pre-spawn-environ``). Setting it also fixes glibc's mmap

@@ -1,7 +1,7 @@
 """What each ray of a static scene's cast brought back: whether it returns a point, and
 the (object, material) ids of the surface it hit.
 
-In C (``native/returns.c``) where it is built, else ``static_returns_numpy``: the same
+In C (``native/c/returns.c``) where it is built, else ``static_returns_numpy``: the same
 bytes. A world with moving bodies maps its hits through ``World.surface_ids`` (see
 ``World.returns``)."""
 
@@ -45,7 +45,7 @@ def static_returns_numpy(dist, tri, table, rmin, rmax):
 
 
 class _ReturnsArgs(ctypes.Structure):
-    """``returns_t`` of native/returns.c."""
+    """``returns_t`` of native/c/returns.c."""
 
     _fields_ = [("n", ctypes.c_int64), ("dist", ctypes.c_void_p), ("tri", ctypes.c_void_p),
                 ("table", ctypes.c_void_p), ("rows", ctypes.c_int64),
