@@ -11,6 +11,15 @@ def register():
     registration.register()
 
 
+def ensure_registered():
+    """Register the extension where it is not yet (``python -m rls_addon``, a Dask
+    worker, a factory reset): the command line's entry points hand this to the
+    commands that open a scene."""
+    from . import registration
+
+    registration.ensure_registered()
+
+
 def unregister():
     from . import registration
 

@@ -2,6 +2,7 @@
 
 import sys
 
+from . import ensure_registered
 from .cli import main
 
-sys.exit(main(sys.argv[1:]))
+sys.exit(main(sys.argv[1:], prepare_blender=ensure_registered))

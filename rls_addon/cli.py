@@ -38,13 +38,16 @@ def joined_negative_values(argv):
     return out
 
 
-def main(argv=None):
-    """Run one command; return the process exit code."""
+def main(argv=None, prepare_blender=None):
+    """Run one command; return the process exit code. ``prepare_blender`` registers
+    the extension in this Blender (the entry points pass ``ensure_registered``); the
+    commands that open a scene call it (``args.prepare_blender``)."""
     parser = build_parser()
     try:
         args = parser.parse_args(joined_negative_values(sys.argv[1:] if argv is None else argv))
     except SystemExit as exc:  # --help, --version, usage errors
         return int(exc.code or 0)
+    args.prepare_blender = prepare_blender or _nothing
     try:
         return int(args.func(args) or 0)
     except RLSError as exc:
@@ -56,6 +59,5 @@ def main(argv=None):
         return 130
 
 
-def blender_command(argv):
-    """Handler for ``bpy.utils.register_cli_command('rls', ...)``."""
-    return main(list(argv))
+def _nothing():
+    pass

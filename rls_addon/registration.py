@@ -3,7 +3,7 @@
 import bpy
 
 from . import operators, properties, ui
-from .cli import blender_command
+from .cli import main
 from .core.errors import RLSError
 
 CLASSES = properties.CLASSES + operators.CLASSES + ui.CLASSES
@@ -20,6 +20,18 @@ def register():
         print(f"rls: warning: {exc}")
     bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
     _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
+
+
+def ensure_registered():
+    """Register everything unless it is (the one place that asks)."""
+    if not hasattr(bpy.types.Object, "rls_lidar"):
+        register()
+
+
+def blender_command(argv):
+    """Handler of ``blender -b scene.blend -c rls ...``: the command line, told how to
+    register the extension again (``rls demo`` resets Blender to its factory settings)."""
+    return main(list(argv), prepare_blender=ensure_registered)
 
 
 def unregister():

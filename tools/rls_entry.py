@@ -55,7 +55,7 @@ def main(argv=None):
     argv = sys.argv if argv is None else argv
     pkg, _ = load_rls()
     cli = importlib.import_module(pkg.__name__ + ".cli")
-    return cli.main(command_args(argv))
+    return cli.main(command_args(argv), prepare_blender=pkg.ensure_registered)
 
 
 if __name__ == "__main__":

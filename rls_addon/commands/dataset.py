@@ -97,7 +97,7 @@ def dataset_run(args):
     from ..core.labels import label_ids, label_name
     from ..core.scan.run import ScanRun
 
-    scene = open_scene(args.blend)
+    scene = open_scene(args.blend, args.prepare_blender)
     sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)
     if not sensors:
         raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > LiDAR)")

@@ -1,4 +1,6 @@
-"""``rls demo``: build the sample street, place one LiDAR, scan one frame."""
+"""``rls demo``: build the sample intersection with its traffic, put a LiDAR on a
+traffic-light pole looking into the junction, scan one frame, and run a small
+placement study on the sample T-junction."""
 
 import json
 import math
@@ -7,13 +9,21 @@ import time
 
 from .scan import check_output_dir
 
+DEMO_SCENE = "intersection"
+DEMO_MOUNT = "TL SW"      # a traffic-light pole at a corner of the junction
+DEMO_FRAME = 24           # its four cars are near the junction then
+DEMO_PITCH_DEG = 12.0     # nose down: the junction's far side within the upper beams
+
 
 def add_parser(sub):
-    p = sub.add_parser("demo", help="scan the bundled sample street scene once",
-                       description="Generate the sample street scene, place one LiDAR on a "
-                                   "pole, scan one frame and write a point cloud.")
+    p = sub.add_parser("demo", help="scan the bundled sample intersection once",
+                       description="Generate the sample intersection (roads, buildings, a "
+                                   "glass facade, four cars driving), mount a LiDAR on a "
+                                   "traffic-light pole, scan one frame, write the point cloud "
+                                   "and its picture, and run a small placement study.")
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")
-    p.add_argument("--device", default="generic_uniform32", help="device preset id or name")
+    p.add_argument("--device", default="hesai_pandar64",
+                   help="device preset id or name (default: hesai_pandar64)")
     p.add_argument("--no-study", action="store_true",
                    help="skip the placement study on the sample T-junction")
     p.set_defaults(func=run)
@@ -23,40 +33,41 @@ def run(args):
     import bpy
 
     from ..blender.quiet import blender_output_silenced
-    from ..blender.sample_scene import build_street
+    from ..blender.scenes import build_scene
+    from ..blender.scenes.build import mount_position
     from ..blender.sensor import read_settings, sensor_job
     from ..blender.source import BlenderScene
-    from ..core.output.io.writer import make_writer, picture_path
+    from ..core.casting import backend_status
     from ..core.device.presets import get_preset
+    from ..core.output.io.writer import make_writer, picture_path
     from ..core.scan.run import ScanRun
 
     preset = get_preset(args.device)
     check_output_dir(args.out)
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    if not hasattr(bpy.types.Object, "rls_lidar"):
-        from .. import register
-
-        register()
+    args.prepare_blender()
     scene = bpy.context.scene
-    scene.name = "street"
-    mount = build_street(scene)
+    build_scene(DEMO_SCENE, scene)
+    x, y, z = mount_position(bpy.data.objects[DEMO_MOUNT])
     lidar = bpy.data.objects.new("LiDAR", None)
     lidar.empty_display_type = "ARROWS"
-    lidar.location = mount
-    lidar.rotation_euler = (0.0, math.radians(10.0), math.radians(-90.0))  # look across, pitched down
+    lidar.location = (x, y, z)
+    yaw = math.atan2(-y, -x)  # toward the junction's centre
+    lidar.rotation_euler = (0.0, math.radians(DEMO_PITCH_DEG), yaw)
     scene.collection.objects.link(lidar)
     lidar.rls_lidar.is_lidar = True
     lidar.rls_lidar.preset = preset.id
-    blend = os.path.abspath(os.path.join(args.out, "street.blend"))
-    scene.frame_set(1)
+    blend = os.path.abspath(os.path.join(args.out, f"{DEMO_SCENE}.blend"))
+    scene.frame_set(DEMO_FRAME)
     t0 = time.perf_counter()
     # The same run as 'rls scan' and the UI's operators, into --out.
     job = sensor_job(lidar, read_settings(lidar).override(directory=os.path.abspath(args.out)))
+    backend, why = backend_status(job.settings.backend)
     source = BlenderScene(scene)
     preview = _has_matplotlib()
     writer = make_writer([job], scene.name, source.fps, source.frame_start, overwrite=True,
                          preview=preview)
-    run = ScanRun(source, [job], [1], writer=writer).run()
+    run = ScanRun(source, [job], [DEMO_FRAME], writer=writer).run()
     result, _ = run.last
     path = run.paths[0]
     seconds = time.perf_counter() - t0
@@ -64,13 +75,15 @@ def run(args):
         bpy.ops.wm.save_as_mainfile(filepath=blend)
     summary = {"device": preset.name, "points": len(result.points), "rays": result.rays,
                "triangles": result.triangles, "seconds": round(seconds, 3),
-               "point_cloud": str(os.path.abspath(path)), "scene": blend,
+               "frame": DEMO_FRAME, "mount": DEMO_MOUNT, "backend": backend,
+               "backend_why": why, "point_cloud": str(os.path.abspath(path)), "scene": blend,
                "picture": str(os.path.abspath(picture_path(path))) if preview else None}
     if not args.no_study:
-        summary["study"] = run_demo_study(args.out, preset.id)
+        summary["study"] = run_demo_study(args.out, preset.id, args.prepare_blender)
     print(json.dumps(summary, indent=2))
-    print(f"Scanned {summary['points']} points ({preset.name}, {result.rays} rays) in "
-          f"{seconds:.2f} s.\nPoint cloud: {summary['point_cloud']}\nScene: {blend}")
+    print(f"Scanned {summary['points']} points ({preset.name} on the pole '{DEMO_MOUNT}', "
+          f"{result.rays} rays, frame {DEMO_FRAME}) in {seconds:.2f} s.\n"
+          f"Ray casting: {why}.\nPoint cloud: {summary['point_cloud']}\nScene: {blend}")
     print(f"Picture of the cloud: {summary['picture']}" if preview else
           "No picture of the cloud: matplotlib is not installed (pip install matplotlib)")
     if "study" in summary:
@@ -94,7 +107,7 @@ def _has_matplotlib():
     return True
 
 
-def run_demo_study(out_dir, device):
+def run_demo_study(out_dir, device, prepare_blender):
     """The paper's scenario A in small: the sample T-junction, its five corner and
     bar-side mounts, 1 to 3 sensors; report under ``out_dir/study``."""
     import bpy
@@ -106,10 +119,7 @@ def run_demo_study(out_dir, device):
     from ..core.study.report import write_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    if not hasattr(bpy.types.Object, "rls_lidar"):
-        from .. import register
-
-        register()
+    prepare_blender()
     build_scene("t_junction", bpy.context.scene)
     study_dir = os.path.join(out_dir, "study")
     check_output_dir(study_dir)

@@ -3,7 +3,7 @@ every core of a machine or on a Dask cluster.
 
 A scan run is split into pieces (per sensor, runs of consecutive frames; per frame
 range with every sensor for layouts whose files need a whole frame), a study into
-blocks of candidates. Workers (``blender.worker``) open the .blend once and keep it;
+blocks of candidates. Workers (``commands/worker.py``) open the .blend once and keep it;
 pieces come back in any order and the run takes them in plan order, so files, the
 summary and the study's tables are what one process writes (seeds come from
 (seed, sensor, frame)). A worker killed mid-piece loses nothing: Dask runs the piece
@@ -94,7 +94,7 @@ def run_scan(args, run, blend, by_sensor=True):
     # A piece run again after its worker died keeps what the first attempt finished.
     writer.resume = not writer.overwrite
     t0 = time.perf_counter()
-    from ..blender.worker import scan_piece
+    from .worker import scan_piece
 
     jobs = {j.name: j for j in run.sensors}
     notices = []
@@ -115,7 +115,8 @@ def run_scan(args, run, blend, by_sensor=True):
                       f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
                       "left", file=sys.stderr, flush=True)
 
-            run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer))
+            run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer,
+                                             args.prepare_blender))
                                for names, frames in pieces], absorb)
     finally:
         # Once the cluster is closed: a local cluster's workers are stopped then, so a
@@ -154,7 +155,7 @@ def study_scan_all(args, blend):
     (``CandidateScan``); the few candidates a density map needs are scanned again here
     by ``run_study``'s own scanner, built from the same scene and settings (the same
     seeds: the same points)."""
-    from ..blender.worker import study_piece
+    from .worker import study_piece
 
     def scan_all(scanner, cands, on_scan):
         rays = len(scanner.preset.pattern(scanner.frame)) * len(cands) \
@@ -169,7 +170,7 @@ def study_scan_all(args, blend):
             blocks = shards([c.index for c in cands], size * PIECES_PER_WORKER)
             print(f"rls: {len(blocks)} candidate blocks on {size} Dask worker(s)",
                   file=sys.stderr, flush=True)
-            run_tasks(client, [(study_piece, (blend, scanner.cfg, b)) for b in blocks],
+            run_tasks(client, [(study_piece, (blend, scanner.cfg, b, args.prepare_blender)) for b in blocks],
                       lambda i, scans: [on_scan(s) for s in scans])
 
     return scan_all

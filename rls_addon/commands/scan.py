@@ -158,19 +158,16 @@ def parse_frames(text, current):
     return list(range(start, end + 1, step))
 
 
-def open_scene(path):
+def open_scene(path, prepare_blender):
     """Load a .blend (or keep the loaded one when path is None) and make sure the
-    extension's properties are registered."""
+    extension is registered (``prepare_blender``, from the entry point)."""
     import bpy
 
     if path is not None:
         from ..blender.files import open_blend
 
         open_blend(path)
-    if not hasattr(bpy.types.Object, "rls_lidar"):
-        from .. import register
-
-        register()
+    prepare_blender()
     return bpy.context.scene
 
 
@@ -206,7 +203,7 @@ def scan_run(args):
     from ..core.output.io.writer import make_writer
     from ..core.scan.run import ScanRun
 
-    scene = open_scene(args.blend)
+    scene = open_scene(args.blend, args.prepare_blender)
     sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)
     if not sensors:
         raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > LiDAR)")

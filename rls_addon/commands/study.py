@@ -121,7 +121,7 @@ def run(args):
     from ..blender.study import run_study
 
     cfg = config_from_args(args)
-    scene = open_scene(args.blend)
+    scene = open_scene(args.blend, args.prepare_blender)
     check_output_dir(args.out)
     if not args.overwrite:
         names = list(REPORT_FILES) + [f"density_k{k}.png" for k in cfg.k]

@@ -33,7 +33,7 @@ def test_leftovers_are_removed_after_the_cluster_is_closed(monkeypatch):
     writer = types.SimpleNamespace(shardable=True, overwrite=True, resume=False)
     run = types.SimpleNamespace(sensors=[], frames=[1], total=1, writer=writer,
                                 pieces=lambda count, by_sensor: [([], [1])])
-    args = types.SimpleNamespace(workers="2", scheduler=None)
+    args = types.SimpleNamespace(workers="2", scheduler=None, prepare_blender=None)
     with pytest.raises(KeyboardInterrupt):
         distribute.run_scan(args, run, "scene.blend")
     assert events == ["cluster up", "pieces handed out", "cluster closed", "cleanup"]

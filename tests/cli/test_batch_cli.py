@@ -21,12 +21,12 @@ def summary(proc):
 
 def test_resume_skips_valid_outputs_and_redoes_broken_ones(demo_run, tmp_path):
     demo_out, _, _ = demo_run
-    blend = demo_out / "street.blend"
+    blend = demo_out / "intersection.blend"
     out = tmp_path / "scan"
     first = rls("scan", blend, "--frames", "1-3", "--out", out)
     assert first.returncode == 0, first.stderr
-    (out / "street_LiDAR_000002.json").unlink()                      # no sidecar
-    cloud3 = out / "street_LiDAR_000003.pcd"
+    (out / "intersection_LiDAR_000002.json").unlink()                      # no sidecar
+    cloud3 = out / "intersection_LiDAR_000003.pcd"
     cloud3.write_bytes(cloud3.read_bytes()[:300])                    # truncated cloud
     again = rls("scan", blend, "--frames", "1-4", "--out", out, "--resume")
     assert again.returncode == 0, again.stderr
@@ -37,12 +37,12 @@ def test_resume_skips_valid_outputs_and_redoes_broken_ones(demo_run, tmp_path):
     from rls_addon.core.output.io import read_cloud, read_sidecar
 
     for f in range(1, 5):
-        path = out / f"street_LiDAR_{f:06d}.pcd"
+        path = out / f"intersection_LiDAR_{f:06d}.pcd"
         assert len(read_cloud(path)) == read_sidecar(path)["points"]
     third = rls("scan", blend, "--frames", "1-4", "--out", out, "--resume")
     assert (summary(third)["resumed"], summary(third)["scanned"]) == (4, 0)
     # a mismatching sidecar (another sensor's or frame's) is not trusted
-    side = out / "street_LiDAR_000004.json"
+    side = out / "intersection_LiDAR_000004.json"
     info = json.loads(side.read_text())
     side.write_text(json.dumps(dict(info, points=info["points"] + 1)))
     fourth = rls("scan", blend, "--frames", "1-4", "--out", out, "--resume")
@@ -57,7 +57,7 @@ def test_ctrl_c_stops_cleanly(demo_run, tmp_path, workers):
     demo_out, _, _ = demo_run
     out = tmp_path / "scan"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-m", "rls_addon", "scan", str(demo_out / "street.blend"),
+    proc = subprocess.Popen([sys.executable, "-m", "rls_addon", "scan", str(demo_out / "intersection.blend"),
                              "--frames", "1-400", "--out", str(out), "--workers", workers],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)

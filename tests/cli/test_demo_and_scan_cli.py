@@ -22,7 +22,7 @@ def test_demo_writes_a_cloud_open3d_reads_with_the_reported_count(demo_run):
 
 
 def test_scan_frame_range_writes_clouds_sidecars_and_summary(demo_run, tmp_path):
-    blend = demo_run[0] / "street.blend"
+    blend = demo_run[0] / "intersection.blend"
     out = tmp_path / "scan"
     proc = rls("scan", blend, "--sensor", "LiDAR", "--frames", "1-3:2", "--out", out,
                "--format", "ply_binary")
@@ -30,23 +30,23 @@ def test_scan_frame_range_writes_clouds_sidecars_and_summary(demo_run, tmp_path)
     summary = json.loads(proc.stdout)
     assert summary["frames"] == [1, 3] and summary["sensors"] == ["LiDAR"]
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["street_LiDAR_000001.json", "street_LiDAR_000001.ply",
-                     "street_LiDAR_000003.json", "street_LiDAR_000003.ply",
-                     "street_instances.json"]
-    instances = json.loads((out / "street_instances.json").read_text())["instances"]
-    assert {v["object"]: v["label_name"] for v in instances.values()}["Car 0"] == "vehicle"
-    side = json.loads((out / "street_LiDAR_000001.json").read_text())
-    assert side["device"]["id"] == "generic_uniform32" and side["frame"] == 1
+    assert names == ["intersection_LiDAR_000001.json", "intersection_LiDAR_000001.ply",
+                     "intersection_LiDAR_000003.json", "intersection_LiDAR_000003.ply",
+                     "intersection_instances.json"]
+    instances = json.loads((out / "intersection_instances.json").read_text())["instances"]
+    assert {v["object"]: v["label_name"] for v in instances.values()}["Car west"] == "vehicle"
+    side = json.loads((out / "intersection_LiDAR_000001.json").read_text())
+    assert side["device"]["id"] == "hesai_pandar64" and side["frame"] == 1
     assert "[2/2]" in proc.stderr and "left" in proc.stderr  # per-frame progress with estimate
     # Same inputs, same bytes.
     again = tmp_path / "again"
     rls("scan", blend, "--frames", "1", "--out", again, "--format", "ply_binary")
-    assert (again / "street_LiDAR_000001.ply").read_bytes() == \
-        (out / "street_LiDAR_000001.ply").read_bytes()
+    assert (again / "intersection_LiDAR_000001.ply").read_bytes() == \
+        (out / "intersection_LiDAR_000001.ply").read_bytes()
 
 
 def test_scan_refuses_to_overwrite_without_flag(demo_run, tmp_path):
-    blend = demo_run[0] / "street.blend"
+    blend = demo_run[0] / "intersection.blend"
     assert rls("scan", blend, "--out", tmp_path).returncode == 0
     line = one_line_error(rls("scan", blend, "--out", tmp_path))
     assert "overwrite" in line
@@ -59,7 +59,7 @@ def test_missing_scene_file(tmp_path):
 
 
 def test_unknown_sensor(demo_run, tmp_path):
-    line = one_line_error(rls("scan", demo_run[0] / "street.blend", "--sensor", "Nope",
+    line = one_line_error(rls("scan", demo_run[0] / "intersection.blend", "--sensor", "Nope",
                               "--out", tmp_path))
     assert "'Nope'" in line and "LiDAR" in line
 
@@ -67,27 +67,27 @@ def test_unknown_sensor(demo_run, tmp_path):
 def test_unwritable_output_directory(demo_run, tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("not a directory")
-    line = one_line_error(rls("scan", demo_run[0] / "street.blend", "--out", blocker / "sub"))
+    line = one_line_error(rls("scan", demo_run[0] / "intersection.blend", "--out", blocker / "sub"))
     assert "output folder" in line
 
 
 def test_bad_frame_range(demo_run, tmp_path):
-    line = one_line_error(rls("scan", demo_run[0] / "street.blend", "--frames", "9-2",
+    line = one_line_error(rls("scan", demo_run[0] / "intersection.blend", "--frames", "9-2",
                               "--out", tmp_path))
     assert "--frames" in line
 
 
 def test_scan_motion_and_ghosting_overrides(demo_run, tmp_path):
-    """The sample street has a car driving through and a glass facade."""
-    blend = demo_run[0] / "street.blend"
+    """The sample intersection has cars driving through and a glass facade."""
+    blend = demo_run[0] / "intersection.blend"
     sides = {}
     for name, extra in (("exact", []), ("snapshot", ["--motion", "snapshot"]),
                         ("noghost", ["--ghosting", "off"])):
         out = tmp_path / name
         proc = rls("scan", blend, "--frames", "5", "--out", out, *extra)
         assert proc.returncode == 0, proc.stderr
-        sides[name] = json.loads((out / "street_LiDAR_000005.json").read_text())
-    assert sides["exact"]["motion"]["rigid"] == ["Car 0"]
+        sides[name] = json.loads((out / "intersection_LiDAR_000005.json").read_text())
+    assert sides["exact"]["motion"]["rigid"] == ["Car west", "Car east", "Car north", "Car south"]
     assert sides["snapshot"]["motion"]["rigid"] == []
     assert sides["snapshot"]["effects"]["motion"] == "snapshot"
     assert sides["exact"]["ghosts"] > 0 and sides["noghost"]["ghosts"] == 0
@@ -100,16 +100,16 @@ def test_scan_backends_give_the_same_points(demo_run, tmp_path):
     exactly in float64, so away from edges the clouds agree to 1e-4 m."""
     from rls_addon.core.output.io import read_cloud
 
-    blend = demo_run[0] / "street.blend"
+    blend = demo_run[0] / "intersection.blend"
     clouds = {}
     for backend in ("bvhtree", "embree"):
         out = tmp_path / backend
         proc = rls("scan", blend, "--frames", "1", "--out", out, "--backend", backend,
                    "--ghosting", "off", "--motion", "snapshot")
         assert proc.returncode == 0, proc.stderr
-        side = json.loads((out / "street_LiDAR_000001.json").read_text())
+        side = json.loads((out / "intersection_LiDAR_000001.json").read_text())
         assert side["backend"] == backend
-        clouds[backend] = read_cloud(out / "street_LiDAR_000001.pcd")
+        clouds[backend] = read_cloud(out / "intersection_LiDAR_000001.pcd")
     a, b = clouds["bvhtree"], clouds["embree"]
     key = lambda p: np.round(p["time"] * 1e9).astype(np.int64) * 4096 + p["ring"]  # noqa: E731
     common, ia, ib = np.intersect1d(key(a), key(b), return_indices=True)

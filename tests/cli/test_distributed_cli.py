@@ -160,9 +160,9 @@ def test_a_scene_a_worker_cannot_open_ends_the_run_with_one_line(scene, tmp_path
     preload = tmp_path / "fail_open.py"
     preload.write_text(
         "def dask_setup(worker):\n"
-        "    import rls_addon.blender.worker as w\n"
+        "    import rls_addon.commands.worker as w\n"
         "    from rls_addon.core.errors import InputError\n"
-        "    def refuse(blend):\n"
+        "    def refuse(blend, prepare_blender):\n"
         "        raise InputError(f'scene file not found on this worker: {blend}')\n"
         "    w._open = refuse\n")
     c = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",

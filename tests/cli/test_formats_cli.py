@@ -29,13 +29,13 @@ def scan(blend, out, *args):
 @pytest.fixture(scope="module")
 def reference(demo_run, tmp_path_factory):
     """Frame 1 in RLS's point type with every field, in the sensor and in the world frame."""
-    blend = demo_run[0] / "street.blend"
+    blend = demo_run[0] / "intersection.blend"
     out = tmp_path_factory.mktemp("rls")
     scan(blend, out / "sensor", "--point-type", "rls", "--fields", ALL, "--frame-space", "sensor")
     scan(blend, out / "world", "--point-type", "rls", "--fields", ALL, "--frame-space", "world")
-    sensor = pcd.decode((out / "sensor" / "street_LiDAR_000001.pcd").read_bytes())
-    world = pcd.decode((out / "world" / "street_LiDAR_000001.pcd").read_bytes())
-    side = json.loads((out / "sensor" / "street_LiDAR_000001.json").read_text())
+    sensor = pcd.decode((out / "sensor" / "intersection_LiDAR_000001.pcd").read_bytes())
+    world = pcd.decode((out / "world" / "intersection_LiDAR_000001.pcd").read_bytes())
+    side = json.loads((out / "sensor" / "intersection_LiDAR_000001.json").read_text())
     assert len(sensor) == len(world) == side["points"] > 10000
     return blend, sensor, world, side
 
@@ -63,7 +63,7 @@ def one_to_one(a, b):
 def test_driver_point_types_read_by_pcl_typed_loader(reference, pcl_reader, tmp_path, name):
     blend, ref, _, side = reference
     scan(blend, tmp_path, "--point-type", name, "--start-time", str(START))
-    path = tmp_path / "street_LiDAR_000001.pcd"
+    path = tmp_path / "intersection_LiDAR_000001.pcd"
     got = pcl_typed.read(pcl_reader, name, path)
     names = list(pcd.decode(path.read_bytes()).dtype.names)
     col = {f: names.index(f) for f in names}
@@ -108,7 +108,7 @@ def test_las_read_by_laspy_and_lazpy(reference, tmp_path):
     blend, _, world, side = reference
     summary = scan(blend, tmp_path, "--format", "las", "--crs", "EPSG:25832",
                    "--start-time", str(START), "--fields", ALL)
-    path = tmp_path / "street_LiDAR_000001.las"
+    path = tmp_path / "intersection_LiDAR_000001.las"
     assert summary["outputs"][0]["file"] == str(path)
     las = laspy.read(str(path))
     h = las.header
@@ -132,7 +132,7 @@ def test_las_read_by_laspy_and_lazpy(reference, tmp_path):
     cls = np.asarray(las.classification)
     for label, asprs in ((1, 11), (2, 2), (3, 6), (11, 64 + 11)):
         on = world["label"] == label
-        assert on.any(), label  # the sample street has roads, sidewalks, houses and cars
+        assert on.any(), label  # the sample intersection has roads, sidewalks, houses and cars
         assert set(np.unique(cls[on])) == {asprs}, label
     r = lazpy.Reader(str(path))
     assert r.num_points == len(world)
@@ -152,10 +152,10 @@ def test_ros2_bag_read_by_mcap_reader(reference, tmp_path):
                "--workers", "1")
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
-    bag = tmp_path / "street_rosbag2"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["street_rosbag2"]
-    assert sorted(p.name for p in bag.iterdir()) == ["metadata.yaml", "street_rosbag2.mcap"]
-    with open(bag / "street_rosbag2.mcap", "rb") as fh:
+    bag = tmp_path / "intersection_rosbag2"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["intersection_rosbag2"]
+    assert sorted(p.name for p in bag.iterdir()) == ["intersection_rosbag2.mcap", "metadata.yaml"]
+    with open(bag / "intersection_rosbag2.mcap", "rb") as fh:
         reader = mcap_reader.make_reader(fh, decoder_factories=[decoder.DecoderFactory()])
         msgs = [(ch.topic, m.log_time, ros) for _, ch, m, ros in reader.iter_decoded_messages()]
     clouds = [(ns, m) for t, ns, m in msgs if t.endswith("/points")]

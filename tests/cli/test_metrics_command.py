@@ -82,9 +82,9 @@ def test_density_chart_title_names_region_sensor_and_metrics(tmp_path, polygon_f
     assert "Pole Lidar (Hesai Pandar64, frame 7) + plain" in title
     assert "region lob.json" in title and "InfraD 4.00 points / m²" in title
     assert f"InfraNUC {res.infra_nuc:.3f}" in title
-    title = chart_title(Namespace(lob_polygon=None, lob="/x/street.blend:InfraLOB",
+    title = chart_title(Namespace(lob_polygon=None, lob="/x/intersection.blend:InfraLOB",
                                   clouds=[str(other)]), res)
-    assert "region InfraLOB in street.blend" in title
+    assert "region InfraLOB in intersection.blend" in title
 
 
 def test_sensor_frame_clouds_are_moved_to_world_by_their_sidecar(tmp_path, polygon_file):

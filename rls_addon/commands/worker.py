@@ -31,9 +31,10 @@ def _import_bpy():
     return bpy
 
 
-def _open(blend):
+def _open(blend, prepare_blender):
     """The worker's scene for ``blend``: opened on first use, kept while the file does
-    not change."""
+    not change. ``prepare_blender`` (the entry point's ``ensure_registered``, sent
+    with the piece) registers the extension in this process."""
     bpy = _import_bpy()
 
     path = os.path.abspath(blend)
@@ -45,15 +46,12 @@ def _open(blend):
         raise InputError(f"scene file not found on worker {os.uname().nodename}: {path} "
                          "(workers need the scene on a path they share)") from None
     if _STATE.get("key") != key:
-        from .files import open_blend
-        from .source import BlenderScene
+        from ..blender.files import open_blend
+        from ..blender.source import BlenderScene
 
         _STATE.clear()
         open_blend(path)
-        if not hasattr(bpy.types.Object, "rls_lidar"):
-            from .. import register
-
-            register()
+        prepare_blender()
         _STATE.update(key=key, source=BlenderScene(bpy.context.scene, edited=False),
                       sessions={}, studies={})
     return _STATE
@@ -69,12 +67,12 @@ class PieceResult:
     worker: str = ""
 
 
-def scan_piece(blend, jobs, frames, writer):
+def scan_piece(blend, jobs, frames, writer, prepare_blender):
     """Scan ``frames`` x ``jobs`` (``core.run.SensorJob``) of ``blend`` with ``writer``;
     returns a ``PieceResult`` (the steps, for the run to absorb)."""
     from ..core.scan.run import ScanRun
 
-    state = _open(blend)
+    state = _open(blend, prepare_blender)
     run = ScanRun(state["source"], jobs, frames, writer=writer, sessions=state["sessions"],
                   piece=True)
     run.run()
@@ -82,13 +80,13 @@ def scan_piece(blend, jobs, frames, writer):
                        run.structure_builds, f"{os.uname().nodename}:{os.getpid()}")
 
 
-def study_piece(blend, cfg, indices):
+def study_piece(blend, cfg, indices, prepare_blender):
     """Scan the candidates ``indices`` of the study ``cfg`` of ``blend``; returns their
     ``core.study.CandidateScan`` s (the worker keeps the study's prepared scene)."""
     from ..core.study import study as core_study
 
-    state = _open(blend)  # first: it imports bpy the way a worker must
-    from .study import BlenderStudyScene
+    state = _open(blend, prepare_blender)  # first: it imports bpy the way a worker must
+    from ..blender.study import BlenderStudyScene
 
     key = repr(cfg)
     got = state["studies"].get(key)
