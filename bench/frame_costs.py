@@ -213,8 +213,8 @@ def report_lines(r):
     lines = ["## A frame against its cast (issue 18)\n",
              "Pandar64, default settings (watertight re-check, float64 refinement, ghosts, "
              "noise, dropout). *Cast* is Embree alone on the pattern's rays; the frame's "
-             "re-check and per-hit stage run compiled (`native/embree_loop.c`, "
-             "`native/points.c`); *numpy* is the same frame on the numpy references "
+             "re-check and per-hit stage run compiled (`native/c/embree_loop.c`, "
+             "`native/c/points.c`); *numpy* is the same frame on the numpy references "
              "(same bytes). BVHTree is held to the bare `ray_cast` loop over the "
              "pattern's rays.\n",
              "*The frame's casts* are the casts a cold frame makes, timed alone: the "

@@ -1029,7 +1029,7 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
              "builds its own Embree scene through `ctypes` on the library inside the embreex "
              "wheel and casts 16-ray packets with `rtcIntersect16`. A probe packet checks "
              "the packet layout once per process. The packets are cast by a small C loop "
-             "(`rls_addon/native/embree_loop.c`, compiled by `tools/build_native.py` and "
+             "(`rls_addon/core/native/c/embree_loop.c`, compiled by `tools/build_native.py` and "
              "shipped in the Linux zip) on its own threads in one `ctypes` call, so Python "
              "waits without the GIL; without the compiled loop, packets are cast from a "
              "Python thread pool, which hands the GIL back and forth every 16 rays and "
@@ -1038,7 +1038,7 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
              "through) costs about 12%.\n")
     L.append("Exact range refinement, the watertight re-check of misses and the per-hit "
              "stage (intensity, noise, dropout, point records) run compiled in the loop's "
-             "threads (`native/embree_loop.c`, `native/points.c`), with the numpy "
+             "threads (`native/c/embree_loop.c`, `native/c/points.c`), with the numpy "
              "references compared byte for byte in the tests; what a cold frame costs "
              "beyond its cast is in *A frame against its cast* above (ghost rays are a "
              "second cast; the rest is the Python between the stages), and the profile "
