@@ -53,7 +53,7 @@ def _as_boxes(box, name):
 def bev_corners(box):
     """(N, 4, 2) BEV corners of the (N, 7) boxes, counter-clockwise, starting front-right."""
     box = _as_boxes(box, "bev_corners")
-    half = 0.5 * box[:, None, 3:5] * _CORNER_SIGNS           # (N, 4, 2) local offsets
+    half = 0.5 * box[:, None, 3:5] * _CORNER_SIGNS  # (N, 4, 2) local offsets
     c, s = np.cos(box[:, 6])[:, None], np.sin(box[:, 6])[:, None]
     x = box[:, None, 0] + c * half[..., 0] - s * half[..., 1]
     y = box[:, None, 1] + s * half[..., 0] + c * half[..., 1]
@@ -142,56 +142,60 @@ def _reach(box):
     return 0.5 * np.hypot(box[:, 3], box[:, 4])
 
 
-def _z_overlap(a, b):
-    """Length of the overlap of the boxes' vertical extents (0 when apart), broadcast."""
-    top = np.minimum(a[..., 2] + 0.5 * a[..., 5], b[..., 2] + 0.5 * b[..., 5])
-    bottom = np.maximum(a[..., 2] - 0.5 * a[..., 5], b[..., 2] - 0.5 * b[..., 5])
+def _z_overlap(za, ha, zb, hb):
+    """Length shared by the vertical extents ``[z - h/2, z + h/2]`` (0 when apart),
+    broadcast."""
+    top = np.minimum(za + 0.5 * ha, zb + 0.5 * hb)
+    bottom = np.maximum(za - 0.5 * ha, zb - 0.5 * hb)
     return np.maximum(top - bottom, 0.0)
 
 
-def _overlap(a, b, kind):
-    """(P,) BEV intersection ('area'), BEV IoU ('bev') or 3D IoU ('3d') of row i of
-    ``a`` with row i of ``b``; pairs that cannot meet are not clipped."""
-    out = np.zeros(len(a))
-    dx = a[:, 0] - b[:, 0]
-    dy = a[:, 1] - b[:, 1]
-    reach = _reach(a) + _reach(b)
-    # Circumscribed circles that do not meet cannot overlap (the margin keeps pairs
-    # whose circles just touch, where rounding could decide).
-    near = dx * dx + dy * dy <= reach * reach * (1 + 1e-9)
-    if kind == "3d":
-        height = _z_overlap(a, b)
-        near &= height > 0
-    idx = np.flatnonzero(near)
-    if not len(idx):
-        return out
-    a, b = a[idx], b[idx]
+def _may_meet(ax, ay, ar, bx, by, br):
+    """Whether circumscribed circles (centres, radii; broadcast) meet: boxes whose
+    circles do not cannot overlap. The margin keeps circles that just touch, where
+    rounding could decide."""
+    dx, dy, reach = ax - bx, ay - by, ar + br
+    return dx * dx + dy * dy <= reach * reach * (1 + 1e-9)
+
+
+def _measure(a, b, kind):
+    """(P,) BEV intersection ('area'), BEV IoU ('bev') or 3D IoU ('3d') of row k of
+    ``a`` with row k of ``b`` (both (P, 7))."""
     inter = _clip_area(a, b)
     if kind == "area":
-        out[idx] = inter
-    elif kind == "bev":
-        out[idx] = inter / (a[:, 3] * a[:, 4] + b[:, 3] * b[:, 4] - inter)
-    else:
-        volume = inter * height[idx]
-        out[idx] = volume / (a[:, 3] * a[:, 4] * a[:, 5] + b[:, 3] * b[:, 4] * b[:, 5]
-                             - volume)
+        return inter
+    if kind == "bev":
+        return inter / (a[:, 3] * a[:, 4] + b[:, 3] * b[:, 4] - inter)
+    volume = inter * _z_overlap(a[:, 2], a[:, 5], b[:, 2], b[:, 5])
+    return volume / (a[:, 3] * a[:, 4] * a[:, 5] + b[:, 3] * b[:, 4] * b[:, 5] - volume)
+
+
+def _overlap_at(a, b, i, j, kind):
+    """(P,) ``_measure`` of the pairs ``a[i[k]]``, ``b[j[k]]``; only pairs that may meet
+    are gathered and clipped, the others are 0."""
+    out = np.zeros(len(i))
+    near = _may_meet(a[i, 0], a[i, 1], _reach(a)[i], b[j, 0], b[j, 1], _reach(b)[j])
+    if kind == "3d":
+        near &= _z_overlap(a[i, 2], a[i, 5], b[j, 2], b[j, 5]) > 0
+    idx = np.flatnonzero(near)
+    if len(idx):
+        out[idx] = _measure(a[i[idx]], b[j[idx]], kind)
     return out
 
 
 def _all_pairs(a, b, kind):
-    """(N, M) ``_overlap`` of every box of ``a`` with every box of ``b``: only pairs that
-    can meet are gathered and clipped."""
+    """(N, M) ``_measure`` of every box of ``a`` with every box of ``b``: only pairs that
+    may meet are gathered and clipped."""
     out = np.zeros((len(a), len(b)))
     if not (len(a) and len(b)):
         return out
-    dx = a[:, None, 0] - b[None, :, 0]
-    dy = a[:, None, 1] - b[None, :, 1]
-    reach = _reach(a)[:, None] + _reach(b)[None, :]
-    near = dx * dx + dy * dy <= reach * reach * (1 + 1e-9)
+    near = _may_meet(a[:, None, 0], a[:, None, 1], _reach(a)[:, None],
+                     b[None, :, 0], b[None, :, 1], _reach(b)[None, :])
     if kind == "3d":
-        near &= _z_overlap(a[:, None, :], b[None, :, :]) > 0
+        za, ha = a[:, None, 2], a[:, None, 5]
+        near &= _z_overlap(za, ha, b[None, :, 2], b[None, :, 5]) > 0
     i, j = np.nonzero(near)
-    out[i, j] = _overlap(a[i], b[j], kind)
+    out[i, j] = _measure(a[i], b[j], kind)
     return out
 
 
@@ -216,8 +220,11 @@ def bev_intersection(a, b):
 
 
 def bev_intersection_paired(a, b):
-    """(N,) BEV intersection area (m^2) of box i of ``a`` with box i of ``b``, both (N, 7)."""
-    return _overlap(*_paired(a, b), "area")
+    """(N,) BEV intersection area (m^2) of box i of ``a`` with box i of ``b`` (both
+    (N, 7))."""
+    a, b = _paired(a, b)
+    k = np.arange(len(a))
+    return _overlap_at(a, b, k, k, "area")
 
 
 def iou(a, b, kind="3d"):
@@ -231,7 +238,23 @@ def iou_paired(a, b, kind="3d"):
     """(N,) IoU of box i of ``a`` with box i of ``b`` (both (N, 7)); ``kind`` is 'bev' or
     '3d'."""
     _check_kind(kind)
-    return _overlap(*_paired(a, b), kind)
+    a, b = _paired(a, b)
+    k = np.arange(len(a))
+    return _overlap_at(a, b, k, k, kind)
+
+
+def iou_at(a, b, i, j, kind="3d"):
+    """(P,) IoU of the pairs ``a[i[k]]``, ``b[j[k]]`` (``a`` (N, 7), ``b`` (M, 7), ``i``
+    and ``j`` (P,) indices): any chosen pairs at once, such as every pair within each
+    frame, without the (N, M) table; ``kind`` is 'bev' or '3d'."""
+    _check_kind(kind)
+    a, b = _as_boxes(a, "a"), _as_boxes(b, "b")
+    i = np.asarray(i, np.int64).reshape(-1)
+    j = np.asarray(j, np.int64).reshape(-1)
+    if len(i) != len(j):
+        raise InputError(f"iou_at needs as many indices on each side, got {len(i)} and "
+                         f"{len(j)}")
+    return _overlap_at(a, b, i, j, kind)
 
 
 def bev_iou(a, b):

@@ -16,6 +16,7 @@ from rls_addon.core.evaluate.overlap import (
     bev_iou,
     iou,
     iou_3d,
+    iou_at,
     iou_paired,
 )
 
@@ -183,7 +184,10 @@ def test_paired_matches_the_matrix_diagonal():
     rng = np.random.default_rng(3)
     a, b = random_boxes(rng, 40, 5), random_boxes(rng, 40, 5)
     for kind in ("bev", "3d"):
-        np.testing.assert_array_equal(iou_paired(a, b, kind), np.diag(iou(a, b, kind)))
+        table = iou(a, b, kind)
+        np.testing.assert_array_equal(iou_paired(a, b, kind), np.diag(table))
+        i, j = np.array([0, 5, 5, 39]), np.array([3, 5, 0, 39])
+        np.testing.assert_array_equal(iou_at(a, b, i, j, kind), table[i, j])
 
 
 def test_shapes_and_bad_input():
