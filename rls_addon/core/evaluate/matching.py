@@ -24,7 +24,11 @@ they match leaves both the true positives and the misses.
 Results are ``Matches``: per detection its status (``TP`` 1, ``FP`` 0, ``IGNORED`` -1),
 the GT index it took (-1 for none) and an IoU (with the box it took; for the others the
 best IoU with any ground truth of its frame and class, 0 if none); per ground-truth box
-the detection that took it (-1 for none). Indices are rows of the ``Boxes`` given."""
+the detection that took it (-1 for none). Indices are rows of the ``Boxes`` given.
+
+``pair_overlaps`` works out the IoU of every same-frame, same-class pair once (one
+vectorised call); ``match`` then runs over all groups in one pass, so several thresholds
+and ignore masks share the geometry."""
 
 from dataclasses import dataclass
 
@@ -99,6 +103,48 @@ def as_flags(mask, n, name):
     return mask.astype(bool)
 
 
+def _greedy(n_det, n_gt, pair_det, pair_gt, pair_iou, score, threshold, gt_ignore,
+            det_ignore):
+    """The matching itself, on the candidate pairs (detection, ground truth, IoU) of any
+    number of independent groups (a group's detections keep their relative order in the
+    one score order, so matching all groups in one pass is matching each in turn).
+    Returns (status, gt_index, best, gt_det) as ``greedy_match``."""
+    best = np.zeros(n_det)
+    np.maximum.at(best, pair_det, pair_iou)
+    status = np.where(det_ignore, IGNORED, FP).astype(np.int8)
+    gt_index = np.full(n_det, -1, np.int64)
+    gt_det = np.full(n_gt, -1, np.int64)
+    keep = pair_iou >= threshold
+    pair_det, pair_gt, pair_iou = pair_det[keep], pair_gt[keep], pair_iou[keep]
+    # Each detection's candidates by falling IoU (ties: lower GT row first).
+    order = np.lexsort((pair_gt, -pair_iou, pair_det))
+    cand = pair_gt[order].tolist()
+    cand_iou = pair_iou[order].tolist()
+    start = np.searchsorted(pair_det[order], np.arange(n_det + 1)).tolist()
+    ignore = gt_ignore.tolist()
+    taken = [-1] * n_gt
+    for k in np.argsort(-score, kind="stable").tolist():
+        counted = dropped = -1
+        for c in range(start[k], start[k + 1]):
+            j = cand[c]
+            if taken[j] >= 0:
+                continue
+            if not ignore[j]:
+                counted = c
+                break
+            if dropped < 0:
+                dropped = c
+        c = counted if counted >= 0 else dropped
+        if c < 0:
+            continue
+        status[k] = TP if counted >= 0 else IGNORED
+        gt_index[k] = j = cand[c]
+        best[k] = cand_iou[c]
+        taken[j] = k
+    gt_det[:] = taken
+    return status, gt_index, best, gt_det
+
+
 def greedy_match(iou, score, threshold, gt_ignore=None, det_ignore=None):
     """Match one frame and class: ``iou`` (D, G) of detections with ground truth,
     ``score`` (D,). Returns (status (D,) int8, gt_index (D,) int64, best (D,) float64,
@@ -107,36 +153,26 @@ def greedy_match(iou, score, threshold, gt_ignore=None, det_ignore=None):
     iou = np.asarray(iou, np.float64)
     d, g = iou.shape
     score = np.asarray(score, np.float64).reshape(d)
-    gt_ignore = as_flags(gt_ignore, g, "gt_ignore")
-    det_ignore = as_flags(det_ignore, d, "det_ignore")
-    status = np.full(d, FP, np.int8)
-    gt_index = np.full(d, -1, np.int64)
-    best = iou.max(axis=1, initial=0.0) if g else np.zeros(d)
-    gt_det = np.full(g, -1, np.int64)
-    reach = iou >= threshold
-    for k in np.argsort(-score, kind="stable"):
-        row = np.where(reach[k] & (gt_det < 0), iou[k], -1.0)
-        counted = np.where(gt_ignore, -1.0, row)
-        j = int(np.argmax(counted)) if g else 0
-        if g and counted[j] >= 0:
-            status[k] = TP
-        else:
-            dropped = np.where(gt_ignore, row, -1.0)
-            j = int(np.argmax(dropped)) if g else 0
-            if g and dropped[j] >= 0:
-                status[k] = IGNORED
-            else:
-                if det_ignore[k]:
-                    status[k] = IGNORED
-                continue
-        gt_index[k] = j
-        gt_det[j] = k
-        best[k] = iou[k, j]
-    return status, gt_index, best, gt_det
+    pair_det, pair_gt = (x.reshape(-1) for x in np.indices((d, g)))
+    return _greedy(d, g, pair_det, pair_gt, iou.reshape(-1), score, threshold,
+                   as_flags(gt_ignore, g, "gt_ignore"),
+                   as_flags(det_ignore, d, "det_ignore"))
+
+
+@dataclass
+class Overlaps:
+    """The IoU of every same-frame, same-class (detection, ground truth) pair, worked out
+    once for any number of matchings (thresholds, ignore masks)."""
+    det: np.ndarray   # (P,) int64 detection rows
+    gt: np.ndarray    # (P,) int64 ground-truth rows
+    iou: np.ndarray   # (P,) float64
+    kind: str
+    n_det: int
+    n_gt: int
 
 
 def _groups(detections, ground_truth):
-    """{(frame, label): (detection rows, ground-truth rows)} over both sets."""
+    """[(detection rows, ground-truth rows)] of each (frame, label) either set holds."""
     keys_d = np.stack([detections.frame, detections.label], axis=1)
     keys_g = np.stack([ground_truth.frame, ground_truth.label], axis=1)
     keys, inverse = np.unique(np.concatenate([keys_d, keys_g]), axis=0,
@@ -152,21 +188,17 @@ def _groups(detections, ground_truth):
 
 
 def pair_overlaps(detections, ground_truth, kind="3d"):
-    """The IoU table of every (frame, class) group, worked out once for any number of
-    matchings (thresholds, ignore masks): a list of (detection rows, ground-truth rows,
-    IoU (D, G)). ``kind`` is 'bev' or '3d'."""
+    """``Overlaps`` of ``detections`` and ``ground_truth`` (both ``Boxes``): every pair
+    of the same frame and class, by ``kind`` 'bev' or '3d' IoU."""
     if kind not in IOU_KINDS:
         raise InputError(f"unknown overlap kind '{kind}': choose one of "
                          + ", ".join(IOU_KINDS))
-    groups = _groups(detections, ground_truth)
-    pairs_d = [np.repeat(d, len(g)) for d, g in groups]
-    pairs_g = [np.tile(g, len(d)) for d, g in groups]
-    values = iou_at(detections.box, ground_truth.box,
-                    np.concatenate(pairs_d + [np.zeros(0, np.int64)]),
-                    np.concatenate(pairs_g + [np.zeros(0, np.int64)]), kind)
-    cuts = np.cumsum([0] + [len(d) * len(g) for d, g in groups])
-    return [(d, g, values[cuts[k]:cuts[k + 1]].reshape(len(d), len(g)))
-            for k, (d, g) in enumerate(groups)]
+    none = np.zeros(0, np.int64)
+    groups = [(d, g) for d, g in _groups(detections, ground_truth) if len(d) and len(g)]
+    pair_det = np.concatenate([np.repeat(d, len(g)) for d, g in groups] + [none])
+    pair_gt = np.concatenate([np.tile(g, len(d)) for d, g in groups] + [none])
+    values = iou_at(detections.box, ground_truth.box, pair_det, pair_gt, kind)
+    return Overlaps(pair_det, pair_gt, values, kind, len(detections), len(ground_truth))
 
 
 def match(detections, ground_truth, threshold=0.5, kind="3d", gt_ignore=None,
@@ -182,18 +214,12 @@ def match(detections, ground_truth, threshold=0.5, kind="3d", gt_ignore=None,
     det_ignore = as_flags(det_ignore, d_count, "det_ignore")
     if overlaps is None:
         overlaps = pair_overlaps(detections, ground_truth, kind)
-    status = np.full(d_count, FP, np.int8)
-    gt_index = np.full(d_count, -1, np.int64)
-    best = np.zeros(d_count)
-    gt_det = np.full(g_count, -1, np.int64)
-    for d, g, table in overlaps:
-        if not len(d):
-            continue
-        s, j, b, taken = greedy_match(table, detections.score[d], threshold,
-                                      gt_ignore[g], det_ignore[d])
-        status[d] = s
-        gt_index[d] = np.where(j >= 0, g[np.maximum(j, 0)] if len(g) else -1, -1)
-        best[d] = b
-        if len(g):
-            gt_det[g] = np.where(taken >= 0, d[np.maximum(taken, 0)], -1)
+    elif (overlaps.kind, overlaps.n_det, overlaps.n_gt) != (kind, d_count, g_count):
+        raise InputError(f"the overlaps given are {overlaps.kind} IoU of "
+                         f"{overlaps.n_det} detections and {overlaps.n_gt} boxes, not "
+                         f"{kind} of {d_count} and {g_count}: work them out again with "
+                         "pair_overlaps")
+    status, gt_index, best, gt_det = _greedy(
+        d_count, g_count, overlaps.det, overlaps.gt, overlaps.iou, detections.score,
+        threshold, gt_ignore, det_ignore)
     return Matches(status, gt_index, best, gt_det, gt_ignore, threshold, kind)

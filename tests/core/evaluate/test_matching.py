@@ -130,3 +130,39 @@ def test_empty_sides_and_bad_input():
         match(Boxes.empty(), gt, threshold=0)
     with pytest.raises(InputError, match="bev, 3d"):
         match(Boxes.empty(), gt, kind="image")
+
+
+def naive_match(iou, score, threshold, gt_ignore, det_ignore):
+    """The rules written out directly, one detection and one box at a time."""
+    d, g = iou.shape
+    status, gt_index, taken = [FP] * d, [-1] * d, {}
+    for k in sorted(range(d), key=lambda k: -score[k]):  # sorted() is stable
+        free = [j for j in range(g) if j not in taken and iou[k, j] >= threshold]
+        counted = [j for j in free if not gt_ignore[j]]
+        pick = counted or [j for j in free if gt_ignore[j]]
+        if pick:
+            j = max(pick, key=lambda j: (iou[k, j], -j))
+            status[k] = TP if counted else IGNORED
+            gt_index[k] = j
+            taken[j] = k
+        elif det_ignore[k]:
+            status[k] = IGNORED
+    return status, gt_index, [taken.get(j, -1) for j in range(g)]
+
+
+def test_agrees_with_the_rules_written_out_on_random_tables():
+    rng = np.random.default_rng(9)
+    for _ in range(300):
+        d, g = rng.integers(0, 9, 2)
+        # Coarse values, so that IoUs and scores tie often.
+        iou = rng.integers(0, 11, (d, g)) / 10 * (rng.random((d, g)) < 0.6)
+        score = rng.integers(0, 5, d) / 4
+        gt_ignore = rng.random(g) < 0.3
+        det_ignore = rng.random(d) < 0.3
+        status, gt_index, best, gt_det = greedy_match(iou, score, 0.5, gt_ignore,
+                                                      det_ignore)
+        want = naive_match(iou, score, 0.5, gt_ignore, det_ignore)
+        assert (status.tolist(), gt_index.tolist(), gt_det.tolist()) == want
+        matched = gt_index >= 0
+        assert best[matched].tolist() == iou[matched, gt_index[matched]].tolist()
+        assert best[~matched].tolist() == iou[~matched].max(axis=1, initial=0).tolist()
