@@ -31,7 +31,7 @@ positives before it runs out of targets and leaves the remaining points at 0 (tw
 both found, nothing false: KITTI 0.025, ours 1.0); (3) KITTI matches box by box (each
 ground-truth box takes its best-overlapping detection) at ``IoU > threshold``, we match
 greedily by score at ``IoU >= threshold`` (``matching.py``). With many more boxes than
-40 the two come close but need not agree: 100 detections of 80 boxes, 70 of them true,
+40 the two come close but need not agree: 100 detections of 80 boxes, 63 of them true,
 gave 0.594 by KITTI's sampling and 0.578 by ours.
 
 AP_VOC (``ap_voc``): all-point VOC 2010 AP as OpenCOOD computes it (DerrickXuNu/OpenCOOD,
