@@ -85,7 +85,8 @@ def test_known_box_in_level_and_pitched_frames(tmp_path):
 @pytest.mark.parametrize("line, message", [
     ("1 2 0.5 nan 1.8 1.5 0.1 Vehicle 0.9", r"000001\.txt, line 2: a NaN"),
     ("1 2 0.5 4 -1.8 1.5 0.1 Vehicle 0.9", r"000001\.txt, line 2: sizes dx dy dz must be above"),
-    ("1 2 0.5 4 1.8 1.5 0.1 Tram 0.9", r"line 2: unknown class 'Tram'.*vehicle, pedestrian, cyclist"),
+    ("1 2 0.5 4 1.8 1.5 0.1 Tram 0.9",
+     r"line 2: unknown class 'Tram'.*vehicle, pedestrian, cyclist"),
     ("1 2 0.5 4 1.8 1.5 0.1 Vehicle 1.5", r"line 2: score 1.5 is outside"),
     ("1 2 0.5 4 1.8 1.5 Vehicle", r"line 2: 7 columns; expected 'x y z dx dy dz heading"),
     ("Car 0.00 0 -1.58 587.0 173.3 614.1 200.1 1.65 1.67 3.64 -0.65 1.71 46.70 -1.59 0.9",

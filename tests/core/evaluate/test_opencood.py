@@ -50,8 +50,9 @@ def test_ground_truth_corners_read_back_as_world_boxes(tmp_path):
     root = tmp_path / "test"
     scenario, truth = opv2v_dataset(root, EGO, RSU, frames=(3, 4))
     samples = opv2v_samples(root)
+    ego = samples[0][1].name
     assert [(s.name, e.name, t) for s, e, t in samples] == \
-        [(scenario.name, samples[0][1].name, "000003"), (scenario.name, samples[0][1].name, "000004")]
+        [(scenario.name, ego, "000003"), (scenario.name, ego, "000004")]
     assert int(samples[0][1].name) > 0  # the road-side unit (negative id) is never ego
     write_predictions(tmp_path / "npy", samples)
     det, frames = read_opencood_npy(tmp_path / "npy", root)
