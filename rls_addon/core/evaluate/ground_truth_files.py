@@ -41,7 +41,11 @@ class GroundTruth:
 
     def sensor_position(self, frame):
         """(3,) world position of the sensor in ``frame`` (at its sweep start)."""
-        return self.sensor_pose[int(frame)][:3, 3]
+        pose = self.sensor_pose.get(int(frame))
+        if pose is None:
+            raise InputError(f"frame {int(frame)} is not among the ground truth's frames of "
+                             f"{self.sensor or 'the sensor'}")
+        return pose[:3, 3]
 
     def distance(self, boxes=None, horizontal=False):
         """(N,) distance (m) of each box centre (default: the ground truth's) from the

@@ -32,7 +32,10 @@ frame with y mirrored (CARLA's axes), ``lidar_pose`` ``[x, y, z, roll, yaw, pitc
 (metres, degrees) of the LiDAR at the sweep start in CARLA's world, such that
 ``carla.blender_matrix(lidar_pose)`` is RLS's sensor pose. So a corner ``p`` of the
 ego frame is at ``blender_matrix(ego lidar_pose) @ (p with y mirrored)`` in RLS's
-world; the box is fitted to its world corners (``corners.corners_to_boxes``). The
+world; the box is fitted to its world corners (``corners.corners_to_boxes``). A LiDAR
+that moved during its sweep has its points each in its frame at their own time, its
+``lidar_pose`` at the sweep start: its boxes are off by its travel until it scanned
+them, and a notice says so. The
 frame is the timestamp's number (RLS names the files by frame). OPV2V knows one class:
 every box is a vehicle."""
 
@@ -102,7 +105,8 @@ def _agent_folder(d):
 
 
 def ego_pose(ego, stamp):
-    """RLS's 4x4 world pose of the ego LiDAR at ``stamp`` (from its YAML)."""
+    """(RLS's 4x4 world pose of the ego LiDAR at ``stamp``, whether RLS says it moved
+    during that sweep) from its YAML."""
     path = ego / f"{stamp}.yaml"
     try:
         body = _yaml().safe_load(path.read_text(encoding="utf-8"))
@@ -114,7 +118,8 @@ def ego_pose(ego, stamp):
         raise InputError(f"cannot read {path}: {exc}") from None
     if len(pose) != 6 or not np.isfinite(pose).all():
         raise InputError(f"{path}: lidar_pose must be 6 finite numbers, got {pose}")
-    return blender_matrix(pose)
+    rls = body.get("rls") if isinstance(body.get("rls"), dict) else {}
+    return blender_matrix(pose), bool(rls.get("sensor_moves"))
 
 
 def prediction_files(folder):
@@ -154,11 +159,11 @@ def corners_to_world(corners, pose):
     return c @ pose[:3, :3].T + pose[:3, 3]
 
 
-def read_opencood_npy(folder, dataset, scenario=None):
+def read_opencood_npy(folder, dataset, scenario=None, notices=None):
     """(Boxes in the world, frames read) of OpenCOOD's ``npy`` folder, made on the OPV2V
     test root ``dataset`` (the folder of scenario folders OpenCOOD read).
     ``scenario``: the scenario to read when the predictions span several (Boxes carry
-    frame numbers only)."""
+    frame numbers only). ``notices``: a list that gets what the user should be told."""
     files = prediction_files(folder)
     samples = opv2v_samples(dataset)
     if max(files) >= len(samples):
@@ -175,14 +180,21 @@ def read_opencood_npy(folder, dataset, scenario=None):
     elif len(names) > 1:
         raise InputError(f"{folder}: the predictions span scenarios {', '.join(names)}; "
                          "frames are numbered per scenario: choose one (scenario=...)")
-    parts, frames = [], []
+    parts, frames, moved = [], [], 0
     for i, (sc, ego, stamp) in sorted(picked.items()):
         path = files[i]
         frame = frame_number(stamp, str(ego / f"{stamp}.yaml"))
-        world = corners_to_world(load_corners(path), ego_pose(ego, stamp))
+        pose, moving = ego_pose(ego, stamp)
+        moved += moving
+        world = corners_to_world(load_corners(path), pose)
         box = corners_to_boxes(world, str(path))
         parts.append(Boxes(np.full(len(box), frame), box, VEHICLE, 1.0))
         frames.append(frame)
+    if moved and notices is not None:
+        notices.append(f"{folder}: the ego LiDAR moved during {moved} of its sweeps; its "
+                       "predictions are placed with its pose at the sweep start (OPV2V's "
+                       "lidar_pose), off by as far as it travelled before it scanned each "
+                       "object")
     return Boxes.concat(parts).validate(str(folder)), sorted(frames)
 
 

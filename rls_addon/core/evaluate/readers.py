@@ -76,7 +76,7 @@ def read_detection_files(path, fmt=None, dataset=None, scenario=None):
             p = p / "result.pkl"
         boxes, frames = read_result_pkl(p, dataset, notices)
     else:
-        boxes, frames = read_opencood_npy(p, dataset, scenario)
+        boxes, frames = read_opencood_npy(p, dataset, scenario, notices)
     return DetectionFiles(boxes, frames, fmt, notices)
 
 

@@ -88,6 +88,13 @@ def test_known_box_in_a_known_ego_pose(tmp_path):
     assert frames == [7]
     np.testing.assert_allclose(det.box, [[9.0, 1.0, 2.0, 4.0, 2.0, 1.5, -math.pi / 2]],
                                atol=1e-9)
+    notices = []
+    read_opencood_npy(npy, tmp_path / "test", notices=notices)
+    assert not notices
+    (ego / "000007.yaml").write_text(yaml.safe_dump({"lidar_pose": [10, -5, 2, 0, 90, 0],
+                                                     "rls": {"sensor_moves": True}}))
+    read_opencood_npy(npy, tmp_path / "test", notices=notices)
+    assert len(notices) == 1 and "moved during 1 of its sweeps" in notices[0]
 
 
 def test_sample_order_spans_scenarios(tmp_path):
