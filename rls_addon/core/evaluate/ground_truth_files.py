@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..io.paths import sanitize_name
+from ..output.io.paths import sanitize_name
 from .detections import CLASS_IDS, Boxes
 from .kitti_meta import KittiMeta
 

@@ -35,9 +35,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..datasets.kitti import class_name
+from ..output.datasets.kitti import class_name
 from ..errors import InputError
-from ..io.atomic import atomic_write_bytes, ensure_directory
+from ..output.io.atomic import atomic_write_bytes, ensure_directory
 from ..labels import label_name
 from .box_frames import to_frame, to_world
 from .detections import Boxes, class_id

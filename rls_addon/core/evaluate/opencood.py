@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..carla import blender_matrix
+from ..output.datasets.carla import blender_matrix
 from ..errors import InputError
 from ..labels import NAME_TO_ID
 from .corners import corners_to_boxes

@@ -5,9 +5,9 @@ import math
 
 import numpy as np
 
-from rls_addon.core.datasets.kitti import KittiWriter
-from rls_addon.core.datasets.opv2v import Opv2vWriter, agents_for
-from rls_addon.core.ground_truth import ObjectBox
+from rls_addon.core.output.datasets.kitti import KittiWriter
+from rls_addon.core.output.datasets.opv2v import Opv2vWriter, agents_for
+from rls_addon.core.output.ground_truth import ObjectBox
 from rls_addon.core.points import empty_points
 
 VEHICLE, PEDESTRIAN, CYCLIST = 11, 12, 18

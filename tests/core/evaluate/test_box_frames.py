@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from rls_addon.core.datasets.common import heading_in, level_frame
+from rls_addon.core.output.datasets.common import heading_in, level_frame
 from rls_addon.core.evaluate.box_frames import frame_heading, to_frame, to_world
 
 from .builders import pose

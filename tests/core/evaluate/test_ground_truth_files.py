@@ -9,7 +9,7 @@ import pytest
 from rls_addon.core.errors import InputError
 from rls_addon.core.evaluate.ground_truth_files import (ground_truth_from_sidecars,
                                                         read_ground_truth)
-from rls_addon.core.io.sidecar import write_sidecar
+from rls_addon.core.output.io.sidecar import write_sidecar
 
 from .builders import OBJECTS, info, kitti_dataset, object_boxes, pose
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import yaml
 
-from rls_addon.core.carla import carla_matrix
+from rls_addon.core.output.datasets.carla import carla_matrix
 from rls_addon.core.errors import InputError
 from rls_addon.core.evaluate.corners import boxes_to_corners, corners_to_boxes
 from rls_addon.core.evaluate.opencood import opv2v_samples, read_opencood_npy

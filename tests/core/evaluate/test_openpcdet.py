@@ -7,7 +7,7 @@ import pickle
 import numpy as np
 import pytest
 
-from rls_addon.core.datasets.kitti import read_labels
+from rls_addon.core.output.datasets.kitti import read_labels
 from rls_addon.core.errors import InputError
 from rls_addon.core.evaluate.ground_truth_files import ground_truth_from_kitti
 from rls_addon.core.evaluate.openpcdet import read_result_pkl
