@@ -39,7 +39,7 @@ REGION = np.array([(-20.0, -20.0), (20.0, -20.0), (20.0, 20.0), (-20.0, 20.0)])
 
 
 class BenchStudyScene:
-    """A ``core.study.StudyScene`` of numpy geometry with ``mounts`` candidate mounts."""
+    """A ``core.scene.source.StudyScene`` of numpy geometry with ``mounts`` candidate mounts."""
 
     name = "bench junction"
 
@@ -100,14 +100,14 @@ class BenchStudyScene:
 
 
 def _config(device, backend, k=(1, 2), exhaustive_limit=None):
-    from rls_addon.core.study.study import StudyConfig
+    from rls_addon.core.study.config import StudyConfig
 
     extra = {} if exhaustive_limit is None else {"exhaustive_limit": exhaustive_limit}
     return StudyConfig(device=device, k=tuple(k), backend=backend, **extra)
 
 
 def _run(candidates, device, backend, exhaustive_limit=None, scan_all=None):
-    from rls_addon.core.study.study import run_study
+    from rls_addon.core.study.loop import run_study
 
     return run_study(BenchStudyScene(candidates), _config(device, backend,
                                                           exhaustive_limit=exhaustive_limit),
@@ -169,7 +169,7 @@ def study_memory_per_1000(candidates=(100, 400), device="generic_uniform32", bac
 def _cast_alone(candidates, device, backend, repeat):
     """Mean over ``candidates`` of the best of ``repeat`` bare casts of each one's rays."""
     from rls_addon.core.scan.settings import resolve_range
-    from rls_addon.core.study.study import StudyScanner, study_inputs
+    from rls_addon.core.study.scanner import StudyScanner, study_inputs
 
     scene = BenchStudyScene(candidates)
     cfg = _config(device, backend)
@@ -215,7 +215,7 @@ def study_cost_parts(candidates=40, device="generic_uniform32", backend="auto", 
     of ``StudyScanner.scan``); and once per study, ``disk_grid_s`` (the layout's
     ``DiskCounter``, built while the scanner prepares the scene)."""
     from rls_addon.core.metrics.disk_counter import DiskCounter
-    from rls_addon.core.study.study import StudyScanner, study_inputs
+    from rls_addon.core.study.scanner import StudyScanner, study_inputs
 
     scene = BenchStudyScene(candidates)
     cfg = _config(device, backend)

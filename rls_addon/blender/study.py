@@ -1,9 +1,9 @@
-"""A Blender scene as a placement study's scene (``core.study.StudyScene``): its
+"""A Blender scene as a placement study's scene (``core.scene.source.StudyScene``): its
 InfraLOB, its mounts and its static geometry. The study itself runs in the core."""
 
 import bpy
 
-from ..core.study import study as core_study
+from ..core.study.loop import run_study as core_run_study
 from ..core.errors import RegionError, SceneError
 from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
@@ -42,7 +42,7 @@ def find_mounts(scene, names=()):
 
 
 class BlenderStudyScene:
-    """``scene`` (a ``bpy.types.Scene``) for ``core.study.run_study``."""
+    """``scene`` (a ``bpy.types.Scene``) for ``core.study.loop.run_study``."""
 
     def __init__(self, scene):
         self.scene = scene
@@ -76,5 +76,5 @@ class BlenderStudyScene:
 
 
 def run_study(scene, cfg, progress=None, scan_all=None):
-    """``core.study.run_study`` on a Blender scene (``scan_all``: see there)."""
-    return core_study.run_study(BlenderStudyScene(scene), cfg, progress, scan_all=scan_all)
+    """``core.study.loop.run_study`` on a Blender scene (``scan_all``: see there)."""
+    return core_run_study(BlenderStudyScene(scene), cfg, progress, scan_all=scan_all)

@@ -115,7 +115,7 @@ def run_demo_study(out_dir, device, prepare_blender):
     from ..blender.quiet import blender_output_silenced
     from ..blender.scenes import build_scene
     from ..blender.study import run_study
-    from ..core.study.study import StudyConfig
+    from ..core.study.config import StudyConfig
     from ..core.study.report import write_report
 
     bpy.ops.wm.read_factory_settings(use_empty=True)

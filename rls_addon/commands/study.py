@@ -24,11 +24,12 @@ PNG writer and the other charts are skipped (a notice says so). Prints a JSON su
 
 import argparse
 import json
+import math
 import os
 import sys
 
 from ..core.choices import BACKENDS
-from ..core.errors import SceneError
+from ..core.errors import RegionError, SceneError
 from ..core.metrics.infra import (
     DEFAULT_CELL_M,
     DEFAULT_DISKS,
@@ -36,10 +37,33 @@ from ..core.metrics.infra import (
     DEFAULT_SEED,
 )
 from ..core.study.placement import DEFAULT_EXHAUSTIVE_LIMIT
-from ..core.study.study import parse_values
 from ..core.study.report import REPORT_FILES, write_report
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import check_output_dir, open_scene, parse_frames
+
+
+def parse_values(text, what="values"):
+    """'10' -> [10.0]; '0,10,20' -> list; '0:30:10' -> 0,10,20,30 (inclusive range)."""
+    if isinstance(text, (int, float)):
+        return [float(text)]
+    text = str(text).strip()
+    bad = RegionError(f"{what}: expected V, V1,V2,... or START:STOP:STEP, got {text!r}")
+    try:
+        if ":" in text:
+            parts = [float(t) for t in text.split(":")]
+            if len(parts) != 3 or parts[2] <= 0:
+                raise bad
+            a, b, step = parts
+            count = int(math.floor((b - a) / step + 1e-9)) + 1
+            if count < 1:
+                raise bad
+            return [round(a + i * step, 9) for i in range(count)]
+        vals = [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise bad from None
+    if not vals:
+        raise RegionError(f"{what}: no values in {text!r}")
+    return vals
 
 
 def add_parser(sub):
@@ -92,7 +116,7 @@ def add_parser(sub):
 
 def config_from_args(args):
     from ..core.labels import label_ids, label_name
-    from ..core.study.study import StudyConfig
+    from ..core.study.config import StudyConfig
 
     ks = sorted({int(v) for v in parse_values(args.k, "--k")})
     if any(k < 1 or k != float(k) for k in ks):

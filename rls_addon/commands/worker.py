@@ -82,8 +82,8 @@ def scan_piece(blend, jobs, frames, writer, prepare_blender):
 
 def study_piece(blend, cfg, indices, prepare_blender):
     """Scan the candidates ``indices`` of the study ``cfg`` of ``blend``; returns their
-    ``core.study.CandidateScan`` s (the worker keeps the study's prepared scene)."""
-    from ..core.study import study as core_study
+    ``core.study.scanner.CandidateScan`` s (the worker keeps the study's prepared scene)."""
+    from ..core.study.scanner import StudyScanner, study_inputs
 
     state = _open(blend, prepare_blender)  # first: it imports bpy the way a worker must
     from ..blender.study import BlenderStudyScene
@@ -92,8 +92,8 @@ def study_piece(blend, cfg, indices, prepare_blender):
     got = state["studies"].get(key)
     if got is None:
         scene = BlenderStudyScene(_import_bpy().context.scene)
-        inputs = core_study.study_inputs(scene, cfg)
-        scanner = core_study.StudyScanner(scene, cfg, inputs.preset, inputs.polygon,
+        inputs = study_inputs(scene, cfg)
+        scanner = StudyScanner(scene, cfg, inputs.preset, inputs.polygon,
                                           inputs.layout, inputs.candidates)
         got = state["studies"][key] = (scanner, inputs.candidates)
     scanner, cands = got

@@ -55,7 +55,7 @@ def test_study_scan_matches_a_lidar_object_scan(scene):
     same pose scanned the ordinary way (vehicles hidden) gives the same points."""
     from rls_addon.blender.scan import scan_lidar
     from rls_addon.blender.study import run_study
-    from rls_addon.core.study.study import StudyConfig
+    from rls_addon.core.study.config import StudyConfig
 
     info = build_scene("intersection", scene)
     cfg = StudyConfig(mounts=("TL NE",), pitches=(10.0,), noise=False, dropout=False,
@@ -80,7 +80,7 @@ def test_study_scan_matches_a_lidar_object_scan(scene):
 
 def test_traffic_is_left_out_unless_kept(scene):
     from rls_addon.blender.study import run_study
-    from rls_addon.core.study.study import StudyConfig
+    from rls_addon.core.study.config import StudyConfig
 
     build_scene("t_junction", scene)
     scene.frame_set(30)  # the turning car is inside the region

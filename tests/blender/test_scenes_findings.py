@@ -17,7 +17,7 @@ from .conftest import bpy
 
 from rls_addon.blender.scenes import build_scene
 from rls_addon.blender.study import run_study
-from rls_addon.core.study.study import StudyConfig
+from rls_addon.core.study.config import StudyConfig
 
 DEVICE = "generic_uniform32"
 LOWEST_BEAM_DEG = 30.0

@@ -102,7 +102,8 @@ def test_density_scale_spans_all_maps():
 @pytest.fixture(scope="module")
 def study():
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
 
     from .test_study import FakeStudyScene
 

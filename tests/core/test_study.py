@@ -1,4 +1,4 @@
-"""Placement-study search (core/study/study.py): Pareto fronts, additive counts, greedy+swap."""
+"""Placement-study search (core/study/loop.py, placement.py): Pareto fronts, additive counts, greedy+swap."""
 
 import itertools
 import math
@@ -14,11 +14,11 @@ from rls_addon.core.study.placement import (
     pareto_front,
     set_metrics,
 )
-from rls_addon.core.study.study import (
+from rls_addon.commands.study import parse_values
+from rls_addon.core.study.candidates import (
     facing_yaw_deg,
     grid_positions,
     orientation_matrix,
-    parse_values,
     pose_matrix,
 )
 from rls_addon.core.errors import RegionError
@@ -206,7 +206,8 @@ class FakeStudyScene:
 
 def test_study_loop_runs_in_the_core_with_a_fake_scene():
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
     from rls_addon.core.scan.frame import scan_frame
 
     scene = FakeStudyScene()
@@ -242,7 +243,8 @@ def test_study_loop_runs_in_the_core_with_a_fake_scene():
 def test_study_errors_say_what_to_do():
     from rls_addon.core.casting import NumpyCaster
     from rls_addon.core.errors import SceneError
-    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
 
     factory = lambda name: (NumpyCaster, None)  # noqa: E731
     with pytest.raises(SceneError, match="k = 4 needs 4 distinct mounts; the candidates have 3"):
@@ -293,7 +295,8 @@ class TrafficStudyScene(FakeStudyScene):
 def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
     """A candidate a parked truck occludes ranks lower on visibility than on InfraD."""
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
 
     factory = lambda name: (NumpyCaster, None)  # noqa: E731
     cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,
@@ -320,7 +323,8 @@ def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
 
 def test_study_report_carries_visibility(tmp_path):
     from rls_addon.core.casting import NumpyCaster
-    from rls_addon.core.study.study import StudyConfig, run_study
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
     from rls_addon.core.study.report import write_report
 
     cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,

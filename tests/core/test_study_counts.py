@@ -12,13 +12,9 @@ import pytest
 from rls_addon.core.casting import NumpyCaster
 from rls_addon.core.scan.frame import scan_frame
 from rls_addon.core.metrics.infra import density_map
-from rls_addon.core.study.study import (
-    CandidateScan,
-    StudyConfig,
-    StudyScanner,
-    run_study,
-    study_inputs,
-)
+from rls_addon.core.study.scanner import CandidateScan, StudyScanner, study_inputs
+from rls_addon.core.study.config import StudyConfig
+from rls_addon.core.study.loop import run_study
 
 from .test_study import FakeStudyScene, TrafficStudyScene
 

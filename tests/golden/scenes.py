@@ -135,7 +135,7 @@ def junction_study():
     import rls_addon
     from rls_addon.blender.scenes import build_scene
     from rls_addon.blender.study import run_study
-    from rls_addon.core.study.study import StudyConfig
+    from rls_addon.core.study.config import StudyConfig
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     if not hasattr(bpy.types.Object, "rls_lidar"):

@@ -5,6 +5,10 @@ kept (``session``), frames x sensors, seeds, files, resume, cancel and progress
 (``run``). A *scene source* only answers questions about one scene at one time. The
 Blender layer's source (``blender.source.BlenderScene``) answers them from a
 depsgraph; core tests answer them with small fakes, in milliseconds.
+
+A placement study asks its own questions (``StudyScene``: the region, the mounts, the
+static geometry without traffic, the traffic at chosen frames); the Blender layer's
+``blender.study.BlenderStudyScene`` answers them.
 """
 
 from dataclasses import dataclass, field
@@ -78,3 +82,27 @@ class SceneSource(Protocol):
     def mobility(self, instances: list, sensor: str) -> Mobility: ...
 
     def sweep(self, frame: int, period: float) -> Sweep: ...
+
+
+class StudyScene(Protocol):
+    """What a study asks of a scene."""
+
+    name: str
+
+    def current_frame(self) -> int: ...
+
+    def set_frame(self, frame: int) -> None: ...
+
+    def region(self, name: str | None) -> np.ndarray:
+        """(N, 2) world xy outline of the InfraLOB ``name`` (None: the one marked)."""
+
+    def mounts(self, names: tuple) -> list:
+        """[(name, (x, y, z))] of the mounts ``names`` (empty: every marked mount)."""
+
+    def static_geometry(self, hidden_labels: set) -> tuple:
+        """(SceneGeometry of everything rendered but objects with these label ids,
+        sorted names of the objects left out)."""
+
+    def traffic(self, frames: tuple, labels: set) -> dict:
+        """{frame: source.SceneRead} of the objects with these label ids at each frame
+        (their meshes in their own frames, their matrices at that frame)."""

@@ -1,0 +1,114 @@
+"""A study's candidates: every mount (or grid position) at every pitch and yaw, each
+with its sensor-to-world pose (``Candidate``); how the mounts and grid positions are
+found and which way a candidate faces."""
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..errors import RegionError, SceneError
+from ..metrics.polygon import as_polygon
+
+
+@dataclasses.dataclass
+class Candidate:
+    index: int
+    name: str
+    mount: str
+    position: tuple
+    yaw_deg: float
+    pitch_deg: float
+    roll_deg: float
+    pose: np.ndarray = None
+    # filled by the scan
+    n_points: int = 0
+    infra_d: float = 0.0
+    infra_nuc: float = float("nan")
+    scan_points: int = 0
+    rays: int = 0
+    seconds: float = 0.0
+
+    def row(self):
+        return {"index": self.index, "name": self.name, "mount": self.mount,
+                "x": round(self.position[0], 4), "y": round(self.position[1], 4),
+                "z": round(self.position[2], 4), "yaw_deg": round(self.yaw_deg, 4),
+                "pitch_deg": self.pitch_deg, "roll_deg": self.roll_deg,
+                "points_in_lob": self.n_points, "infra_d": self.infra_d,
+                "infra_nuc": self.infra_nuc if math.isfinite(self.infra_nuc) else None,
+                "scan_points": self.scan_points, "rays": self.rays,
+                "scan_seconds": round(self.seconds, 4)}
+
+
+def make_candidates(spots, cfg, polygon):
+    """Candidate placements: spots [(name, (x, y, z))] x pitches x yaws."""
+    centre = polygon.mean(axis=0)
+    out = []
+    for mount, pos in spots:
+        base = facing_yaw_deg(pos, centre) if cfg.yaw_mode == "face" else 0.0
+        for pitch in cfg.pitches:
+            for yaw in cfg.yaws:
+                y = base + yaw
+                y = (y + 180.0) % 360.0 - 180.0
+                name = f"{mount} pitch {pitch:g} yaw {yaw:+g}" if (
+                    len(cfg.pitches) > 1 or len(cfg.yaws) > 1) else mount
+                out.append(Candidate(len(out), name, mount, tuple(float(v) for v in pos), y,
+                                     float(pitch), float(cfg.roll),
+                                     pose_matrix(pos, y, pitch, cfg.roll)))
+    return out
+
+
+def candidate_spots(scene, cfg, polygon):
+    """[(name, (x, y, z))]: grid points (``cfg.grid_step``) and/or the scene's mounts."""
+    spots = []
+    if cfg.grid_step:
+        for j, pos in enumerate(grid_positions(polygon, cfg.grid_step, cfg.grid_heights,
+                                               cfg.grid_margin)):
+            spots.append((f"grid{j:03d}@({pos[0]:g},{pos[1]:g},{pos[2]:g})", pos))
+    if cfg.mounts or not cfg.grid_step:
+        spots += scene.mounts(tuple(cfg.mounts))
+    if not spots:
+        raise SceneError(f"scene {scene.name!r} has no LiDAR mounts: mark pole objects with the "
+                         "custom property rls_mount = True, name them with --mount, or use --grid")
+    return spots
+
+
+def grid_positions(polygon, step, heights, margin=0.0):
+    """(x, y, z) candidate positions on a grid of ``step`` metres over the polygon's
+    bounding box grown by ``margin``, at each height."""
+    poly = as_polygon(polygon)
+    if not (step > 0):
+        raise RegionError(f"grid step must be positive, got {step}")
+    lo, hi = poly.min(axis=0) - margin, poly.max(axis=0) + margin
+    xs = np.arange(lo[0], hi[0] + 1e-9, step)
+    ys = np.arange(lo[1], hi[1] + 1e-9, step)
+    return [(float(x), float(y), float(z)) for z in heights for y in ys for x in xs]
+
+
+def facing_yaw_deg(position, target_xy):
+    """Yaw (degrees) that points +X from ``position`` towards ``target_xy``."""
+    dx, dy = target_xy[0] - position[0], target_xy[1] - position[1]
+    if abs(dx) < 1e-12 and abs(dy) < 1e-12:
+        return 0.0
+    return math.degrees(math.atan2(dy, dx))
+
+
+def orientation_matrix(yaw_rad, pitch_down_rad, roll_rad=0.0):
+    """3x3 rotation of a sensor with Blender XYZ Euler angles (roll, pitch, yaw), where
+    a positive ``pitch_down`` tilts the sensor's +X axis below the horizon."""
+    cr, sr = math.cos(roll_rad), math.sin(roll_rad)
+    cp, sp = math.cos(pitch_down_rad), math.sin(pitch_down_rad)
+    cy, sy = math.cos(yaw_rad), math.sin(yaw_rad)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def pose_matrix(position, yaw_deg, pitch_down_deg, roll_deg=0.0):
+    """4x4 sensor-to-world pose."""
+    m = np.eye(4)
+    m[:3, :3] = orientation_matrix(math.radians(yaw_deg), math.radians(pitch_down_deg),
+                                   math.radians(roll_deg))
+    m[:3, 3] = np.asarray(position, dtype=np.float64)
+    return m

@@ -1,0 +1,52 @@
+"""What a placement study is asked to do (``StudyConfig``): the device, the k, the
+candidate mounts or grid and their orientations, the region's disks, the scan's effects,
+and the traffic frames for visibility. The command line and the Study panel fill it.
+
+As in the paper, traffic is removed before the metrics are taken: the study scene
+leaves objects labelled ``TRAFFIC_LABELS`` out of the geometry (the scene itself is not
+changed)."""
+
+import dataclasses
+
+
+from ..metrics.infra import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
+from ..metrics.visibility import THRESHOLDS
+from .placement import DEFAULT_EXHAUSTIVE_LIMIT
+
+
+TRAFFIC_LABELS = ("vehicle", "pedestrian")
+
+
+@dataclasses.dataclass
+class StudyConfig:
+    device: str = "generic_uniform32"
+    k: tuple = (1,)
+    lob: str = None                 # region object name (default: the one marked object)
+    mounts: tuple = ()              # mount object names (default: every marked mount)
+    grid_step: float = None         # grid of positions instead of (or besides) mounts
+    grid_heights: tuple = (6.0,)
+    grid_margin: float = 0.0
+    pitches: tuple = (0.0,)         # degrees, positive tilts the sensor's +X down
+    yaws: tuple = (0.0,)            # degrees
+    yaw_mode: str = "face"          # "face": yaw relative to facing the region centre
+    roll: float = 0.0
+    labels: str = "road,sidewalk"
+    disks: int = DEFAULT_DISKS
+    radius: float = DEFAULT_RADIUS_M
+    disk_seed: int = DEFAULT_SEED
+    disk_placement: str = "inside"
+    cell: float = DEFAULT_CELL_M
+    scan_seed: int = 0
+    noise: bool = True
+    dropout: bool = True
+    ghosting: bool = True
+    keep_traffic: bool = False
+    backend: str = "auto"
+    frame: int = None
+    one_per_mount: bool = True
+    exhaustive_limit: int = DEFAULT_EXHAUSTIVE_LIMIT
+    # Placements scored with the traffic in view (``visibility``): these frames of the
+    # scene's animated traffic, and the labels whose objects are scored
+    traffic_frames: tuple = ()
+    visibility_labels: tuple = ("vehicle",)
+    visibility_thresholds: tuple = THRESHOLDS

@@ -1,0 +1,164 @@
+"""The placement study's loop (``run_study``): scan every candidate of a
+``scene.source.StudyScene`` once, measure InfraD / InfraNUC in the InfraLOB, search sets
+of k sensors (``placement``), and score candidates and sets by traffic visibility when
+traffic frames are given. The scene comes in through ``StudyScene``: the Blender
+layer's (``blender.study.BlenderStudyScene``) reads a .blend; tests hand in fakes."""
+
+import dataclasses
+import time
+
+import numpy as np
+
+from ..casting import caster_factory
+from ..errors import SceneError, SettingsError
+from ..metrics.infra import density_map
+from ..metrics.visibility import VisibilityCounts, ranks
+from .placement import CandidateCounts, DiskLayout
+from .config import StudyConfig
+from .scanner import StudyScanner, study_inputs
+
+
+@dataclasses.dataclass
+class StudyResult:
+    config: StudyConfig
+    scene: str
+    frame: int
+    device: dict
+    polygon: np.ndarray
+    layout: DiskLayout
+    candidates: list
+    counts: CandidateCounts
+    searches: dict                  # k -> placement.SearchResult
+    timing: dict
+    hidden_traffic: list
+    backend: str
+    structure_builds: int
+    notices: list
+    visibility: "TrafficVisibility" = None  # with cfg.traffic_frames
+    # The study's scanner: the candidates keep only counts, so a density map scans its
+    # set's members again (the same seeds: the same points). Kept: the points of those
+    # scanned again, per candidate (a handful: the members of the sets drawn).
+    scanner: "StudyScanner" = dataclasses.field(default=None, repr=False)
+    kept: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    def kept_xy(self, index):
+        """(n, 2) world xy of candidate ``index``'s points in the region with a counted
+        label, from the scanner (once per candidate, then kept)."""
+        got = self.kept.get(index)
+        if got is None:
+            if self.scanner is None:
+                raise SceneError("this study result has no scanner to scan its candidates again")
+            got = self.kept[index] = self.scanner.kept_xy(self.candidates[index])
+        return got
+
+    def density(self, members):
+        """The density map (``metrics.DensityMap``) of the set ``members``."""
+        xy = (np.concatenate([self.kept_xy(i) for i in members]) if len(members)
+              else np.empty((0, 2)))
+        return density_map(xy, self.polygon, self.config.cell)
+
+
+def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
+    """Scan every candidate of ``scene`` (a ``StudyScene``) and search placements;
+    returns a ``StudyResult``.
+
+    ``progress(done, total, candidate, eta_seconds)`` is called after each scan.
+    ``scan_all(scanner, candidates, on_scan)``: how the candidates are scanned (default:
+    one after another here; a sharded run hands them to workers); it calls
+    ``on_scan(CandidateScan)`` for each, in any order."""
+    t0 = time.perf_counter()
+    inputs = study_inputs(scene, cfg)
+    preset, polygon, layout, cands = inputs.preset, inputs.polygon, inputs.layout, inputs.candidates
+    scanner = StudyScanner(scene, cfg, preset, polygon, layout, cands, factory)
+    t_scan = time.perf_counter()
+    # Only counts are kept, written in place as the scans arrive: no points, and no
+    # second copy of the disk counts when the search starts.
+    n_points = np.zeros(len(cands), np.int64)
+    disk_counts = np.zeros((len(cands), len(layout.centres)), np.int64)
+    vehicle_points = (np.zeros((len(cands), len(scanner.vehicle_frames)), np.int64)
+                      if scanner.traffic else None)
+    scanned = np.zeros(len(cands), bool)
+
+    def on_scan(got):
+        i = got.index
+        scanned[i] = True
+        n_points[i], disk_counts[i] = got.n_points, got.disk_counts
+        if vehicle_points is not None:
+            vehicle_points[i] = got.vehicle_points
+        c = cands[i]
+        c.n_points, c.scan_points, c.rays, c.seconds = (got.n_points, got.scan_points,
+                                                        got.rays, got.seconds)
+        if progress is not None:
+            done = int(np.count_nonzero(scanned))
+            elapsed = time.perf_counter() - t_scan
+            progress(done, len(cands), c, elapsed / done * (len(cands) - done))
+
+    if scan_all is None:
+        for c in cands:
+            on_scan(scanner.scan(c))
+    else:
+        scan_all(scanner, cands, on_scan)
+    if not scanned.all():
+        raise SceneError(f"{int(np.count_nonzero(~scanned))} of {len(cands)} candidates "
+                         "were not scanned")
+    t_search = time.perf_counter()
+    groups = [c.mount for c in cands] if cfg.one_per_mount else None
+    cc = CandidateCounts(n_points, disk_counts, layout.area_m2, layout.p, groups)
+    for c, p in zip(cands, cc.evaluate([(c.index,) for c in cands])):
+        c.infra_d, c.infra_nuc = p.infra_d, p.infra_nuc
+    searches = {}
+    for k in cfg.k:
+        try:
+            searches[k] = cc.search(k, exhaustive_limit=cfg.exhaustive_limit)
+        except SettingsError as exc:
+            raise SceneError(f"k = {k}: {exc}") from None
+    vis = None
+    if scanner.traffic:
+        vis = TrafficVisibility.of(scanner, cands, vehicle_points, groups, searches, cfg)
+    t_maps = time.perf_counter()
+    result = StudyResult(cfg, scene.name, scanner.frame,
+                         {"id": preset.id, "name": preset.name, "source": preset.source},
+                         polygon, layout, cands, cc, searches, {}, scanner.hidden,
+                         scanner.prepared.backend, scanner.session.builds, scanner.notices, vis,
+                         scanner)
+    # The density maps the report draws (the best set of each k): their members are
+    # scanned again here with this process's scanner (in a run on workers the counts
+    # came from its twins, built from the same scene and settings: the same points).
+    for k in sorted(searches):
+        for i in searches[k].best.members:
+            result.kept_xy(i)
+    t_end = time.perf_counter()
+    result.timing.update({
+        "total_s": t_end - t0, "build_s": scanner.build_s, "scan_s": t_search - t_scan,
+        "search_s": t_maps - t_search, "maps_s": t_end - t_maps,
+        "per_candidate_s": (t_search - t_scan) / max(len(cands), 1)})
+    return result
+
+
+@dataclasses.dataclass
+class TrafficVisibility:
+    """The study's scores with the traffic in view (``visibility``)."""
+
+    frames: list
+    vehicle_frames: list          # [(frame, object key)]
+    counts: VisibilityCounts
+    candidates: list              # Visibility per candidate
+    rank_infra_d: np.ndarray      # per candidate: 1 = densest
+    rank_visibility: np.ndarray   # per candidate: 1 = best seen traffic
+    sets: dict                    # k -> {members tuple: Visibility} of the evaluated sets
+    best: dict                    # k -> Visibility of the best set by visibility
+
+    @classmethod
+    def of(cls, scanner, cands, vehicle_points, groups, searches, cfg):
+        """``vehicle_points``: (candidates, vehicle-frames) points of each candidate on
+        each vehicle-frame."""
+        counts = VisibilityCounts(np.asarray(vehicle_points),
+                                  [key for _, key in scanner.vehicle_frames], groups,
+                                  cfg.visibility_thresholds)
+        per = counts.evaluate([(c.index,) for c in cands])
+        sets = {k: {v.members: v for v in counts.evaluate([p.members for p in s.evaluated])}
+                for k, s in searches.items()}
+        best = {k: counts.best(k, cfg.exhaustive_limit) for k in searches}
+        return cls([f for f, _, _ in scanner.traffic], list(scanner.vehicle_frames), counts, per,
+                   ranks([c.infra_d for c in cands]),
+                   ranks([v.score + 1e-9 * v.mean_points for v in per]), sets, best)
