@@ -315,9 +315,10 @@ def test_every_property_and_operator_option_has_a_tooltip(scene):
 def test_scan_operators_that_make_objects_are_undoable(scene):
     from rls_addon import operators
 
-    for cls in (operators.RLS_OT_scan_frame, operators.RLS_OT_scan_all,
-                operators.RLS_OT_scan_range, operators.RLS_OT_compute_metrics,
-                operators.OBJECT_OT_rls_add_lidar, operators.OBJECT_OT_rls_add_infralob):
+    for cls in (operators.scan.RLS_OT_scan_frame, operators.scan.RLS_OT_scan_all,
+                operators.scan.RLS_OT_scan_range, operators.metrics.RLS_OT_compute_metrics,
+                operators.objects.OBJECT_OT_rls_add_lidar,
+                operators.objects.OBJECT_OT_rls_add_infralob):
         assert "UNDO" in cls.bl_options, cls.__name__
 
 
@@ -360,7 +361,7 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
 
 
 def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
-    from rls_addon.operators import batch_command
+    from rls_addon.operators.scan import batch_command
 
     labelled_ground()
     add_lidar_op(out=tmp_path)
