@@ -49,27 +49,12 @@ def range_noise(rng, n, sigma):
 
 
 def dropout_draws(rng, n, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
-    """The uniforms ``dropout_keep`` draws, drawn up front: (general (n,) or None, low
-    (n,) or None), in the same order from ``rng``."""
+    """The uniforms of CARLA's dropout, drawn up front: (general (n,) or None, low (n,)
+    or None), in this order from ``rng``. The per-hit stage (``assemble``) applies the
+    rule: a ray is dropped when its ``general`` draw is below ``general_rate``; then a
+    point with intensity I <= limit survives when its ``low`` draw is below
+    (zero / limit) * I + (1 - zero). One draw per ray of the pattern for each rule
+    (misses included), so each ray's fate is independent of which other rays returned."""
     general = rng.random(n) if general_rate > 0 else None
     low = rng.random(n) if intensity_limit > 0 and intensity_zero > 0 else None
     return general, low
-
-
-def dropout_keep(rng, intensities, general_rate=0.0, intensity_limit=0.0, intensity_zero=0.0):
-    """CARLA's dropout: drop a random ``general_rate`` share of points; then a point with
-    intensity I <= limit survives with probability (zero / limit) * I + (1 - zero).
-
-    One uniform draw per entry for each rule: the engine passes one intensity per ray of
-    the pattern (misses included), so each ray's fate is independent of which other
-    rays returned.
-    """
-    n = intensities.shape[0]
-    keep = np.ones(n, dtype=bool)
-    if general_rate > 0:
-        keep &= rng.random(n) >= general_rate
-    if intensity_limit > 0 and intensity_zero > 0:
-        p = (intensity_zero / intensity_limit) * intensities + (1.0 - intensity_zero)
-        low = intensities <= intensity_limit
-        keep &= ~low | (rng.random(n) < p)
-    return keep
