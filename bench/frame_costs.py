@@ -45,10 +45,10 @@ def frame_casts(scene, pattern, pose, preset, settings, frame):
     send on (``ghost.aim``); and how many ghost rays that is."""
     from rls_addon.core.physics import effects, ghost
     from rls_addon.core.scan.frame import sensor_axes
-    from rls_addon.core.scan.settings import resolve_range
+    from rls_addon.core.scan.device_values import device_values
     from rls_addon.core.world.world import World
 
-    rmin, rmax = resolve_range(preset, settings)
+    rmin, rmax = device_values(preset, settings).range_m
     origin, rot = sensor_axes(pose)
     origins, dirs = origin.reshape(1, 3), pattern.rotated(rot)
     times = pattern.times

@@ -168,7 +168,7 @@ def study_memory_per_1000(candidates=(100, 400), device="generic_uniform32", bac
 
 def _cast_alone(candidates, device, backend, repeat):
     """Mean over ``candidates`` of the best of ``repeat`` bare casts of each one's rays."""
-    from rls_addon.core.scan.settings import resolve_range
+    from rls_addon.core.scan.device_values import device_values
     from rls_addon.core.study.scanner import StudyScanner, study_inputs
 
     scene = BenchStudyScene(candidates)
@@ -179,7 +179,7 @@ def _cast_alone(candidates, device, backend, repeat):
     prepared = scanner.prepared
     raw = scanner.backend_cls(prepared.vertices, prepared.triangles)
     pattern = inputs.preset.pattern(scanner.frame)
-    rmax = resolve_range(inputs.preset, scanner.settings)[1]
+    rmax = device_values(inputs.preset, scanner.settings).max_range_m
     times = []
     for c in inputs.candidates:
         dirs = np.ascontiguousarray(pattern.directions @ c.pose[:3, :3].T)

@@ -13,10 +13,9 @@ from ..native import blas
 from ..physics import echoes, effects, footprint, ghost, weather
 from ..physics.assemble import Draws, Effects, Hits, Rays, assemble
 from ..world.bodies import PreparedScene
-from ..physics.detection import detection_of
 from ..errors import SceneError
 from ..scene.motion import effective_times, polar
-from .settings import resolve_range
+from .device_values import device_values
 from .sweep import adaptive_substeps
 from ..native.vectors import row_dot
 from ..world.world import World
@@ -241,19 +240,18 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                 sensor, sensor_track, moving, keep_rays=False, fields=None, ray_rows=None):
     t0 = time.perf_counter()
     s = settings
-    rmin, rmax = resolve_range(preset, s)
-    sigma = preset.range.noise_sigma_m if s.noise_sigma_m is None else s.noise_sigma_m
-    atten = preset.attenuation_per_m if s.attenuation_per_m is None else s.attenuation_per_m
-    model = detection_of(preset, s)          # None: CARLA's model
-    air = weather.parse_weather(s.weather)   # None: clear
-    beam = footprint.beam_of(preset, s)      # None: thin rays, one return each
+    dv = device_values(preset, s)
+    rmin, rmax = dv.range_m
+    sigma, atten = dv.noise_sigma_m, dv.attenuation_per_m
+    model = dv.detection  # None: CARLA's model
+    air = dv.weather      # None: clear
+    beam = dv.beam        # None: thin rays, one return each
 
     n = len(pattern)  # every ray of the pattern draws its numbers (see ``rays``)
     substeps_used = None
     if s.motion == "substeps":
-        substeps_used = s.substeps or adaptive_substeps(
-            moving, sensor_track,
-            s.motion_tolerance_m or preset.range.noise_sigma_m or 0.01)
+        substeps_used = s.substeps or adaptive_substeps(moving, sensor_track,
+                                                        dv.motion_tolerance_m)
     tscene = effective_times(pattern.times, pattern.period, s.motion, substeps_used)
     dirs_sensor = pattern.directions
     if sensor_track is None or sensor_track.is_static:

@@ -24,9 +24,9 @@ from ..output.ground_truth import object_boxes
 from ..scene.instances import object_table, static_key, world_geometry
 from ..labels import DEFAULT_LABELS
 from ..scene.motion import pose_knots
-from .settings import resolve_range, scan_pattern
+from .device_values import device_values
+from .settings import scan_pattern
 from .sweep import SweepMotion, classify, substep_count
-from ..physics.weather import parse_weather
 
 MOVER_MARGIN_M = 10.0  # objects this far beyond the range at the sweep start may drive in
 DRIVING_SLACK = 0.25
@@ -82,7 +82,8 @@ class ScanSession:
         for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
         objects of these classes go into the info (``ground_truth``)."""
         pose = source.sensor_pose(sensor)
-        rmin, rmax = resolve_range(preset, settings)
+        values = device_values(preset, settings)
+        rmin, rmax = values.range_m
         centre = pose[:3, 3]
         anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
         read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
@@ -126,7 +127,7 @@ class ScanSession:
             info["objects"] = [b.to_dict() for b in object_boxes(
                 instances, objects, motion.tracks if settings.motion != "snapshot" else {},
                 classes, result, _pose_function(pose, track), rmax,
-                _noise_sigma(preset, settings), preset.period)] if boxes else []
+                values.noise_sigma_m, preset.period)] if boxes else []
             info["object_classes"] = sorted(classes)
         result.rays_cast = None  # large; the boxes hold what was wanted from it
         return result, info
@@ -135,7 +136,7 @@ class ScanSession:
     def _substep_counts(preset, settings, instances, motion):
         """(N of "substeps" motion or None, {deforming instance index: N}). Both follow
         ``settings.substeps``: fixed, or (0) chosen from how far things move."""
-        tol = settings.motion_tolerance_m or preset.range.noise_sigma_m or 0.01
+        tol = device_values(preset, settings).motion_tolerance_m
         n_used = None
         if settings.motion == "substeps":
             n_used = substep_count(motion.max_travel(instances), tol, settings.substeps)
@@ -197,12 +198,12 @@ class ScanSession:
             "seed": settings.seed,
             "effects": {"noise": settings.noise, "dropout": settings.dropout,
                         "range_m": [rmin, rmax],
-                        "noise_sigma_m": preset.range.noise_sigma_m if settings.noise else 0.0,
+                        "noise_sigma_m": device_values(preset, settings).noise_sigma_m,
                         "motion": settings.motion, "substeps": settings.substeps,
                         "sweep_start_deg": settings.sweep_start_deg,
                         "substeps_used": n_used, "ghosting": settings.ghosting,
                         "detection": settings.detection,
-                        "weather": _weather_info(settings),
+                        "weather": _weather_info(device_values(preset, settings)),
                         "footprint": settings.footprint,
                         "return_mode": settings.return_mode},
             "motion": summary,
@@ -223,11 +224,10 @@ class ScanSession:
         }
 
 
-def _weather_info(settings):
+def _weather_info(values):
     """The sidecar's weather: None (clear) or the spec, extinction coefficient and false
     return model (``weather.Weather.to_dict``)."""
-    air = parse_weather(settings.weather)
-    return None if air is None else air.to_dict()
+    return None if values.weather is None else values.weather.to_dict()
 
 
 def _channels(preset):
@@ -238,12 +238,6 @@ def _channels(preset):
     from ..device.presets import spinning_elevations_offsets
 
     return {"channel_elevations_deg": [float(e) for e in spinning_elevations_offsets(preset)[0]]}
-
-
-def _noise_sigma(preset, settings):
-    if not settings.noise:
-        return 0.0
-    return preset.range.noise_sigma_m if settings.noise_sigma_m is None else settings.noise_sigma_m
 
 
 def _pose_function(pose, track):

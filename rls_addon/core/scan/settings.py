@@ -159,9 +159,3 @@ def scan_pattern(preset, settings, frame):
                             "only defined for spinning devices")
     return pattern.started_at(settings.sweep_start_deg)
 
-
-def resolve_range(preset, settings):
-    """(min, max) range in metres after the settings' overrides."""
-    rmin = preset.range.min_m if settings.min_range_m is None else settings.min_range_m
-    rmax = preset.range.max_m if settings.max_range_m is None else settings.max_range_m
-    return rmin, rmax

@@ -18,10 +18,10 @@ from ..errors import SceneError
 from ..labels import label_id
 from ..metrics.infra import resolve_labels
 from ..metrics.polygon import in_arc, points_in_polygon, polygon_arc
-from ..physics.footprint import beam_of
 from ..scan.frame import scan_frame, sensor_axes
 from ..scan.session import ScanSession
-from ..scan.settings import ScanSettings, resolve_range
+from ..scan.device_values import device_values
+from ..scan.settings import ScanSettings
 from ..scene.instances import object_table, world_geometry
 from ..scene.motion import Track
 from ..world.bodies import RigidBodies
@@ -71,7 +71,7 @@ class StudyScanner:
         self.settings = ScanSettings(seed=cfg.scan_seed, frame_space="world", noise=cfg.noise,
                                      dropout=cfg.dropout, motion="snapshot",
                                      ghosting=cfg.ghosting)
-        _, rmax = resolve_range(preset, self.settings)
+        rmax = device_values(preset, self.settings).max_range_m
         centre = np.r_[polygon.mean(axis=0), 0.0]
         reach = max(np.linalg.norm(np.array(c.position) - centre) for c in candidates) + rmax + 1.0
         self.session = ScanSession(self.backend_cls)
@@ -131,7 +131,7 @@ class StudyScanner:
         which sees it in a quarter of its turn, casts a quarter of its rays. All rays
         are cast with beam footprints (a footprint needs its neighbours) and with
         traffic frames (they reuse the candidate's whole static cast)."""
-        if self.traffic or beam_of(self.preset, self.settings) is not None:
+        if self.traffic or device_values(self.preset, self.settings).beam is not None:
             return None
         where = tuple(cand.pose[:2, 3])
         if where not in self._arcs:  # per mount: its pitches and yaws share it
