@@ -238,85 +238,156 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
 
 def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
                 sensor, sensor_track, moving, keep_rays=False, fields=None, ray_rows=None):
+    """``scan_frame``'s steps, in the order their random draws are taken."""
     t0 = time.perf_counter()
     s = settings
     dv = device_values(preset, s)
     rmin, rmax = dv.range_m
-    sigma, atten = dv.noise_sigma_m, dv.attenuation_per_m
-    model = dv.detection  # None: CARLA's model
-    air = dv.weather      # None: clear
-    beam = dv.beam        # None: thin rays, one return each
-
     n = len(pattern)  # every ray of the pattern draws its numbers (see ``rays``)
     substeps_used = None
     if s.motion == "substeps":
         substeps_used = s.substeps or adaptive_substeps(moving, sensor_track,
                                                         dv.motion_tolerance_m)
     tscene = effective_times(pattern.times, pattern.period, s.motion, substeps_used)
-    dirs_sensor = pattern.directions
-    if sensor_track is None or sensor_track.is_static:
-        origin, rot = sensor_axes(sensor_to_world if sensor_track is None
-                                  else sensor_track.matrices[0])
-        origins = origin.reshape(1, 3)
-        dirs = pattern.rotated(rot)
-    elif sensor_track.linear_is_constant:
-        # Driving without turning: one rotation for the sweep (the pattern turned once,
-        # and kept while it does not turn), an origin per distinct firing time.
-        times, at = distinct_times(tscene)
-        poses = sensor_track.positions_at(times)
-        origins = poses[at]
-        dirs = pattern.rotated(sensor_axes(sensor_track.matrices[0])[1])
-    else:
-        # One pose per distinct firing time (the channels of a firing share it): a
-        # spinning lidar has 64 to 128 times fewer poses to take apart than rays.
-        times, at = distinct_times(tscene)
-        poses, rots = sensor_axes(sensor_track.at(times))
-        origins = poses[at]
-        dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
-    order, columns, channels, ray_times = (pattern.trace_order, pattern.columns,
-                                           pattern.channels, pattern.times)
-    pick = _Subset(n, ray_rows, order)
+    aim = _Aim.of(pattern, sensor_to_world, sensor_track, tscene)
+    pick = _Subset(n, ray_rows, pattern.trace_order)
     if pick.rows is not None:
-        if beam is not None or origins.shape[0] != 1:
+        if dv.beam is not None or aim.origins.shape[0] != 1:
             raise ValueError("scan_frame(rays=...) is for a still sensor without beam "
                              "footprints (a footprint needs its neighbours' rays)")
-        dirs, tscene, order = pick(dirs), pick(tscene), pick.order
-        columns = tuple(pick(c) for c in columns)
-        channels, ray_times = pick(channels), pick(ray_times)
-    poses = origins if origins.shape[0] == 1 else poses  # one per distinct time
-    if not isinstance(scene, PreparedScene):
-        scene = PreparedScene(scene, poses.mean(axis=0),
-                              rmax + np.ptp(poses, axis=0).max(initial=0.0), caster_factory)
-    elif not scene.covers(poses, rmax):
-        raise SceneError("the prepared scene does not cover this sensor's range: prepare "
-                         "it around the sensor with a reach of at least its range")
+        aim = aim.subset(pick)
+    scene = _prepared(scene, aim.poses, rmax, caster_factory)
     world = World(scene, list(moving))
-    warnings = list(scene.warnings)
-    if scene.geometry.triangle_count == 0 and not moving:
-        warnings.append("the scene has no geometry to scan")
-    elif len(scene.triangles) == 0 and not moving:
-        warnings.append(f"no geometry within {rmax:g} m of the sensor")
+    warnings = list(scene.warnings) + _empty_scene_warnings(scene, moving, rmax)
 
     # A sensor that does not move casts the same rays into the same static scene every
     # frame: the static part is cast once and reused (see PreparedScene.cast).
     reused = scene.reused
-    pending = world.start(origins, dirs, tscene, rmax, order=order, reuse=pick.rows is None)
+    pending = world.start(aim.origins, aim.dirs, aim.times, rmax, order=aim.order,
+                          reuse=pick.rows is None)
     rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
+    draws, glossy, glossy_u = _draws(rng, ghost_rng, n, pick, s, preset, dv, world)
 
-    # Every random number of the effects is drawn per ray, not per hit, so a ray's
-    # draws never depend on which other rays returned (ghosting or moving objects
-    # change only their own rays); drawn while the rays are cast (the compiled loop's
-    # threads cast meanwhile).
-    draws = Draws(noise=pick(effects.range_noise(rng, n, sigma)) if s.noise else None)
+    dist, body, tri, normals = pending()
+    reused = scene.reused > reused
+    valid, surface = world.returns(dist, body, tri, rmin, rmax)
+    ret = Returns(valid, dist, surface, normals)
+    first_hit = _first_hits(ret, tri, dist, rmax) if keep_rays else None
+    # Rays next to a depth edge cast their beam's sub-rays (before ghosts change rows)
+    sub = footprint.SubRays(dv.beam, world, pattern, aim.origins, aim.dirs, aim.times, ret,
+                            tri, rmax) if dv.beam is not None else None
+    bounces = _Bounces(world, glossy, glossy_u, aim.origins, aim.dirs, aim.times, ret, rmax) \
+        if glossy_u is not None and ret.valid.any() else None
+
+    g = world.geometry
+    medium_rows, medium_dist = _air_returns(dv.weather, draws, tri, dist, rmin, rmax)
+    refl = g.material_field("reflectivity").astype(np.float64)
+    rows, ghost_dot, ghost_int, stats = _ghosts(bounces, ret, refl, dv.attenuation_per_m)
+    beam_echoes = _echoes(sub, ret, aim.dirs, bounces, rows, medium_rows, refl, dv, draws,
+                          rng, rmin, rmax, stats)
+    hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
+                ghost_int, refl, g.object_field("label"), g.object_field("instance"),
+                medium_rows, medium_dist)
+    rays = Rays(aim.dirs, aim.origins, aim.columns, aim.channels, aim.ray_times)
+    pts, idx, back = _points(hits, rays, draws, _effects(preset, dv), s, fields, beam_echoes)
+    in_air = _air_stats(dv.weather, medium_rows, len(aim.dirs), idx, stats)
+    warnings += _inside_warnings(world, ret.surface[:, 0], idx, back, in_air)
+    stats["moving_bodies"] = len(moving)
+    stats["substeps_used"] = substeps_used
+    stats["static_cast_reused"] = reused
+    record = None
+    if keep_rays:
+        record = RayRecord(aim.origins, aim.dirs, aim.ray_times, first_hit[0], first_hit[1],
+                           idx, list(g.objects))
+    return ScanResult(pts, len(aim.dirs), len(scene.triangles), time.perf_counter() - t0,
+                      warnings, stats, record)
+
+
+@dataclass
+class _Aim:
+    """The rays of a frame in the world: origins ((1, 3) for a still sensor, else one
+    per ray), directions, their times in the scene (``tscene``), trace order, columns,
+    channels and firing times, and the sensor's distinct poses."""
+
+    origins: np.ndarray
+    dirs: np.ndarray
+    times: np.ndarray
+    order: np.ndarray
+    columns: tuple
+    channels: np.ndarray
+    ray_times: np.ndarray
+    poses: np.ndarray
+
+    @classmethod
+    def of(cls, pattern, sensor_to_world, sensor_track, tscene):
+        dirs_sensor = pattern.directions
+        if sensor_track is None or sensor_track.is_static:
+            origin, rot = sensor_axes(sensor_to_world if sensor_track is None
+                                      else sensor_track.matrices[0])
+            origins = origin.reshape(1, 3)
+            dirs = pattern.rotated(rot)
+            poses = origins
+        elif sensor_track.linear_is_constant:
+            # Driving without turning: one rotation for the sweep (the pattern turned
+            # once, and kept while it does not turn), an origin per distinct firing time.
+            times, at = distinct_times(tscene)
+            poses = sensor_track.positions_at(times)
+            origins = poses[at]
+            dirs = pattern.rotated(sensor_axes(sensor_track.matrices[0])[1])
+        else:
+            # One pose per distinct firing time (the channels of a firing share it): a
+            # spinning lidar has 64 to 128 times fewer poses to take apart than rays.
+            times, at = distinct_times(tscene)
+            poses, rots = sensor_axes(sensor_track.at(times))
+            origins = poses[at]
+            dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
+        return cls(origins, dirs, tscene, pattern.trace_order, pattern.columns,
+                   pattern.channels, pattern.times, poses)
+
+    def subset(self, pick):
+        """The rays ``pick`` (a ``_Subset``) chooses, in the pattern's trace order."""
+        return _Aim(self.origins, pick(self.dirs), pick(self.times), pick.order,
+                    tuple(pick(c) for c in self.columns), pick(self.channels),
+                    pick(self.ray_times), self.poses)
+
+
+def _prepared(scene, poses, rmax, caster_factory):
+    """``scene`` as a ``PreparedScene`` that covers every pose of the sweep out to
+    ``rmax``: prepared here from a ``SceneGeometry``, or checked."""
+    if not isinstance(scene, PreparedScene):
+        return PreparedScene(scene, poses.mean(axis=0),
+                             rmax + np.ptp(poses, axis=0).max(initial=0.0), caster_factory)
+    if not scene.covers(poses, rmax):
+        raise SceneError("the prepared scene does not cover this sensor's range: prepare "
+                         "it around the sensor with a reach of at least its range")
+    return scene
+
+
+def _empty_scene_warnings(scene, moving, rmax):
+    if scene.geometry.triangle_count == 0 and not moving:
+        return ["the scene has no geometry to scan"]
+    if len(scene.triangles) == 0 and not moving:
+        return [f"no geometry within {rmax:g} m of the sensor"]
+    return []
+
+
+def _draws(rng, ghost_rng, n, pick, s, preset, dv, world):
+    """Every random number of the effects, drawn per ray, not per hit, so a ray's draws
+    never depend on which other rays returned (ghosting or moving objects change only
+    their own rays); drawn while the rays are cast (the compiled loop's threads cast
+    meanwhile). Returns (Draws, the world's glossy tables or None, the ghost
+    generator's uniforms or None)."""
+    draws = Draws(noise=pick(effects.range_noise(rng, n, dv.noise_sigma_m)) if s.noise
+                  else None)
     if s.dropout:
         draws.general, draws.low = (pick(u) for u in effects.dropout_draws(
             rng, n, preset.dropout.general_rate, preset.dropout.intensity_limit,
             preset.dropout.intensity_zero))
     # Drawn after noise and dropout, and only when used: a frame without datasheet
     # figures and weather draws what it drew before the LiDAR equation.
-    if model is not None:
+    if dv.detection is not None:
         draws.detect = pick(rng.random(n))
-    if air is not None:
+    if dv.weather is not None:
         draws.medium, draws.medium_range = pick(rng.random(n)), pick(rng.random(n))
     # Which glossy returns send a ghost: the ghost generator's own uniforms, drawn only
     # where something is glossy (a material, or an object's label).
@@ -324,85 +395,95 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
         else None
     glossy_u = pick(ghost_rng.random(n)) \
         if glossy is not None and (glossy[0].any() or glossy[1].any()) else None
+    return draws, glossy, glossy_u
 
-    dist, body, tri, normals = pending()
-    reused = scene.reused > reused
-    valid, surface = world.returns(dist, body, tri, rmin, rmax)
-    ret = Returns(valid, dist, surface, normals)
-    first_hit = None
-    if keep_rays:  # before ghosts relabel the glossy rays
-        hit = (tri >= 0) & (dist <= rmax)
-        first_hit = (np.where(hit, ret.surface[:, 0], -1).astype(np.int32),
-                     np.where(hit, dist, np.inf))
-    # Rays next to a depth edge cast their beam's sub-rays (before ghosts change rows)
-    sub = footprint.SubRays(beam, world, pattern, origins, dirs, tscene, ret, tri, rmax) \
-        if beam is not None else None
-    bounces = _Bounces(world, glossy, glossy_u, origins, dirs, tscene, ret, rmax) \
-        if glossy_u is not None and ret.valid.any() else None
 
-    g = world.geometry
-    medium_rows, medium_dist = np.zeros(0, np.int64), np.zeros(0)
-    if air is not None:
-        # beyond the blind zone (at least weather.OVERLAP_M), nearer than the first
-        # surface the ray meets (a mirror, not its ghost): the air beyond sends nothing
-        r_near = max(float(rmin), weather.OVERLAP_M)
-        if r_near < rmax:
-            medium_rows, medium_dist = weather.false_returns(
-                air.alpha, draws.medium, draws.medium_range, tri >= 0, dist, r_near, rmax)
-    refl = g.material_field("reflectivity").astype(np.float64)
-    stats = {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
+def _first_hits(ret, tri, dist, rmax):
+    """(object, range) of each ray's first hit within range, before ghosts relabel the
+    glossy rays (for ground truth)."""
+    hit = (tri >= 0) & (dist <= rmax)
+    return (np.where(hit, ret.surface[:, 0], -1).astype(np.int32), np.where(hit, dist, np.inf))
+
+
+def _air_returns(air, draws, tri, dist, rmin, rmax):
+    """The rays that return from the air (fog, rain, snow) and at what range: beyond
+    the blind zone (at least weather.OVERLAP_M), nearer than the first surface the ray
+    meets (a mirror, not its ghost): the air beyond sends nothing."""
+    none = np.zeros(0, np.int64), np.zeros(0)
+    if air is None:
+        return none
+    r_near = max(float(rmin), weather.OVERLAP_M)
+    if r_near >= rmax:
+        return none
+    return weather.false_returns(air.alpha, draws.medium, draws.medium_range, tri >= 0, dist,
+                                 r_near, rmax)
+
+
+def _ghosts(bounces, ret, refl, atten):
+    """The ghost bounces finished: (ghost rows, the cosine and CARLA intensity of each
+    ghost's last leg, the frame's stats so far)."""
     rows, ghost_dot, ghost_int = np.zeros(0, np.int64), np.zeros(0), np.zeros(0)
-    if bounces is not None:
-        rows, last_leg, mirror = bounces.finish(ret)
-        stats = bounces.stats
-        if len(rows):
-            ghost_dot = row_dot(last_leg, ret.normals.take(rows, axis=0))
-            ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]],
-                                                   np.abs(ghost_dot), ret.dist[rows], atten)
-    beam_echoes = None
-    if sub is not None and sub.count:
-        # Drawn last and only here: the key of the detection uniforms of echoes that do
-        # not hold the centre ray (echoes._uniforms)
-        key = int(rng.integers(0, 2 ** 63)) if model is not None else 0
-        skip = np.concatenate([bounces.chosen if bounces is not None else rows, medium_rows])
-        beam_echoes, fstats = echoes.resolve(sub, ret, dirs, skip, refl, model,
-                                             draws.detect, key,
-                                             0.0 if air is None else air.alpha, atten,
-                                             rmin, rmax)
-        stats.update(fstats)
-    elif sub is not None:
+    if bounces is None:
+        return rows, ghost_dot, ghost_int, {"glossy_hits": 0, "ghosts": 0, "bounce_rays": 0}
+    rows, last_leg, mirror = bounces.finish(ret)
+    if len(rows):
+        ghost_dot = row_dot(last_leg, ret.normals.take(rows, axis=0))
+        ghost_int = mirror * effects.intensity(refl[ret.surface[rows, 1]], np.abs(ghost_dot),
+                                               ret.dist[rows], atten)
+    return rows, ghost_dot, ghost_int, bounces.stats
+
+
+def _echoes(sub, ret, dirs, bounces, rows, medium_rows, refl, dv, draws, rng, rmin, rmax,
+            stats):
+    """A footprint's echoes (``echoes.resolve``) of the rays whose sub-rays saw more than
+    their centre, or None; their counts go into ``stats``."""
+    if sub is None:
+        return None
+    if not sub.count:
         stats.update(footprint_rays=0, footprint_sub_rays=sub.cast)
-    hits = Hits(ret.dist, ret.valid, ret.surface, ret.normals, ret.ghost, rows, ghost_dot,
-                ghost_int, refl, g.object_field("label"), g.object_field("instance"),
-                medium_rows, medium_dist)
-    rays = Rays(dirs, origins, columns, channels, ray_times)
+        return None
+    # Drawn last and only here: the key of the detection uniforms of echoes that do
+    # not hold the centre ray (echoes._uniforms)
+    key = int(rng.integers(0, 2 ** 63)) if dv.detection is not None else 0
+    skip = np.concatenate([bounces.chosen if bounces is not None else rows, medium_rows])
+    beam_echoes, fstats = echoes.resolve(
+        sub, ret, dirs, skip, refl, dv.detection, draws.detect, key,
+        0.0 if dv.weather is None else dv.weather.alpha, dv.attenuation_per_m, rmin, rmax)
+    stats.update(fstats)
+    return beam_echoes
+
+
+def _effects(preset, dv):
+    model, air = dv.detection, dv.weather
+    return Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
+                   preset.dropout.intensity_zero, dv.attenuation_per_m, model,
+                   "carla" if model is None else model.intensity,
+                   0.0 if air is None else air.alpha)
+
+
+def _points(hits, rays, draws, fx, s, fields, beam_echoes):
+    """The per-hit stage: (points, the ray of each point, which were hit from behind);
+    a footprint's second echoes next to their pulse's first."""
     extra = None
     if beam_echoes is not None:
         hits, extra = footprint.split(hits, rays, draws, beam_echoes)
-    fx = Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
-                 preset.dropout.intensity_zero, atten, model,
-                 "carla" if model is None else model.intensity,
-                 0.0 if air is None else air.alpha)
     pts, idx, back = assemble(hits, rays, draws, fx, s.frame_space, fields)
-    if extra is not None:  # second echoes next to their pulse's first
+    if extra is not None:
         pts, idx, back = footprint.merge((pts, idx, back),
                                          assemble(*extra, fx, s.frame_space, fields),
                                          beam_echoes.extra_parent)
-    in_air = None
-    if len(medium_rows):  # false returns from the air lie on no object
-        medium = np.zeros(len(dirs), bool)
+    return pts, idx, back
+
+
+def _air_stats(air, medium_rows, n_rays, idx, stats):
+    """Which points came from the air (they lie on no object; None when none can), and
+    their count in ``stats``."""
+    if len(medium_rows):
+        medium = np.zeros(n_rays, bool)
         medium[medium_rows] = True
         in_air = medium.take(idx)
         stats["weather_returns"] = int(np.count_nonzero(in_air))
-    elif air is not None:
+        return in_air
+    if air is not None:
         stats["weather_returns"] = 0
-    warnings += _inside_warnings(world, ret.surface[:, 0], idx, back, in_air)
-    stats["moving_bodies"] = len(moving)
-    stats["substeps_used"] = substeps_used
-    stats["static_cast_reused"] = reused
-    rays = None
-    if keep_rays:
-        rays = RayRecord(origins, dirs, ray_times, first_hit[0], first_hit[1], idx,
-                         list(g.objects))
-    return ScanResult(pts, len(dirs), len(scene.triangles), time.perf_counter() - t0, warnings,
-                      stats, rays)
+    return None
