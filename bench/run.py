@@ -755,8 +755,24 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
                  total_s, costs):
     r = ratios(dev)
     same, motion = costs["same_rays"], costs["motion"]
-    ok = lambda v, t, higher=True: "n/a" if v is None else (  # noqa: E731
-        "**met**" if (v >= t if higher else v <= t) else "**missed**")
+    L = []
+    L += _header_lines(info, dev, total_s)
+    L += _targets_lines(r, same, motion)
+    L += _devices_lines(dev, pattern_s)
+    L += _scaling_lines(charts, tri_rows, ray_rows)
+    L += _memory_lines(mem)
+    L += _accuracy_lines(charts, tess)
+    L += _blender_lines(costs)
+    L += _motion_lines(charts, motion)
+    L += _disks_lines(charts, costs, same, hooks)
+    L += _others_lines(costs)
+    L += _embree_lines()
+    Path(path).write_text("\n".join(L))
+    return r
+
+
+def _header_lines(info, dev, total_s):
+    """Title, machine, versions, scene."""
     L = []
     L.append("# Benchmarks\n")
     L.append("Written by `make bench` (`bench/run.py`); every number below comes from one run. "
@@ -773,6 +789,19 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
              "within range of a roof-mounted sensor 2 m above the road\n")
     for n in dev["notes"]:
         L.append(f"> **Preset fallback:** {n}\n")
+    return L
+
+
+def ok(v, target, higher=True):
+    """A target's verdict: met, missed, or n/a when it was not measured."""
+    if v is None:
+        return "n/a"
+    return "**met**" if (v >= target if higher else v <= target) else "**missed**"
+
+
+def _targets_lines(r, same, motion):
+    """The targets measured as ratios in this run."""
+    L = []
     L.append("## Targets (ratios from this run)\n")
     L.append("| target | measured | |")
     L.append("|---|---|---|")
@@ -802,6 +831,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
     L.append(f"| (Pandar64 with Embree: frame without ghosting, noise and dropout / cast "
              f"alone) | {r['pandar64_realtime_no_effects']:.1f}x / "
              f"{r['pandar64_realtime_cast_only']:.1f}x | |\n")
+    return L
+
+
+def _devices_lines(dev, pattern_s):
+    """Every device on the 1M-triangle street: casts, frames, still sensors, rays cast, profile, build times."""
+    L = []
     L.append("## Devices on the 1M-triangle street\n")
     L.append("Cast only (ms per frame; in brackets million rays/s). `embree` is RLS's Embree "
              "backend on all cores, `embree 1t` on one thread; `bvhtree` is RLS's BVHTree "
@@ -875,6 +910,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
     L.append("Build times on the 1M-triangle street (s): "
              + ", ".join(f"{k} {val:.2f}" for k, val in dev["build_s"].items()) + "\n")
     L.append(f"Pattern generation, one Pandar128 frame from scratch: {pattern_s * 1000:.1f} ms\n")
+    return L
+
+
+def _scaling_lines(charts, tri_rows, ray_rows):
+    """A frame's cast against scene size and rays per call."""
+    L = []
     L.append("## Scaling\n")
     L.append(f"![scaling]({charts['scaling']})\n")
     L.append("One Pandar64 frame (ms) against scene size:\n")
@@ -898,6 +939,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         L.append(f"| {row['rays']:,} | " + " | ".join(mrays(row["rays"], c[k]) if k in c
                                                        else "n/a" for k in keys) + " |")
     L.append("")
+    return L
+
+
+def _memory_lines(mem):
+    """Peak memory per backend."""
+    L = []
     L.append("## Peak memory\n")
     L.append("One subprocess per case: generate the street, keep its sensor-centred arrays, "
              "build the backend and cast one Pandar64 frame; resident memory sampled every "
@@ -911,6 +958,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
                  f"{m['peak_mib']:.0f} | {m['added_mib']:.0f} | "
                  f"{m['after_mib'] - m['before_mib']:.0f} |")
     L.append("")
+    return L
+
+
+def _accuracy_lines(charts, tess):
+    """Tessellation error against time."""
+    L = []
     L.append("## Speed against accuracy\n")
     L.append(f"![tessellation]({charts['tessellation']})\n")
     L.append("Curved surfaces tessellated with n segments (UV sphere with n/2 rings); range "
@@ -929,6 +982,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
                  f" | {t['mean_err_m'] * 1000:.3f} | {t['max_err_m'] * 1000:.3f} | "
                  f"{t['sagitta_m'] * 1000:.3f} | {ms(t['embree_s'])} | {ms(t['bvhtree_s'])} |")
     L.append("")
+    return L
+
+
+def _blender_lines(costs):
+    """A still and a driving lidar in Blender, extraction included."""
+    L = []
     b = costs.get("blender")
     if b:
         L.append("## In Blender\n")
@@ -958,6 +1017,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
                      f"| {ms(d[0])}, {ms(d[1])}, {ms(min(d[2:]))} "
                      f"({b['driving_builds']} builds in {len(d)} frames) |")
         L.append("")
+    return L
+
+
+def _motion_lines(charts, motion):
+    """Exact motion against snapshot and sub-steps."""
+    L = []
     m = motion["embree"]
     L.append("## Motion distortion\n")
     L.append(f"![motion]({charts['motion']})\n")
@@ -988,6 +1053,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
                  f"{row['mean_err_m'] * 1000:.1f} | {row['max_err_m'] * 1000:.1f} |")
     L.append(f"\n({m['car_points']:,} car points per frame; the bound v*T/(2N) is "
              f"{m['speed_mps'] * 0.1 / 2 * 1000:.0f} mm / N.)\n")
+    return L
+
+
+def _disks_lines(charts, costs, same, hooks):
+    """InfraNUC's disk count against spread and time; the same-rays measurement; hooks."""
+    L = []
     L.append("## InfraNUC: disk count against spread and time\n")
     L.append(f"![disks]({charts['disks']})\n")
     L.append("A LiDAR-like cloud (density falling with distance from a pole; 200,000 points "
@@ -1007,6 +1078,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         if val:
             L.append(f"- {name}: {val}")
     L.append("")
+    return L
+
+
+def _others_lines(costs):
+    """The sections the other bench modules write."""
+    L = []
     if costs.get("frame_costs"):
         from bench import frame_costs
 
@@ -1023,6 +1100,12 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
         from bench import scale_out
 
         L.extend(scale_out.section(costs["scale_out"]))
+    return L
+
+
+def _embree_lines():
+    """How the Embree backend runs."""
+    L = []
     L.append("## How the Embree backend runs\n")
     L.append("embreex 4.4.0.post1's own `EmbreeScene.run` casts one ray at a time and holds "
              "the GIL for the whole call (measured: two threads take as long as one). RLS "
@@ -1043,8 +1126,7 @@ def write_report(path, info, dev, tri_rows, ray_rows, mem, tess, pattern_s, char
              "beyond its cast is in *A frame against its cast* above (ghost rays are a "
              "second cast; the rest is the Python between the stages), and the profile "
              "above lists it by function.\n")
-    Path(path).write_text("\n".join(L))
-    return r
+    return L
 
 
 def main():
