@@ -1,9 +1,14 @@
 # RLS: realistic LiDAR simulation for Blender.
-#   make demo    set up .venv, scan the sample street scene, print where the output is
-#   make test    set up .venv and system tools, build the extension, run all three tiers:
-#     make test-core     the bpy-free core (Blender's modules blocked), with fakes
+#   make demo    set up .venv, scan the sample intersection, print where the output is
+#   make test    set up .venv and the Debian tools that judge our files, build every zip,
+#                run all three tiers with nothing skipped (RLS_REQUIRE_TOOLS=1):
+#     make test-core     the bpy-free core (Blender's modules blocked), with fakes; needs
+#                        no Debian package (tests of PCL/CloudCompare skip, saying what
+#                        to install)
 #     make test-blender  the bpy module: operators, extraction, the installed extension
+#                        (builds only the Linux zip it installs)
 #     make test-cli      python -m rls_addon in subprocesses, as users run it
+#     make test-fast     the three tiers without the tests marked slow
 #   make build   build and validate one zip per platform with Blender's tooling:
 #                dist/rls_addon-<version>-{linux_x64,windows_x64,macos_arm64,macos_x64}.zip
 #                (docs/platforms.md); the compiled loop is cross-compiled with Zig
@@ -19,7 +24,8 @@ VERSION := $(shell sed -n 's/^version = "\(.*\)"/\1/p' blender_manifest.toml)
 # The zip Linux x64 users (and the tests) install; the others are built beside it.
 ZIP     := dist/rls_addon-$(VERSION)-linux_x64.zip
 
-.PHONY: venv demo test test-core test-blender test-cli build system-deps clean bench native
+.PHONY: venv demo test test-core test-blender test-cli test-fast build build-linux system-deps \
+	clean bench native
 
 venv: $(RUNTIME_STAMP)
 
@@ -70,21 +76,32 @@ native: $(RUNTIME_STAMP)
 build: native $(BUILD_STAMP)
 	$(PY) tools/build_extension.py --out dist
 
+# Only the zip the Blender and command-line tiers install (Linux x64: no Zig needed).
+build-linux: native
+	$(PY) tools/build_extension.py --out dist --platforms linux-x64
+
 demo: native
 	$(PY) -m rls_addon demo --out out/demo
 
-test: test-core test-blender test-cli
+# Everything, nothing skipped: the Debian tools installed, every platform's zip built,
+# and a missing tool a failure (RLS_REQUIRE_TOOLS, exported to the tiers below).
+test: export RLS_REQUIRE_TOOLS := 1
+test: system-deps build test-core test-blender test-cli
 
-test-core: $(TEST_STAMP) system-deps native
+test-core: $(TEST_STAMP) native
 	$(PY) -m pytest tests/core -p tests.no_blender
 
-test-blender: $(TEST_STAMP) system-deps build
+test-blender: $(TEST_STAMP) build-linux
 	$(PY) -m pytest tests/blender
 
-test-cli: $(TEST_STAMP) build
+test-cli: $(TEST_STAMP) build-linux
 	$(PY) -m pytest tests/cli
 
-# The benchmark needs what the tests need (embreex, open3d, matplotlib).
+test-fast: $(TEST_STAMP) build-linux
+	$(PY) -m pytest tests/core -p tests.no_blender -m "not slow" -q
+	$(PY) -m pytest tests/blender tests/cli -m "not slow" -q
+
+# The benchmark needs what the tests need (open3d as the reference caster).
 bench: $(TEST_STAMP) native
 	$(PY) bench/run.py --out docs
 

@@ -215,10 +215,13 @@ def main(argv=None):
                  + ", ".join(PLATFORMS))
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
-    # Older zips of this version (the single zip of earlier builds included) would be
-    # mistaken for this build's: remove them first.
-    for old in out.glob(f"{manifest['id']}-{manifest['version']}*.zip"):
-        old.unlink()
+    # Older zips of this version for the platforms built now (and the single zip of
+    # earlier builds) would be mistaken for this build's: remove them first. The other
+    # platforms' zips stay (make test-blender builds only the Linux one).
+    for old in [out / zip_name(manifest, p) for p in wanted] + \
+            [out / f"{manifest['id']}-{manifest['version']}.zip"]:
+        if old.exists():
+            old.unlink()
     tool = str(blender_ext_path())
     if (ROOT / "build" / "stage").exists():  # this build's stages only
         shutil.rmtree(ROOT / "build" / "stage")

@@ -26,6 +26,7 @@ import build_native  # noqa: E402
 
 from rls_addon.core.casting import embree, embree_loop
 from rls_addon.core.native.library import library_name
+from tests.core.external_tools import missing
 
 MANIFEST = tomllib.loads((ROOT / "blender_manifest.toml").read_text())
 ENTRY_POINTS = set(build_native.EXPORTS)  # what every platform's library exports
@@ -41,8 +42,8 @@ EXPECTED = {
 
 def zip_path(platform):
     path = ROOT / "dist" / build_extension.zip_name(MANIFEST, platform)
-    if not path.exists():
-        pytest.fail(f"{path} is missing: run 'make build' (make test does)")
+    if not path.exists():  # make test-blender builds only the Linux zip it installs
+        missing(f"{path.name} is missing: run 'make build' (make test does)")
     return path
 
 

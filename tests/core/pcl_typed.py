@@ -3,7 +3,8 @@ point structs of the ROS LiDAR drivers.
 
 The program is compiled once per test session against Debian's ``libpcl-dev``. Where the
 compiler or PCL's headers are missing the tests skip, saying what to install (``make
-system-deps`` installs both); a program that does not compile fails the test.
+system-deps`` installs both), and fail under ``make test`` (``RLS_REQUIRE_TOOLS=1``); a
+program that does not compile fails the test.
 """
 
 import os
@@ -12,7 +13,8 @@ import shutil
 import subprocess
 
 import numpy as np
-import pytest
+
+from .external_tools import missing
 
 SOURCE = pathlib.Path(__file__).parent / "native" / "pcl_typed_reader.cpp"
 # Debian packages: the C++ compiler, pkg-config and PCL's headers and libraries.
@@ -20,7 +22,7 @@ APT_PACKAGES = "g++ pkgconf libpcl-dev"
 
 
 def _skip(what):
-    pytest.skip(f"{what}: apt-get install {APT_PACKAGES} (or run 'make system-deps')")
+    missing(f"{what}: apt-get install {APT_PACKAGES} (or run 'make system-deps')")
 
 
 def build(directory):
