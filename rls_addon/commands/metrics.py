@@ -81,7 +81,7 @@ def polygon_from_blend(spec):
 def world_points(path):
     """Read one cloud and bring it to the world frame using its sidecar."""
     from ..core.output.io import read_cloud, read_sidecar
-    from ..core.points import points_to_world
+    from ..core.output.io.sidecar import points_to_world
 
     pts = read_cloud(path)
     info = read_sidecar(path)

@@ -11,7 +11,8 @@ import numpy as np
 
 from ..errors import RLSError
 from ..labels import DEFAULT_LABELS, label_name
-from ..points import points_to_world, xyz
+from ..points import xyz
+from .io.sidecar import points_to_world
 
 MAX_POINTS = 60_000  # drawn at most (a seeded, even subsample of a bigger cloud)
 

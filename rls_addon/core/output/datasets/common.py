@@ -10,7 +10,8 @@ import numpy as np
 
 from ...errors import OutputError, SettingsError
 from ..io.atomic import atomic_write_bytes, writable_folder
-from ...points import points_to_world, xyz
+from ...points import xyz
+from ..io.sidecar import points_to_world
 
 
 def frame_id(frame):
@@ -36,7 +37,7 @@ def check_root(root):
 
 def points_world(points, info):
     """(N, 3) world positions of sensor-frame points, each through the sensor's pose at
-    its own firing time (``points.points_to_world``)."""
+    its own firing time (``io.sidecar.points_to_world``)."""
     return xyz(points_to_world(points, info))
 
 

@@ -4,7 +4,8 @@ The caller supplies the contents (device preset and source, sensor pose,
 frame, seed, effect settings, label map, software version). Readers of the
 cloud (``rls metrics``) look at two keys: ``"frame"`` (``"sensor"`` or
 ``"world"``: the coordinate frame of the points) and ``"sensor_to_world"``
-(4x4 nested list, row-major, maps sensor-frame points to world).
+(4x4 nested list, row-major, maps sensor-frame points to world), and for a sensor
+that moved during its sweep ``"sensor_poses"``; ``points_to_world`` reads all three.
 """
 
 import json
@@ -14,6 +15,8 @@ import pathlib
 import numpy as np
 
 from ...errors import InputError, OutputError
+from ...points import xyz
+from ...scene.motion import poses_at
 from .atomic import atomic_write_bytes
 
 
@@ -57,3 +60,37 @@ def read_sidecar(cloud_path):
         return json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(f"cannot read sidecar {path}: {exc}") from None
+
+
+def points_to_world(points, info, where="the cloud"):
+    """A copy of ``points`` in the world frame, as its sidecar ``info`` says they are:
+    world-frame points as they are; sensor-frame points through ``sensor_to_world``, or
+    for a sensor that moved during its sweep through its pose at each point's own time
+    (the sidecar's ``sensor_poses`` knots). ``InputError`` naming ``where`` when the
+    sidecar cannot say."""
+    space = info.get("frame_space")
+    if space is None and isinstance(info.get("frame"), str):
+        space = info["frame"]
+    if space in (None, "world"):
+        return points
+    if space != "sensor":
+        raise InputError(f"sidecar of {where}: unknown coordinate frame {space!r} "
+                         "(expected sensor or world)")
+    knots = info.get("sensor_poses")
+    out = points.copy()
+    local = xyz(points)
+    if knots:
+        try:
+            poses = poses_at(knots["times_s"], knots["matrices"], points["time"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InputError(f"sidecar of {where}: unreadable sensor_poses ({exc})") from None
+        w = np.einsum("nij,nj->ni", poses[:, :3, :3], local) + poses[:, :3, 3]
+    else:
+        m = info.get("sensor_to_world")
+        m = np.asarray(m, dtype=np.float64) if m is not None else None
+        if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
+            raise InputError(f"sidecar of {where} says the points are in the sensor frame but "
+                             "has no valid 4x4 sensor_to_world")
+        w = local @ m[:3, :3].T + m[:3, 3]
+    out["x"], out["y"], out["z"] = w[:, 0], w[:, 1], w[:, 2]
+    return out

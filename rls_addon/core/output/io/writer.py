@@ -11,7 +11,7 @@ import os
 from ....version import VERSION
 from ...errors import OutputError, RLSError, SettingsError
 from ...labels import DEFAULT_LABELS
-from ...points import points_to_world
+from .sidecar import points_to_world
 from .atomic import atomic_write_bytes, writable_folder
 from .cloud import encode_records, read_records, write_cloud
 from .paths import output_path, sanitize_name
