@@ -8,7 +8,8 @@
 #     make test-blender  the bpy module: operators, extraction, the installed extension
 #                        (builds only the Linux zip it installs)
 #     make test-cli      python -m rls_addon in subprocesses, as users run it
-#     make test-fast     the three tiers without the tests marked slow
+#     make test-fast     the core and Blender tiers without the tests marked slow, on
+#                        every core (under a minute here)
 #   make build   build and validate one zip per platform with Blender's tooling:
 #                dist/rls_addon-<version>-{linux_x64,windows_x64,macos_arm64,macos_x64}.zip
 #                (docs/platforms.md); the compiled loop is cross-compiled with Zig
@@ -76,8 +77,14 @@ native: $(RUNTIME_STAMP)
 build: native $(BUILD_STAMP)
 	$(PY) tools/build_extension.py --out dist
 
-# Only the zip the Blender and command-line tiers install (Linux x64: no Zig needed).
+# Only the zip the Blender and command-line tiers install (Linux x64: no Zig needed),
+# built again when a file that goes into it changed.
+ZIP_INPUTS = $(shell find rls_addon presets -type f ! -name '*.pyc' ! -path '*/__pycache__/*') \
+	blender_manifest.toml tools/build_extension.py
 build-linux: native
+	@$(MAKE) --no-print-directory $(ZIP)
+
+$(ZIP): $(ZIP_INPUTS)
 	$(PY) tools/build_extension.py --out dist --platforms linux-x64
 
 demo: native
@@ -97,9 +104,11 @@ test-blender: $(TEST_STAMP) build-linux
 test-cli: $(TEST_STAMP) build-linux
 	$(PY) -m pytest tests/cli
 
+# The quick loop: the core and Blender tiers without the tests marked slow, on every
+# core (pytest-xdist); the command-line tier runs with make test-cli.
 test-fast: $(TEST_STAMP) build-linux
-	$(PY) -m pytest tests/core -p tests.no_blender -m "not slow" -q
-	$(PY) -m pytest tests/blender tests/cli -m "not slow" -q
+	$(PY) -m pytest tests/core -p tests.no_blender -m "not slow" -q -n auto
+	$(PY) -m pytest tests/blender -m "not slow" -q -n auto
 
 # The benchmark needs what the tests need (open3d as the reference caster).
 bench: $(TEST_STAMP) native

@@ -40,3 +40,36 @@ def merge(*geoms):
         mats += g.materials
     return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(tobj),
                          np.concatenate(tmat), objs, mats)
+
+
+def open_sky(boxes=20, seed=2):
+    """A 100 m ground plane (a grid), a few boxes up to 3 m tall and a glossy one."""
+    rng = np.random.default_rng(seed)
+    n = 40
+    s = np.linspace(-50, 50, n + 1)
+    gx, gy = np.meshgrid(s, s, indexing="ij")
+    verts = [np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], 1)]
+    k = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None]
+    k = k.ravel()
+    tris = [np.concatenate([np.stack([k, k + n + 1, k + 1], 1),
+                            np.stack([k + 1, k + n + 1, k + n + 2], 1)])]
+    objs, mats = [np.zeros(len(tris[0]), np.int64)], [np.zeros(len(tris[0]), np.int64)]
+    cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                     [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
+    off = len(verts[0])
+    for i in range(boxes):
+        lo = np.r_[rng.uniform(-30, 30, 2), 0.0]
+        size = np.r_[rng.uniform(0.5, 3, 2), rng.uniform(0.5, 3.0)]
+        verts.append(lo + cube * size)
+        tris.append(faces + off)
+        objs.append(np.full(12, i + 1))
+        mats.append(np.full(12, 2 if i == 0 else 1))
+        off += 8
+    objects = [ObjectInfo("Ground", 1, 1)] + [ObjectInfo(f"Box {i}", 3, i + 2)
+                                              for i in range(boxes)]
+    return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(objs),
+                         np.concatenate(mats), objects,
+                         [MaterialInfo("asphalt", 0.2), MaterialInfo("concrete", 0.5),
+                          MaterialInfo("glass", 0.3, glossy=True)])

@@ -12,11 +12,11 @@ from rls_addon.core.physics.assemble import Draws, Effects, Hits, Rays, assemble
 from rls_addon.core.world.bodies import PreparedScene
 from rls_addon.core.casting import embree
 from rls_addon.core.scan.frame import scan_frame
-from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
 from rls_addon.core.points import POINT_DTYPE
 from rls_addon.core.device.presets import get_preset
 from rls_addon.core.scan.settings import ScanSettings
 from tests.core.built import require_built
+from tests.core.scenes import open_sky
 
 
 @pytest.fixture(scope="module")
@@ -175,39 +175,6 @@ def test_the_reference_is_what_the_frame_used_to_compute():
     assert np.array_equal(back, np.einsum("ij,ij->i", hits.normals, rays.dirs)[idx] > 0)
 
 
-def open_sky(boxes=20, seed=2):
-    """A 100 m ground plane (a grid), a few boxes up to 3 m tall and a glossy one."""
-    rng = np.random.default_rng(seed)
-    n = 40
-    s = np.linspace(-50, 50, n + 1)
-    gx, gy = np.meshgrid(s, s, indexing="ij")
-    verts = [np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], 1)]
-    k = np.arange(n)[:, None] * (n + 1) + np.arange(n)[None]
-    k = k.ravel()
-    tris = [np.concatenate([np.stack([k, k + n + 1, k + 1], 1),
-                            np.stack([k + 1, k + n + 1, k + n + 2], 1)])]
-    objs, mats = [np.zeros(len(tris[0]), np.int64)], [np.zeros(len(tris[0]), np.int64)]
-    cube = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-                     [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
-    faces = np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
-                      [1, 2, 6], [1, 6, 5], [2, 3, 7], [2, 7, 6], [3, 0, 4], [3, 4, 7]])
-    off = len(verts[0])
-    for i in range(boxes):
-        lo = np.r_[rng.uniform(-30, 30, 2), 0.0]
-        size = np.r_[rng.uniform(0.5, 3, 2), rng.uniform(0.5, 3.0)]
-        verts.append(lo + cube * size)
-        tris.append(faces + off)
-        objs.append(np.full(12, i + 1))
-        mats.append(np.full(12, 2 if i == 0 else 1))
-        off += 8
-    objects = [ObjectInfo("Ground", 1, 1)] + [ObjectInfo(f"Box {i}", 3, i + 2)
-                                              for i in range(boxes)]
-    return SceneGeometry(np.concatenate(verts), np.concatenate(tris), np.concatenate(objs),
-                         np.concatenate(mats), objects,
-                         [MaterialInfo("asphalt", 0.2), MaterialInfo("concrete", 0.5),
-                          MaterialInfo("glass", 0.3, glossy=True)])
-
-
 def _modes(scene, on):
     scene.caster.compiled = on
     assemble.compiled = ghost.compiled = returns.compiled = on
@@ -260,45 +227,3 @@ def test_a_driving_sensor_frame_is_byte_identical_compiled_or_numpy():
     finally:
         _modes(scene, True)
     assert got[0] == got[1] and len(got[0][0]) > 10_000 * POINT_DTYPE.itemsize
-
-
-def test_sky_rays_are_not_rechecked():
-    """From 4 m above the ground every ray to the sky passes over the boxes (3 m at
-    most): the re-check answers them all without a hull cast."""
-    preset = get_preset("hesai_pandar64")
-    origin = np.array([0.3, -0.2, 4.0])
-    scene = PreparedScene(open_sky(), origin, preset.range.max_m, embree.EmbreeCaster)
-    w = scene.caster
-    dirs = preset.pattern().directions
-    up = dirs[:, 2] > 0
-    reach = w.may_reach_hull(origin - scene.centre, dirs, preset.range.max_m)
-    assert up.sum() > 10_000 and not reach[up].any()
-    # conservative: every ray that enters some hull box is let through
-    o = origin - scene.centre
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / dirs
-        t1 = (w.box_lo[None] - o) * inv[:, None]
-        t2 = (w.box_hi[None] - o) * inv[:, None]
-    near = np.nanmax(np.minimum(t1, t2), axis=2)
-    far = np.nanmin(np.maximum(t1, t2), axis=2)
-    enters = ((near <= far) & (far >= 0) & (near <= preset.range.max_m)).any(axis=1)
-    assert enters.sum() > 1000 and np.all(reach[enters])
-
-
-def test_octant_boxes_are_the_union_of_the_boxes_ahead():
-    """Per octant, the union of the hull boxes ahead of the origins along each of its
-    axes (one octant at a time, as the table is defined)."""
-    preset = get_preset("hesai_pandar64")
-    scene = PreparedScene(open_sky(), np.array([0.3, -0.2, 4.0]), preset.range.max_m,
-                          embree.EmbreeCaster)
-    w = scene.caster
-    for o in (np.array([[0.3, -0.2, 4.0]]), np.random.default_rng(3).normal(size=(50, 3)) * 20):
-        boxes, has = w.octant_boxes(o)
-        for code in range(8):
-            neg = np.array([(code >> k) & 1 for k in range(3)], bool)
-            sel = np.all(np.where(neg, w.box_lo < o.max(axis=0), w.box_hi > o.min(axis=0)),
-                         axis=1)
-            assert has[code] == sel.any()
-            want = np.r_[w.box_lo[sel].min(axis=0), w.box_hi[sel].max(axis=0)] \
-                if sel.any() else np.zeros(6)
-            np.testing.assert_array_equal(boxes[code], want)

@@ -56,6 +56,7 @@ def test_box_interior_every_ray_hits(backend):
     assert r["hits_a"] == r["hits_b"] == len(d)
 
 
+@pytest.mark.slow  # a fine sphere against the numpy reference, inside and out
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_sphere_inside_and_outside(backend):
     g = parity.uv_sphere(radius=3.0, rings=24, segments=48)

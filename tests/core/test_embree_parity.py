@@ -51,6 +51,7 @@ def test_box_interior_every_ray_hits(mode):
     assert r["hits_a"] == r["hits_b"] == len(d)
 
 
+@pytest.mark.slow  # a fine sphere against the numpy reference, inside and out
 @pytest.mark.parametrize("mode", MODES)
 def test_sphere_inside_and_outside(mode):
     g = parity.uv_sphere(radius=3.0, rings=24, segments=48)
