@@ -73,3 +73,20 @@ def open_sky(boxes=20, seed=2):
                          np.concatenate(mats), objects,
                          [MaterialInfo("asphalt", 0.2), MaterialInfo("concrete", 0.5),
                           MaterialInfo("glass", 0.3, glossy=True)])
+
+
+def rays_entering_boxes(origin, directions, lo, hi, max_dist=np.inf, chunk=8192):
+    """(N,) bool: the ray from ``origin`` enters (or starts in) one of the boxes
+    [lo, hi] within ``max_dist``: the exact slab test over every (ray, box) pair, a
+    ``chunk`` of rays at a time so the (rays, boxes, 3) arrays stay small."""
+    out = np.zeros(len(directions), bool)
+    for s in range(0, len(directions), chunk):
+        d = directions[s:s + chunk]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / d
+            t1 = (lo[None] - origin) * inv[:, None]
+            t2 = (hi[None] - origin) * inv[:, None]
+            near = np.nanmax(np.minimum(t1, t2), axis=2)
+            far = np.nanmin(np.maximum(t1, t2), axis=2)
+        out[s:s + chunk] = ((near <= far) & (far >= 0) & (near <= max_dist)).any(axis=1)
+    return out

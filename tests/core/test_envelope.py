@@ -8,16 +8,12 @@ import pytest
 
 from rls_addon.core.casting.envelope import ElevationEnvelope
 
+from .scenes import rays_entering_boxes
+
 
 def enters(origin, directions, lo, hi):
     """(N,) bool: the ray enters (or starts in) some box: an exact slab test."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / directions
-        t1 = (lo[None] - origin) * inv[:, None]
-        t2 = (hi[None] - origin) * inv[:, None]
-    near = np.nanmax(np.minimum(t1, t2), axis=2)
-    far = np.nanmin(np.maximum(t1, t2), axis=2)
-    return ((near <= far) & (far >= 0)).any(axis=1)
+    return rays_entering_boxes(origin, directions, lo, hi)
 
 
 def some_directions(rng, n=20_000):

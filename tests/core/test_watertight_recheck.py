@@ -9,26 +9,7 @@ from rls_addon.core.casting import embree
 from rls_addon.core.device.presets import get_preset
 from rls_addon.core.world.bodies import PreparedScene
 
-from .scenes import open_sky
-
-CHUNK = 8192  # rays per slab test: (rays, boxes, 3) float64 stays a few tens of MB
-
-
-def entering_any_box(o, dirs, lo, hi, max_dist):
-    """The rays from ``o`` along ``dirs`` that enter one of the boxes [lo, hi] within
-    ``max_dist``: the slab test, brute force over every (ray, box) pair, in chunks."""
-    out = np.zeros(len(dirs), bool)
-    for s in range(0, len(dirs), CHUNK):
-        d = dirs[s:s + CHUNK]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / d
-            t1 = (lo[None] - o) * inv[:, None]
-            t2 = (hi[None] - o) * inv[:, None]
-        near = np.nanmax(np.minimum(t1, t2), axis=2)
-        far = np.nanmin(np.maximum(t1, t2), axis=2)
-        out[s:s + CHUNK] = ((near <= far) & (far >= 0) & (near <= max_dist)).any(axis=1)
-    return out
-
+from .scenes import open_sky, rays_entering_boxes
 
 @pytest.mark.slow  # the brute-force oracle tests 115,200 rays against every hull box
 def test_sky_rays_are_not_rechecked():
@@ -43,8 +24,8 @@ def test_sky_rays_are_not_rechecked():
     reach = w.may_reach_hull(origin - scene.centre, dirs, preset.range.max_m)
     assert up.sum() > 10_000 and not reach[up].any()
     # conservative: every ray that enters some hull box is let through
-    enters = entering_any_box(origin - scene.centre, dirs, w.box_lo, w.box_hi,
-                              preset.range.max_m)
+    enters = rays_entering_boxes(origin - scene.centre, dirs, w.box_lo, w.box_hi,
+                                 preset.range.max_m)
     assert enters.sum() > 1000 and np.all(reach[enters])
 
 
