@@ -1,0 +1,290 @@
+"""The background of a still roadside LiDAR, per cell of its own range image, as deployed
+roadside systems keep it, and the foreground of a frame against it.
+
+A *cell* is (channel, azimuth bin) of the sensor's range image: the channel is the
+point's ``ring`` when the points carry one (spinning and MEMS devices), else an elevation
+bin of ``elevation_res_deg``; the azimuth bin is ``azimuth_res_deg`` wide, by default the
+device's own azimuth step measured from the learning frames. A still sensor fires the same
+rays every sweep, so one cell sees one surface (or two, across a depth edge or where a
+glossy facade turns some of its returns into ghosts) frame after frame.
+
+Only what a real device reports is read: x, y, z (sensor frame) and ring. Labels,
+instances and ghost flags are ground truth and are never looked at.
+
+Learning (``BackgroundModel.learn``): every return of every learning frame is put in its
+cell; a cell's ranges, sorted, are cut into *modes* wherever two neighbours are more than
+``margin`` apart. A mode is background when it was seen in at least ``min_support`` of the
+learning frames (a share; a car that drives through a cell is there for a few frames of a
+sequence, a facade in all of them, and the near and far range of a glossy facade's
+glass/ghost flip each in about half); up to ``max_modes`` modes per cell are kept, the
+best supported first. One traffic-free frame is a background too: there every return is
+in all (one) of the frames. A parked or queued car seen in more than ``min_support`` of
+the frames becomes background, as it does in deployed systems.
+
+Foreground (``BackgroundModel.foreground``): a return is foreground when it is nearer than
+every background mode of its cell by ``margin`` (nearer than the nearest mode's nearest
+learned range, minus the margin). The margin is ``max(min_margin, k_sigma * noise_sigma)``:
+with RLS's presets (2-3 cm noise) the 0.3 m floor decides, which is what real deployments
+use against beam jitter and calibration drift, and what keeps a flat road at grazing
+incidence from flickering; a noisier device (a sigma above 6 cm) gets 5 sigma. Returns
+farther than the background (through a window, a ghost beyond its glass) are never
+foreground.
+
+A cell that never had a background return (sky, beyond the end of the road, past the
+device's range) cannot say what is in front of its background. A return there is only
+*possibly* foreground; ``RoadsideDetector`` keeps it when it is plausibly an object: its
+world height above the ground near it is within an object's (``[-0.3, max_height]``) and
+it is within ``max_range`` of the sensor; DBSCAN's density then decides, as for every
+foreground point. So a car coming over the end of the road is found, while a bird, an
+insect on the window, or a false return from fog high above the road is not.
+"""
+
+import numpy as np
+
+from ..errors import InputError
+
+DEFAULT_AZIMUTH_RES_DEG = 0.2
+DEFAULT_ELEVATION_RES_DEG = 0.1
+
+
+def sensor_xyz_ring(points):
+    """((N, 3) float64 sensor-frame x y z, (N,) int64 ring or None) of ``points``: a
+    structured array with x, y, z (and ring), or an (N, >=3) array (x y z ...). Nothing
+    else of the record is read (never label, instance or ghost)."""
+    if points is None:
+        return np.zeros((0, 3)), None
+    arr = np.asarray(points)
+    if arr.dtype.names:
+        missing = [f for f in ("x", "y", "z") if f not in arr.dtype.names]
+        if missing:
+            raise InputError(f"points have no field(s) {', '.join(missing)}")
+        xyz = np.empty((len(arr), 3))
+        xyz[:, 0], xyz[:, 1], xyz[:, 2] = arr["x"], arr["y"], arr["z"]
+        ring = arr["ring"].astype(np.int64) if "ring" in arr.dtype.names else None
+        return xyz, ring
+    arr = np.asarray(arr, np.float64)
+    if arr.size == 0:
+        return np.zeros((0, 3)), None
+    if arr.ndim != 2 or arr.shape[1] < 3:
+        raise InputError(f"points must be a structured array or (N, >=3); got shape {arr.shape}")
+    return np.ascontiguousarray(arr[:, :3]), None
+
+
+class RangeImageGrid:
+    """Cells of a sensor's range image: rows are channels (``ring``) or elevation bins,
+    columns azimuth bins centred on where the device fires in each row (``phase``, in
+    bins, measured at learning)."""
+
+    def __init__(self, azimuth_res_deg, use_ring, elevation_res_deg, rows, phase):
+        self.azimuth_res = float(np.radians(azimuth_res_deg))
+        self.columns = int(round(2 * np.pi / self.azimuth_res))
+        self.azimuth_res = 2 * np.pi / self.columns  # a whole number of columns
+        self.use_ring = bool(use_ring)
+        self.elevation_res = float(np.radians(elevation_res_deg))
+        self.rows = int(rows)
+        self.phase = np.asarray(phase, np.float64)  # (rows,) fraction of a column
+
+    @property
+    def cells(self):
+        return self.rows * self.columns
+
+    def row_of(self, xyz, ring):
+        if self.use_ring:
+            if ring is None:
+                raise InputError("the background was learned by ring: these points have none")
+            return ring
+        el = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
+        return np.floor((el + np.pi / 2) / self.elevation_res).astype(np.int64)
+
+    def cell_of(self, xyz, ring):
+        """(N,) cell index of each point; -1 for a row the grid does not have."""
+        row = self.row_of(xyz, ring)
+        ok = (row >= 0) & (row < self.rows)
+        rr = np.where(ok, row, 0)
+        az = np.arctan2(xyz[:, 1], xyz[:, 0])
+        col = np.floor(az / self.azimuth_res - self.phase[rr] + 0.5).astype(np.int64)
+        col %= self.columns
+        return np.where(ok, rr * self.columns + col, -1)
+
+    @classmethod
+    def from_points(cls, samples, azimuth_res_deg=None, elevation_res_deg=None):
+        """A grid fitted to sensor-frame ``samples`` [(xyz, ring)]: rows by ring when all
+        have one; the azimuth step is the median step between neighbouring returns of a
+        row (the device's firing step) unless given; each row's phase is the circular mean
+        of where its returns fall within a column."""
+        use_ring = all(r is not None for _, r in samples) and len(samples) > 0
+        el_res = DEFAULT_ELEVATION_RES_DEG if elevation_res_deg is None else elevation_res_deg
+        xyz = np.concatenate([x for x, _ in samples]) if samples else np.zeros((0, 3))
+        if use_ring:
+            row = np.concatenate([r for _, r in samples])
+        else:
+            el = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
+            row = np.floor((el + np.pi / 2) / np.radians(el_res)).astype(np.int64)
+        rows = int(row.max()) + 1 if len(row) else 1
+        az = np.arctan2(xyz[:, 1], xyz[:, 0])
+        if azimuth_res_deg is None:
+            azimuth_res_deg = _azimuth_step_deg(row, az)
+        grid = cls(azimuth_res_deg, use_ring, el_res, rows, np.zeros(rows))
+        # phase per row: where in a column the row's returns fall (circular mean)
+        frac = az / grid.azimuth_res
+        ang = 2 * np.pi * (frac - np.floor(frac))
+        c = np.bincount(row, np.cos(ang), minlength=rows)
+        s = np.bincount(row, np.sin(ang), minlength=rows)
+        grid.phase = np.where(np.hypot(c, s) > 0, np.arctan2(s, c) / (2 * np.pi), 0.0)
+        return grid
+
+
+def _azimuth_step_deg(row, az):
+    """The device's azimuth step: the median gap between a row's neighbouring returns
+    (distinct azimuths), over all rows; the default when there are too few returns."""
+    if len(az) < 16:
+        return DEFAULT_AZIMUTH_RES_DEG
+    order = np.lexsort((az, row))
+    r, a = row[order], az[order]
+    gap = np.diff(a)
+    gap = gap[(np.diff(r) == 0) & (gap > 1e-6)]
+    if len(gap) < 8:
+        return DEFAULT_AZIMUTH_RES_DEG
+    step = float(np.degrees(np.median(gap)))
+    return min(max(step, 0.01), 5.0)
+
+
+def _background_modes(m_cell, m_support, m_longest, n_frames, empty, min_support,
+                      persist_support, steady_support, alpha=0.01):
+    """(M,) bool: which modes (sorted by cell, then range) are background.
+
+    - The farthest mode of a cell seen in at least ``min_support`` of the frames is (a
+      cell that returned nothing that often has its farthest mode at infinity, and then
+      no finite farthest mode).
+    - A nearer mode is when it was there in at least ``steady_support`` of the frames, or
+      in at least ``persist_support`` of them *coming and going*: a glossy facade's glass
+      and ghost flip from frame to frame, while a car that stood and left is one long
+      run of frames (the cars that later drive over its spot add only short ones). A
+      mode stood when its longest run ``L`` is one that flips independent from frame to
+      frame with its support ``p`` would hardly make: ``n (1 - p) p^L < alpha`` over
+      ``n`` frames (1%: with 100 frames, 12 frames at p = 0.5, 16 at p = 0.6; with 10
+      frames, no run of a half-supported mode is long enough)."""
+    idx = np.arange(len(m_cell))
+    qual = m_support >= min_support - 1e-12
+    last = np.full(len(empty), -1, np.int64)
+    np.maximum.at(last, m_cell[qual], idx[qual])
+    farthest = (idx == last[m_cell]) & (empty[m_cell] < min_support - 1e-12)
+    steady = m_support >= min(steady_support, 1.0) - 1e-12
+    p = np.clip(m_support, 1e-12, 1 - 1e-12)
+    chance = n_frames * (1 - p) * np.exp(m_longest * np.log(p))
+    stood = chance < alpha
+    flips = (m_support >= min(persist_support, 1.0) - 1e-12) & ~stood
+    return farthest | steady | flips
+
+
+class BackgroundModel:
+    """The background of one still sensor (see the module docstring).
+
+    near     (cells,) float64: the nearest learned range of the cell's nearest background
+             mode (m); +inf for a cell without one
+    modes    (cells, max_modes) float64: each kept mode's median range, by support (NaN
+             where fewer modes)
+    support  (cells, max_modes) float64: share of learning frames each mode was seen in
+    margin   the foreground margin (m)
+    points   (M, 3) float64: a learned return (sensor frame) at the near edge of each kept
+             mode"""
+
+    def __init__(self, grid, near, modes, support, margin, frames, points):
+        self.grid, self.near, self.modes, self.support = grid, near, modes, support
+        self.margin, self.frames = float(margin), int(frames)
+        self.points = points
+
+    @classmethod
+    def learn(cls, frames, margin=0.3, min_support=0.1, persist_support=0.3,
+              steady_support=0.9, max_modes=3, azimuth_res_deg=None, elevation_res_deg=None):
+        """The background of sensor-frame ``frames`` (a list of point arrays, see
+        ``sensor_xyz_ring``), all from the same still sensor."""
+        samples = [sensor_xyz_ring(f) for f in frames]
+        if not samples:
+            raise InputError("learning a background needs at least one frame")
+        grid = RangeImageGrid.from_points(samples, azimuth_res_deg, elevation_res_deg)
+        cells, rngs, frame_of = [], [], []
+        for k, (xyz, ring) in enumerate(samples):
+            cell = grid.cell_of(xyz, ring)
+            cell[~np.isfinite(xyz).all(axis=1)] = -1
+            cells.append(cell)
+            rngs.append(np.linalg.norm(xyz, axis=1))
+            frame_of.append(np.full(len(xyz), k, np.int64))
+        all_xyz = np.concatenate([x for x, _ in samples])
+        cell, rng, frm = (np.concatenate(cells), np.concatenate(rngs),
+                          np.concatenate(frame_of))
+        ok = cell >= 0
+        index = np.flatnonzero(ok)
+        cell, rng, frm = cell[ok], rng[ok], frm[ok]
+        n_frames = len(samples)
+        near = np.full(grid.cells, np.inf)
+        modes = np.full((grid.cells, max_modes), np.nan)
+        support = np.zeros((grid.cells, max_modes))
+        points = np.zeros((0, 3))
+        if len(cell):
+            order = np.lexsort((rng, cell))
+            cell, rng, frm, index = cell[order], rng[order], frm[order], index[order]
+            # a new mode wherever the cell changes or the range jumps by more than the margin
+            new = np.ones(len(cell), bool)
+            new[1:] = (cell[1:] != cell[:-1]) | (rng[1:] - rng[:-1] > margin)
+            mode_id = np.cumsum(new) - 1
+            starts = np.flatnonzero(new)
+            m_cell = cell[starts]
+            m_near = rng[starts]
+            m_index = index[starts]
+            m_count = np.diff(np.r_[starts, len(cell)])
+            m_median = rng[starts + (m_count - 1) // 2]
+            # support: distinct frames per mode (two rays of one frame in a cell count once)
+            pair = np.unique(mode_id * n_frames + frm)
+            p_mode, p_frame = pair // n_frames, pair % n_frames
+            m_frames = np.bincount(p_mode, minlength=len(starts))
+            m_support = m_frames / n_frames
+            # runs: unbroken stretches of frames a mode was seen in
+            run_start = np.ones(len(pair), bool)
+            run_start[1:] = (p_mode[1:] != p_mode[:-1]) | (p_frame[1:] - p_frame[:-1] > 1)
+            run_id = np.cumsum(run_start) - 1
+            run_len = np.bincount(run_id)
+            m_longest = np.zeros(len(starts), np.int64)
+            np.maximum.at(m_longest, p_mode[run_start], run_len)
+            # the share of frames in which a cell returned nothing: a mode at infinity
+            seen = np.unique(cell * n_frames + frm) // n_frames
+            empty = 1.0 - np.bincount(seen, minlength=grid.cells) / n_frames
+            keep = _background_modes(m_cell, m_support, m_longest, n_frames, empty,
+                                     min_support, persist_support, steady_support)
+            m_cell, m_near, m_median, m_support, m_index = (
+                m_cell[keep], m_near[keep], m_median[keep], m_support[keep], m_index[keep])
+            # up to max_modes per cell, the best supported (then the nearest) first
+            order = np.lexsort((m_near, -m_support, m_cell))
+            m_cell, m_near, m_median, m_support, m_index = (
+                m_cell[order], m_near[order], m_median[order], m_support[order],
+                m_index[order])
+            first = np.ones(len(m_cell), bool)
+            first[1:] = m_cell[1:] != m_cell[:-1]
+            rank = np.arange(len(m_cell)) - np.maximum.accumulate(
+                np.where(first, np.arange(len(m_cell)), 0))
+            top = rank < max_modes
+            modes[m_cell[top], rank[top]] = m_median[top]
+            support[m_cell[top], rank[top]] = m_support[top]
+            np.minimum.at(near, m_cell[top], m_near[top])
+            points = all_xyz[m_index[top]]
+        return cls(grid, near, modes, support, margin, n_frames, points)
+
+    def foreground(self, points):
+        """((N,) bool: nearer than every background mode of its cell by the margin,
+        (N,) bool: in a cell without background (to be judged by where it is),
+        (N, 3) sensor-frame xyz) of a frame's ``points``."""
+        xyz, ring = sensor_xyz_ring(points)
+        if not len(xyz):
+            return np.zeros(0, bool), np.zeros(0, bool), xyz
+        cell = self.grid.cell_of(xyz, ring)
+        known = cell >= 0
+        near = np.full(len(xyz), np.inf)
+        near[known] = self.near[cell[known]]
+        rng = np.linalg.norm(xyz, axis=1)
+        empty = ~np.isfinite(near)
+        return (~empty) & (rng < near - self.margin), empty, xyz
+
+    def background_xyz(self):
+        """(M, 3) sensor-frame points: for every cell, the learned return at the near
+        edge of each kept background mode (what the ground under the scene is read from)."""
+        return self.points
