@@ -83,10 +83,13 @@ class RangeImageGrid:
         self.elevation_res = float(np.radians(elevation_res_deg))
         self.rows = int(rows)
         self.phase = np.asarray(phase, np.float64)  # (rows,) fraction of a column
+        self.row_rank = np.full(self.rows, -1, np.int64)  # rows by elevation, seen ones
 
     @property
     def cells(self):
         return self.rows * self.columns
+
+    elevation_edges = None  # (rows - 1,) radians between the rings found by elevation
 
     def row_of(self, xyz, ring):
         if self.use_ring:
@@ -94,6 +97,8 @@ class RangeImageGrid:
                 raise InputError("the background was learned by ring: these points have none")
             return ring
         el = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
+        if self.elevation_edges is not None:
+            return np.searchsorted(self.elevation_edges, el).astype(np.int64)
         return np.floor((el + np.pi / 2) / self.elevation_res).astype(np.int64)
 
     def cell_of(self, xyz, ring):
@@ -106,6 +111,43 @@ class RangeImageGrid:
         col %= self.columns
         return np.where(ok, rr * self.columns + col, -1)
 
+    def has_neighbours(self, cell, mask, least):
+        """(N,) bool: the pixel of each point (``cell``) has at least ``least`` of its 8
+        neighbours (rings by elevation rank, columns with the wrap at 360 degrees) holding
+        a point with ``mask``. Points in rows never seen while learning count as having
+        them (nothing to judge by)."""
+        cell = np.asarray(cell, np.int64)
+        ok = cell >= 0
+        row = np.where(ok, cell // self.columns, 0)
+        rank = np.where(ok, self.row_rank[row], -1)
+        col = np.where(ok, cell % self.columns, 0)
+        known = rank >= 0
+        ranks = int(self.row_rank.max()) + 1 if len(self.row_rank) else 0
+        if not known.any() or ranks == 0:
+            return np.ones(len(cell), bool)
+        image = np.zeros((ranks + 2, self.columns), bool)
+        on = known & mask
+        image[rank[on] + 1, col[on]] = True
+        count = np.zeros(image.shape, np.int8)
+        for dr in (-1, 0, 1):
+            shifted = np.roll(image, dr, axis=0)
+            for dc in (-1, 0, 1):
+                if dr or dc:
+                    count += np.roll(shifted, dc, axis=1)
+        out = np.ones(len(cell), bool)
+        out[known] = count[rank[known] + 1, col[known]] >= least
+        return out
+
+    def pixel_of(self, cell):
+        """(N,) int64 (elevation rank << 32 | column) of cells (-1 for -1 and for rows
+        never seen while learning): neighbouring rings of the device have neighbouring
+        ranks, whatever its ring numbering."""
+        cell = np.asarray(cell, np.int64)
+        ok = cell >= 0
+        row, col = np.where(ok, cell // self.columns, 0), np.where(ok, cell % self.columns, 0)
+        rank = self.row_rank[row]
+        return np.where(ok & (rank >= 0), (rank << 32) | col, -1)
+
     @classmethod
     def from_points(cls, samples, azimuth_res_deg=None, elevation_res_deg=None):
         """A grid fitted to sensor-frame ``samples`` [(xyz, ring)]: rows by ring when all
@@ -115,23 +157,52 @@ class RangeImageGrid:
         use_ring = all(r is not None for _, r in samples) and len(samples) > 0
         el_res = DEFAULT_ELEVATION_RES_DEG if elevation_res_deg is None else elevation_res_deg
         xyz = np.concatenate([x for x, _ in samples]) if samples else np.zeros((0, 3))
+        edges = None
         if use_ring:
             row = np.concatenate([r for _, r in samples])
         else:
             el = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
-            row = np.floor((el + np.pi / 2) / np.radians(el_res)).astype(np.int64)
+            edges = _ring_edges(el) if elevation_res_deg is None else None
+            if edges is not None:
+                row = np.searchsorted(edges, el).astype(np.int64)
+            else:
+                row = np.floor((el + np.pi / 2) / np.radians(el_res)).astype(np.int64)
         rows = int(row.max()) + 1 if len(row) else 1
         az = np.arctan2(xyz[:, 1], xyz[:, 0])
         if azimuth_res_deg is None:
             azimuth_res_deg = _azimuth_step_deg(row, az)
         grid = cls(azimuth_res_deg, use_ring, el_res, rows, np.zeros(rows))
+        grid.elevation_edges = edges
         # phase per row: where in a column the row's returns fall (circular mean)
         frac = az / grid.azimuth_res
         ang = 2 * np.pi * (frac - np.floor(frac))
         c = np.bincount(row, np.cos(ang), minlength=rows)
         s = np.bincount(row, np.sin(ang), minlength=rows)
         grid.phase = np.where(np.hypot(c, s) > 0, np.arctan2(s, c) / (2 * np.pi), 0.0)
+        # rows ranked by their mean elevation (rows without returns: -1)
+        el = np.arctan2(xyz[:, 2], np.hypot(xyz[:, 0], xyz[:, 1]))
+        n = np.bincount(row, minlength=rows)
+        mean_el = np.bincount(row, el, minlength=rows) / np.maximum(n, 1)
+        seen = np.flatnonzero(n > 0)
+        order = seen[np.argsort(mean_el[seen], kind="stable")]
+        grid.row_rank[order] = np.arange(len(order))
         return grid
+
+
+def _ring_edges(el, min_gap=1e-4, max_rings=2048):
+    """Points without a ring field: the device's rings found as the distinct elevations
+    of the learning frames (a spinning device fires each channel at one elevation; float32
+    coordinates blur it by about 1e-7 rad), cut halfway between neighbours more than
+    ``min_gap`` rad apart. None when there are no such rings (a Risley or MEMS pattern
+    sweeps elevations continuously): then rows are fixed elevation bins."""
+    if len(el) < 2:
+        return None
+    u = np.unique(np.round(el, 6))
+    gap = np.diff(u)
+    cut = np.flatnonzero(gap > min_gap)
+    if len(cut) + 1 > max_rings or len(cut) == 0:
+        return None
+    return (u[cut] + u[cut + 1]) / 2
 
 
 def _azimuth_step_deg(row, az):
@@ -269,20 +340,29 @@ class BackgroundModel:
             points = all_xyz[m_index[top]]
         return cls(grid, near, modes, support, margin, n_frames, points)
 
-    def foreground(self, points):
+    def foreground(self, points, min_neighbours=2):
         """((N,) bool: nearer than every background mode of its cell by the margin,
         (N,) bool: in a cell without background (to be judged by where it is),
-        (N, 3) sensor-frame xyz) of a frame's ``points``."""
+        (N, 3) sensor-frame xyz, (N,) int64 cell (-1: a row the grid does not have)) of
+        a frame's ``points``. Both kinds are kept only where at least ``min_neighbours``
+        of the 8 neighbouring pixels of the range image hold one too: an object is a
+        patch of pixels, while a cell that was unlucky while learning (a glass mode seen
+        in fewer than ``persist_support`` of the frames by chance) is alone."""
         xyz, ring = sensor_xyz_ring(points)
         if not len(xyz):
-            return np.zeros(0, bool), np.zeros(0, bool), xyz
+            return np.zeros(0, bool), np.zeros(0, bool), xyz, np.zeros(0, np.int64)
         cell = self.grid.cell_of(xyz, ring)
         known = cell >= 0
         near = np.full(len(xyz), np.inf)
         near[known] = self.near[cell[known]]
         rng = np.linalg.norm(xyz, axis=1)
         empty = ~np.isfinite(near)
-        return (~empty) & (rng < near - self.margin), empty, xyz
+        fg = (~empty) & (rng < near - self.margin)
+        if min_neighbours > 0:
+            alone = ~self.grid.has_neighbours(cell, fg | empty, min_neighbours)
+            fg &= ~alone
+            empty &= ~alone
+        return fg, empty, xyz, cell
 
     def background_xyz(self):
         """(M, 3) sensor-frame points: for every cell, the learned return at the near
