@@ -135,6 +135,8 @@ class RoadsideDetector:
                      noise_sigma)
     min_support      share of learning frames a background mode must be seen in
     max_modes        background range modes kept per cell
+    min_neighbours   a foreground pixel needs this many of its 8 neighbours in the range
+                     image to be foreground too
     azimuth_res_deg  the range image's azimuth bin (None: the device's step, measured)
     ground_z         the ground's height where the background does not say (None: the
                      median of what it says)
@@ -145,7 +147,8 @@ class RoadsideDetector:
     min_points       clusters with fewer points give no box
     merge_*          fragments are merged when their union is at most merge_length long
                      and merge_width wide, the larger is at least merge_min_part long and
-                     they are at most merge_gap apart
+                     they are at most merge_gap apart (merge_reach when they touch in a
+                     sensor's range image)
     split_width      a cluster wider than this is more than one vehicle: it is split
     """
     noise_sigma: float = 0.02
@@ -154,6 +157,7 @@ class RoadsideDetector:
     min_support: float = 0.1
     persist_support: float = 0.3
     steady_support: float = 0.9
+    min_neighbours: int = 2
     max_modes: int = 3
     azimuth_res_deg: float = None
     ground_z: float = None
@@ -168,6 +172,7 @@ class RoadsideDetector:
     merge_width: float = 2.5
     merge_min_part: float = 1.2
     merge_gap: float = 1.5
+    merge_reach: float = 4.0
     split_width: float = 3.0
     criterion: str = "closeness"
     backgrounds: dict = field(default_factory=dict, repr=False)
@@ -220,16 +225,19 @@ class RoadsideDetector:
 
     # -- detection -------------------------------------------------------------------
     def foreground(self, points_per_sensor, sensor_poses):
-        """(world xyz (M, 3), sensor index (M,)) of the frame's foreground, every sensor's
-        together (early fusion), in the order of the sensors and their points."""
+        """(world xyz (M, 3), sensor index (M,), pixel (M,)) of the frame's foreground,
+        every sensor's together (early fusion), in the order of the sensors and their
+        points; a pixel is where the point is in its sensor's range image
+        (``RangeImageGrid.pixel_of``: elevation rank << 32 | column; -1 unknown)."""
         if not self.backgrounds:
             raise InputError("the detector has no background: call learn() first")
         points, poses = _by_sensor(points_per_sensor, sensor_poses)
-        out, which = [], []
+        out, which, pixel = [], [], []
         for k, key in enumerate(points):
             if key not in self.backgrounds:
                 raise InputError(f"no background was learned for sensor {key!r}")
-            fg, empty, xyz = self.backgrounds[key].model.foreground(points[key])
+            model = self.backgrounds[key].model
+            fg, empty, xyz, cell = model.foreground(points[key], self.min_neighbours)
             cand = fg | empty
             local = xyz[cand]
             pose = poses[key]
@@ -239,17 +247,19 @@ class RoadsideDetector:
                    (np.linalg.norm(local, axis=1) <= self.max_range)
             out.append(w[keep])
             which.append(np.full(int(keep.sum()), k, np.int64))
+            pixel.append(model.grid.pixel_of(cell[cand][keep]))
         if not out:
-            return np.zeros((0, 3)), np.zeros(0, np.int64)
-        return np.concatenate(out), np.concatenate(which)
+            return np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        return np.concatenate(out), np.concatenate(which), np.concatenate(pixel)
 
     def detect(self, points_per_sensor, sensor_poses, frame=0):
         """``Boxes`` of one frame (see the module docstring), all in ``frame``."""
-        xyz, which = self.foreground(points_per_sensor, sensor_poses)
-        _, poses = _by_sensor(points_per_sensor, sensor_poses)
+        xyz, which, pixel = self.foreground(points_per_sensor, sensor_poses)
+        points, poses = _by_sensor(points_per_sensor, sensor_poses)
         origins = np.array([np.asarray(p, np.float64)[:3, 3] for p in poses.values()]) \
             if poses else np.zeros((0, 3))
-        return self.boxes_of(xyz, which, origins, frame)
+        columns = np.array([self.backgrounds[k].model.grid.columns for k in points], np.int64)
+        return self.boxes_of(xyz, which, origins, frame, pixel, columns)
 
     def columns(self, xyz):
         """(centroids (V, 2), returns (V,), column of each point (M,)): world points
@@ -275,9 +285,11 @@ class RoadsideDetector:
         return DBSCAN(eps=self.eps, min_samples=self.min_samples,
                       algorithm="kd_tree").fit_predict(xy).astype(np.int64)
 
-    def boxes_of(self, xyz, which, origins, frame=0):
+    def boxes_of(self, xyz, which, origins, frame=0, pixel=None, image_columns=None):
         """Boxes of world-frame foreground points ``xyz`` seen by sensors ``which`` (index
-        into ``origins``, (S, 3) sensor positions). Clustering, splitting, merging and the
+        into ``origins``, (S, 3) sensor positions; ``pixel``: where each is in its sensor's
+        range image, ``image_columns`` (S,) those images' widths, to merge fragments that
+        touch there). Clustering, splitting, merging and the
         heading search run on the centroids of ``voxel`` m columns (a car's roof and sides
         collapse into its footprint, and a dense near car costs no more than a far one);
         extents and heights come from the returns themselves."""
@@ -287,7 +299,10 @@ class RoadsideDetector:
         groups = [idx[g] for g in _groups(labels[idx])] if len(idx) else []
         groups = [g for g in groups if counts[g].sum() >= self.min_points]
         groups, rect = self._split_oversized(cen, counts, groups)
-        groups, rect = self._merge_fragments(cen, groups, rect)
+        touching = None
+        if pixel is not None and image_columns is not None and len(pixel):
+            touching = _RangeImageTouch(which, pixel, inverse, image_columns)
+        groups, rect = self._merge_fragments(cen, groups, rect, touching)
         if not groups:
             return Boxes.empty()
         of_column = np.full(len(cen), -1, np.int64)
@@ -342,10 +357,14 @@ class RoadsideDetector:
         out.sort(key=lambda g: int(g[0]))
         return out, self._fit(xy, out)
 
-    def _merge_fragments(self, xy, groups, rect, rounds=4):
-        """Merge pairs of clusters whose union is no larger than one vehicle, nearest
-        pairs first, until nothing merges; each cluster merges once per round.
+    def _merge_fragments(self, xy, groups, rect, touching=None, rounds=4):
+        """Merge pairs of clusters whose union is no larger than one vehicle and that are
+        at most ``merge_gap`` apart, or at most ``merge_reach`` apart and touching in a
+        sensor's range image (neighbouring rings: a sparse device's rings cross a car's
+        roof metres apart, with nothing seen between them), smallest union first, until
+        nothing merges; each cluster merges once per round.
         Returns (groups, their rectangles)."""
+        linked = {}
         for _ in range(rounds):
             if len(groups) < 2:
                 break
@@ -357,16 +376,21 @@ class RoadsideDetector:
             i, j = i[pair_ok], j[pair_ok]
             if not len(i):
                 break
-            near = np.array([_gap(xy[groups[a]], xy[groups[b]]) <= self.merge_gap
-                             for a, b in zip(i, j)], bool)
-            i, j = i[near], j[near]
-            if not len(i):
-                break
             union = self._fit(xy, [np.concatenate([groups[a], groups[b]]) for a, b in zip(i, j)])
             fits = (union[:, 2] <= self.merge_length) & (union[:, 3] <= self.merge_width)
-            if not fits.any():
-                break
             i, j, union = i[fits], j[fits], union[fits]
+            near = np.zeros(len(i), bool)
+            for k, (a, b) in enumerate(zip(i, j)):
+                key = (int(groups[a][0]), len(groups[a]), int(groups[b][0]), len(groups[b]))
+                if key not in linked:  # pairs of unchanged groups are judged once
+                    gap = _gap(xy[groups[a]], xy[groups[b]])
+                    linked[key] = gap <= self.merge_gap or (
+                        touching is not None and gap <= self.merge_reach
+                        and touching(groups[a], groups[b]))
+                near[k] = linked[key]
+            if not near.any():
+                break
+            i, j, union = i[near], j[near], union[near]
             order = np.lexsort((j, i, union[:, 2] * union[:, 3]))
             used = np.zeros(len(groups), bool)
             merged, merged_rect = [], []
@@ -474,6 +498,40 @@ def _grow(cx, cy, L, W, yaw, L0, W0, eyes, behind=None):
     cx += su * c - sv * s
     cy += su * s + sv * c
     return cx, cy, L, W
+
+
+class _RangeImageTouch:
+    """Whether two groups of columns hold returns that neighbour each other in a sensor's
+    range image: the same sensor, elevation ranks at most one apart, columns at most two
+    apart (with the wrap at 360 degrees)."""
+
+    def __init__(self, which, pixel, inverse, image_columns):
+        ok = pixel >= 0
+        key = np.where(ok, (which << 48) | pixel, -1)
+        order = np.argsort(inverse, kind="stable")
+        self.key = key[order]  # by column
+        self.start = np.searchsorted(inverse[order], np.arange(inverse.max() + 2))
+        self.ncol = np.asarray(image_columns, np.int64)
+
+    def _keys(self, cols):
+        lo, hi = self.start[cols], self.start[np.asarray(cols) + 1]
+        n = hi - lo
+        idx = np.repeat(lo - np.r_[0, np.cumsum(n)[:-1]], n) + np.arange(n.sum())
+        return self.key[idx]
+
+    def __call__(self, cols_a, cols_b):
+        ka, kb = self._keys(cols_a), self._keys(cols_b)
+        ka, kb = ka[ka >= 0], kb[kb >= 0]
+        if not len(ka) or not len(kb):
+            return False
+        s, rank, col = ka >> 48, (ka >> 32) & 0xFFFF, ka & 0xFFFFFFFF
+        for dr in (-1, 0, 1):
+            r = rank + dr
+            for dc in (-2, -1, 0, 1, 2):
+                c = (col + dc) % self.ncol[s]
+                if np.isin((s << 48) | (r << 32) | c, kb).any():
+                    return True
+        return False
 
 
 def _gap(a, b, cap=400):
