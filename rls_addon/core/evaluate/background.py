@@ -2,24 +2,34 @@
 roadside systems keep it, and the foreground of a frame against it.
 
 A *cell* is (channel, azimuth bin) of the sensor's range image: the channel is the
-point's ``ring`` when the points carry one (spinning and MEMS devices), else an elevation
-bin of ``elevation_res_deg``; the azimuth bin is ``azimuth_res_deg`` wide, by default the
-device's own azimuth step measured from the learning frames. A still sensor fires the same
-rays every sweep, so one cell sees one surface (or two, across a depth edge or where a
-glossy facade turns some of its returns into ghosts) frame after frame.
+point's ``ring`` when the points carry one, else the device's ring found from the distinct
+elevations of the learning frames (fixed ``elevation_res_deg`` bins for a pattern without
+rings, such as a Risley prism's); the azimuth bin is ``azimuth_res_deg`` wide, by default
+the device's own azimuth step measured from the learning frames, centred per row on where
+the row fires. A still sensor fires the same rays every sweep, so one cell sees one
+surface (or two, across a depth edge or where a glossy facade turns some of its returns
+into ghosts) frame after frame.
 
 Only what a real device reports is read: x, y, z (sensor frame) and ring. Labels,
 instances and ghost flags are ground truth and are never looked at.
 
 Learning (``BackgroundModel.learn``): every return of every learning frame is put in its
 cell; a cell's ranges, sorted, are cut into *modes* wherever two neighbours are more than
-``margin`` apart. A mode is background when it was seen in at least ``min_support`` of the
-learning frames (a share; a car that drives through a cell is there for a few frames of a
-sequence, a facade in all of them, and the near and far range of a glossy facade's
-glass/ghost flip each in about half); up to ``max_modes`` modes per cell are kept, the
-best supported first. One traffic-free frame is a background too: there every return is
-in all (one) of the frames. A parked or queued car seen in more than ``min_support`` of
-the frames becomes background, as it does in deployed systems.
+``margin`` apart; a mode's support is the share of frames it was seen in, and "no return"
+is a mode at infinity. Traffic is nearer than what it passes in front of, so:
+
+- the farthest mode seen in at least ``min_support`` (10%) of the frames is background;
+- a nearer mode is background when seen in at least ``steady_support`` (90%) of them (a
+  pole, a parked car), or in at least ``persist_support`` (30%) *coming and going*: a
+  glossy facade's glass and ghost flip from frame to frame (about half each), while a
+  car that stood at a red light and left is one long run of frames (a run test,
+  ``_background_modes``) and cars that drive through a cell are there for a few frames
+  each (under 30% in the busy sample below);
+- up to ``max_modes`` (3) modes per cell are kept, the best supported first.
+
+A few traffic-free frames make a background too (every return is in all of them); one
+frame cannot tell a glossy facade's glass from its ghost. A car that stood through more
+than 90% of the learning frames becomes background, as it does in deployed systems.
 
 Foreground (``BackgroundModel.foreground``): a return is foreground when it is nearer than
 every background mode of its cell by ``margin`` (nearer than the nearest mode's nearest
@@ -28,7 +38,8 @@ with RLS's presets (2-3 cm noise) the 0.3 m floor decides, which is what real de
 use against beam jitter and calibration drift, and what keeps a flat road at grazing
 incidence from flickering; a noisier device (a sigma above 6 cm) gets 5 sigma. Returns
 farther than the background (through a window, a ghost beyond its glass) are never
-foreground.
+foreground. A foreground pixel with fewer than 2 foreground neighbours in the range image
+is dropped: objects are patches, a cell that was unlucky while learning is alone.
 
 A cell that never had a background return (sky, beyond the end of the road, past the
 device's range) cannot say what is in front of its background. A return there is only

@@ -6,10 +6,10 @@ over clusters and headings together: ``closeness`` (Zhang et al., "Efficient L-s
 fitting for vehicle detection using laser scanners", IV 2017: points near the edges of
 their rectangle score, a criterion that does not care whether one side, two sides or the
 roof of a car is seen), or ``area`` (the minimum-area rectangle of the points). A coarse
-pass over ``coarse`` headings is refined around its best one to ``fine`` headings' worth of
-resolution, so a 1 degree answer costs 2 x 15 evaluations instead of 90.
+pass over ``coarse`` headings is refined by ``refine`` steps across one coarse step around
+its best one, so a 0.4 degree answer costs 2 x 15 evaluations instead of 225.
 
-The rectangle's extents along its axes are the points' (robust) extremes; length is the
+The rectangle's extents along its axes are the points' extremes; length is the
 longer side, and yaw is that side's direction (ambiguous by pi, which a BEV overlap does
 not see).
 """
@@ -42,15 +42,12 @@ def _project(xy, angles):
     return xy[:, :1] * c + xy[:, 1:2] * s, -xy[:, :1] * s + xy[:, 1:2] * c
 
 
-def fit_rectangles(xy, sizes, criterion="closeness", coarse=15, refine=15, d0=CLOSENESS_D0,
-                   trim=0.0):
+def fit_rectangles(xy, sizes, criterion="closeness", coarse=15, refine=15, d0=CLOSENESS_D0):
     """Oriented rectangles of groups of BEV points.
 
     xy        (P, 2) float64 points, grouped: the first ``sizes[0]`` rows are group 0, ...
     sizes     (G,) int, every size >= 1
     criterion 'closeness' or 'area'
-    trim      share of each group's points ignored at each end of each axis when taking
-              the extents (0: the extremes)
     Returns (G, 5) float64 rows: centre x, centre y, length, width, yaw (length >= width,
     yaw in (-pi/2, pi/2])."""
     xy = np.asarray(xy, np.float64).reshape(-1, 2)
@@ -81,12 +78,8 @@ def fit_rectangles(xy, sizes, criterion="closeness", coarse=15, refine=15, d0=CL
     c, s = np.cos(yaw)[g], np.sin(yaw)[g]
     u = local[:, 0] * c + local[:, 1] * s
     v = -local[:, 0] * s + local[:, 1] * c
-    if trim > 0:
-        lo1, hi1 = _group_quantiles(u, g, sizes, trim)
-        lo2, hi2 = _group_quantiles(v, g, sizes, trim)
-    else:
-        lo1, hi1 = np.minimum.reduceat(u, starts), np.maximum.reduceat(u, starts)
-        lo2, hi2 = np.minimum.reduceat(v, starts), np.maximum.reduceat(v, starts)
+    lo1, hi1 = np.minimum.reduceat(u, starts), np.maximum.reduceat(u, starts)
+    lo2, hi2 = np.minimum.reduceat(v, starts), np.maximum.reduceat(v, starts)
     return _rect(mean, lo1, hi1, lo2, hi2, yaw)
 
 
@@ -120,15 +113,6 @@ def _rect(mean, lo1, hi1, lo2, hi2, yaw):
     length, width = np.where(swap, width, length), np.where(swap, length, width)
     yaw = wrap_half_turn(np.where(swap, yaw + np.pi / 2, yaw))
     return np.stack([cx, cy, length, width, yaw], 1)
-
-
-def _group_quantiles(values, g, sizes, q):
-    """(low, high) per group: the values ``q`` of the way in from each end (by rank)."""
-    order = np.lexsort((values, g))
-    v = values[order]
-    starts = np.r_[0, np.cumsum(sizes)[:-1]]
-    k = np.floor(q * (sizes - 1)).astype(np.int64)
-    return v[starts + k], v[starts + sizes - 1 - k]
 
 
 def wrap_half_turn(yaw):

@@ -11,9 +11,9 @@ Inputs, per sensor (a dict by sensor name, or a sequence in a fixed order):
 points   a frame's returns in the SENSOR frame (x forward, y left, z up; metres), as RLS
          writes them with ``frame_space = sensor`` (``io.cloud.read_cloud``) or as a
          device reports them: a structured array with x, y, z and, best, ring; or an
-         (N, >=3) float array x y z ... (the KITTI layout's points/NNNNNN.npy; the range
-         image's rows are then elevation bins). Only x, y, z and ring are read: never
-         label, instance or ghost, which are ground truth.
+         (N, >=3) float array x y z ... (the KITTI layout's points/NNNNNN.npy: the range
+         image's rows are then the device's rings found from their elevations). Only x,
+         y, z and ring are read: never label, instance or ghost, which are ground truth.
 pose     (4, 4) sensor -> world (the sidecar's ``sensor_to_world``). The sensor must be
          still: the same pose when learning and detecting.
 
@@ -21,34 +21,42 @@ Output: ``Boxes`` in the world frame (x y z length width height yaw; z the box c
 yaw counter-clockwise from +X, ambiguous by pi for vehicles), class by size (vehicle 11,
 pedestrian 12, cyclist 18), a score in [0, 1].
 
-The steps (each a choice made for a reason, see the docstrings):
+The steps, and why:
 
-1. Background (``background.py``): per (channel, azimuth bin) of each sensor's own range
-   image, up to three range modes that were seen in at least 10% of the learning frames;
-   foreground = nearer than every mode by ``max(0.3 m, 5 sigma)``. Returns in cells that
-   never had a background are kept when plausibly an object (height above the ground
-   and distance, below).
+1. Background (``background.py``): per (ring, azimuth bin) of each sensor's own range
+   image, up to three range modes. The farthest mode seen in >= 10% of the learning
+   frames is background; a nearer one when seen in >= 90%, or in >= 30% coming and going
+   (a glossy facade's glass/ghost flip), not in one long run (a car that stood and left).
+   Foreground: nearer than every kept mode by ``max(0.3 m, 5 sigma)``, and not alone in
+   the range image (2 of 8 neighbours). Returns in cells that never had a background are
+   kept when plausibly an object (height above the ground and distance, below).
 2. Ground (``GroundGrid``): the lowest background return in each 1 m cell of the world's
-   x-y plane, spread to the lowest within ``ground_reach_m``: the road under a car is
-   hidden by the car but not the road around it. Foreground points are kept between
-   0.3 m below and ``max_height`` above it.
+   x-y plane, spread to the lowest within ``ground_reach``: the road under a car is
+   hidden by the car but not the road around it. Foreground points are kept from 0.3 m
+   below to ``max_height`` above it (a bird, a false return from fog high up: no).
 3. Early fusion: every sensor's foreground, in the world frame, is clustered together by
-   scikit-learn's DBSCAN on (x, y, z * ``z_scale``): rings are farther apart vertically
-   than returns horizontally, and objects stand side by side, not on top of each other.
-4. Boxes (``box_fit.py``): the heading that minimises the closeness criterion of an
-   L-shape fit; extents from the points; the top from the highest point, the bottom from
-   the lowest point (the ground when the lower part is hidden).
-5. Fragments of one vehicle (split by an occluder or by sparse rings) are merged while
-   their union still fits a vehicle; a cluster too long or too wide for one vehicle that
-   holds two is split.
-6. Class by size; a vehicle (or cyclist) whose visible extent is partial (one side seen)
-   is grown to the class's size prior away from the sensors that saw it: the hidden side
-   is the far one.
-7. Score: the evidence, ``n / (n + 20)`` of the point count times how much of the prior's
-   footprint the points cover (``0.5 + 0.5 * min(1, seen area / prior area)``).
+   scikit-learn's DBSCAN (``eps`` 0.6 m) on the centroids of 0.2 m x-y columns: objects
+   on a road stand side by side, not on top of each other (and what is above them was
+   cut at ``max_height``); a car's roof and sides collapse into its footprint, so a near
+   car of thousands of returns costs no more than a far one.
+4. Clusters wider than one vehicle (cars whose points touch: crossing, side by side) are
+   split by taking out vehicle-sized rectangles (``box_fit.best_placement``). Fragments
+   of one vehicle (cut by a pole's or a mast arm's shadow, or by sparse rings across a
+   roof) are merged while their union fits one vehicle and they are close (1.5 m), or
+   touch in a sensor's range image (4 m).
+5. Boxes (``box_fit.py``): the heading minimising the L-shape closeness criterion (it
+   does not mind whether one side, two or the roof is seen); extents from the points;
+   top from the highest point, bottom from the lowest (the ground when the lower part is
+   hidden). Class by size. A vehicle or cyclist whose visible extent is partial is grown
+   to its class's size prior (vehicle 4.5 x 1.8 m) away from the sensors that saw it (the
+   far side is hidden by the object), or towards a sensor that saw it behind another
+   cluster (the occluder hides the near side).
+6. Score: ``n / (n + 20)`` of the point count times how much of the prior's footprint
+   the points cover (``0.5 + 0.5 * min(1, seen area / prior area)``).
 
 Same input, same boxes, bit for bit: every step is a pure function of its input order
 (DBSCAN's labels follow the input order; every sort is stable or on unique keys).
+scipy and scikit-learn are imported when first needed.
 """
 
 from dataclasses import dataclass, field
@@ -133,7 +141,9 @@ class RoadsideDetector:
     noise_sigma      the device's range noise (the sidecar's effects.noise_sigma_m)
     min_margin       the least foreground margin; the margin is max(min_margin, k_sigma *
                      noise_sigma)
-    min_support      share of learning frames a background mode must be seen in
+    min_support      share of learning frames a cell's farthest mode must be seen in
+    persist_support  ... a nearer mode, coming and going (not one long run)
+    steady_support   ... a nearer mode, however it came
     max_modes        background range modes kept per cell
     min_neighbours   a foreground pixel needs this many of its 8 neighbours in the range
                      image to be foreground too
@@ -150,6 +160,8 @@ class RoadsideDetector:
                      they are at most merge_gap apart (merge_reach when they touch in a
                      sensor's range image)
     split_width      a cluster wider than this is more than one vehicle: it is split
+    criterion        the heading search's: 'closeness' (L-shape) or 'area'
+    pose_tolerance   (m, rad) how far a detection pose may be from the learned one
     """
     noise_sigma: float = 0.02
     min_margin: float = 0.3
@@ -175,6 +187,7 @@ class RoadsideDetector:
     merge_reach: float = 4.0
     split_width: float = 3.0
     criterion: str = "closeness"
+    pose_tolerance: tuple = (0.05, 0.005)
     backgrounds: dict = field(default_factory=dict, repr=False)
     ground: GroundGrid = field(default=None, repr=False)
 
@@ -184,9 +197,10 @@ class RoadsideDetector:
 
     # -- learning --------------------------------------------------------------------
     def learn(self, frames_per_sensor, sensor_poses):
-        """Learn each sensor's background from its frames (a list of point arrays, with or
-        without traffic: modes seen in at least ``min_support`` of them are background;
-        one traffic-free frame is a background too). ``frames_per_sensor`` and
+        """Learn each sensor's background from its frames: a list of point arrays (see the
+        module docstring), with traffic or without (a few traffic-free frames are best:
+        one frame cannot tell a glossy facade's glass from its ghosts). The ground grid
+        is made from every sensor's background. ``frames_per_sensor`` and
         ``sensor_poses`` are dicts by sensor name or sequences in one order. Returns
         self."""
         frames, poses = _by_sensor(frames_per_sensor, sensor_poses)
@@ -223,6 +237,15 @@ class RoadsideDetector:
         g = g[np.isfinite(g)]
         return float(np.median(g)) if len(g) else 0.0
 
+    def _check_still(self, key, pose):
+        learned = self.backgrounds[key].pose
+        moved = np.linalg.norm(pose[:3, 3] - learned[:3, 3])
+        turn = np.arccos(np.clip((np.trace(pose[:3, :3].T @ learned[:3, :3]) - 1) / 2, -1, 1))
+        if moved > self.pose_tolerance[0] or turn > self.pose_tolerance[1]:
+            raise InputError(f"sensor {key!r} is {moved:.3f} m and {np.degrees(turn):.2f} deg "
+                             "from where its background was learned: the detector is for "
+                             "still sensors (learn again for the new pose)")
+
     # -- detection -------------------------------------------------------------------
     def foreground(self, points_per_sensor, sensor_poses):
         """(world xyz (M, 3), sensor index (M,), pixel (M,)) of the frame's foreground,
@@ -237,6 +260,7 @@ class RoadsideDetector:
             if key not in self.backgrounds:
                 raise InputError(f"no background was learned for sensor {key!r}")
             model = self.backgrounds[key].model
+            self._check_still(key, poses[key])
             fg, empty, xyz, cell = model.foreground(points[key], self.min_neighbours)
             cand = fg | empty
             local = xyz[cand]

@@ -49,9 +49,9 @@ def pose(x=0.0, y=0.0, z=6.0, yaw=0.0, pitch=0.0):
     return m
 
 
-def directions():
+def directions(elevations_deg=None):
     """(R, 3) unit ray directions (sensor frame) and (R,) ring of the pattern."""
-    el = np.radians(ELEVATIONS_DEG)
+    el = np.radians(ELEVATIONS_DEG if elevations_deg is None else elevations_deg)
     az = np.radians(np.arange(-90.0, 90.0, AZIMUTH_STEP_DEG))
     E, A = np.meshgrid(el, az, indexing="ij")
     d = np.stack([np.cos(E) * np.cos(A), np.cos(E) * np.sin(A), np.sin(E)], -1).reshape(-1, 3)
@@ -60,11 +60,11 @@ def directions():
 
 
 def scan(sensor_pose, solids=(), seed=0, sigma=0.02, ground_radius=60.0, max_range=100.0,
-         ghost_extra=5.0, flip=None):
+         ghost_extra=5.0, flip=None, elevations_deg=None):
     """One frame's points (RLS point records, sensor frame) of the scene. ``flip``: every
     glossy return a ghost (True), none (False), or each with probability 0.5 (None)."""
     rng = np.random.default_rng(seed)
-    d, ring = directions()
+    d, ring = directions(elevations_deg)
     R, t = sensor_pose[:3, :3], sensor_pose[:3, 3]
     dw = d @ R.T
     best = np.full(len(d), np.inf)

@@ -165,7 +165,23 @@ def test_a_glossy_facade_flipping_at_random_gives_no_boxes():
     fg, _, _, _ = BackgroundModel.learn(learn, margin=0.3).foreground(frame)
     assert fg.sum() < 0.01 * len(frame)
     det = RoadsideDetector().learn([learn], [POLE])
+    assert len(det.foreground([frame], [POLE])[0]) < 0.01 * len(frame)
     assert len(det.detect([frame], [POLE])) == 0
+
+
+def test_a_sparse_device_s_rings_across_a_roof_are_one_car():
+    """32 rings over 35 degrees cross a car's roof as lines 1-1.7 m apart (more than
+    DBSCAN's eps) with nothing between them in the range image: they merge."""
+    sparse = np.linspace(-30.0, 5.0, 32)
+    det = RoadsideDetector().learn(
+        [[scan(POLE, STATIC, seed=100 + k, elevations_deg=sparse) for k in range(4)]], [POLE])
+    placed = car(18.0, 7.0, yaw=np.radians(25.0))
+    frame = scan(POLE, STATIC + (placed,), seed=3, elevations_deg=sparse)
+    xyz, which, pixel = det.foreground([frame], [POLE])
+    assert (det.cluster(det.columns(xyz)[0]).max() + 1) >= 3  # three lines
+    boxes = det.detect([frame], [POLE])
+    assert len(boxes) == 1 and boxes.label[0] == VEHICLE
+    assert np.hypot(*(boxes.box[0, :2] - placed.box[:2])) < 0.5
 
 
 def test_a_car_that_stood_through_most_learning_frames_is_not_background():
@@ -207,8 +223,8 @@ def test_two_sensors_fused_give_one_box():
     assert len(boxes) == 1
     assert_matches(boxes.box[0], placed.box)
     # by name as well as by order
-    named = RoadsideDetector().learn({"a": frames(a, static, n=4), "b": frames(b, static, n=4, seed=50)},
-                                     {"a": a, "b": b})
+    named = RoadsideDetector().learn(
+        {"a": frames(a, static, n=4), "b": frames(b, static, n=4, seed=50)}, {"a": a, "b": b})
     assert np.array_equal(named.detect({"a": pa, "b": pb}, {"a": a, "b": b}).box, boxes.box)
 
 
@@ -269,3 +285,11 @@ def test_detect_needs_a_background():
 
     with pytest.raises(InputError):
         RoadsideDetector().detect([scan(POLE, ())], [POLE])
+
+
+def test_a_sensor_that_moved_since_learning_is_refused():
+    from rls_addon.core.errors import InputError
+
+    det = learned()
+    with pytest.raises(InputError, match="still sensors"):
+        det.detect([scan(POLE, STATIC)], [pose(0.5, 0.0, 6.0)])
