@@ -158,7 +158,7 @@ class RoadsideDetector:
     merge_*          fragments are merged when their union is at most merge_length long
                      and merge_width wide, the larger is at least merge_min_part long and
                      they are at most merge_gap apart (merge_reach when they touch in a
-                     sensor's range image)
+                     sensor's range image and both are merge_min_part long)
     split_width      a cluster wider than this is more than one vehicle: it is split
     criterion        the heading search's: 'closeness' (L-shape) or 'area'
     pose_tolerance   (m, rad) how far a detection pose may be from the learned one
@@ -408,8 +408,11 @@ class RoadsideDetector:
                 key = (int(groups[a][0]), len(groups[a]), int(groups[b][0]), len(groups[b]))
                 if key not in linked:  # pairs of unchanged groups are judged once
                     gap = _gap(xy[groups[a]], xy[groups[b]])
+                    # across a wider gap both must be long (a ring across a roof spans
+                    # the car): a pedestrian seen behind a cyclist touches it too
                     linked[key] = gap <= self.merge_gap or (
                         touching is not None and gap <= self.merge_reach
+                        and min(rect[a, 2], rect[b, 2]) >= self.merge_min_part
                         and touching(groups[a], groups[b]))
                 near[k] = linked[key]
             if not near.any():
