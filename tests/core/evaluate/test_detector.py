@@ -1,0 +1,295 @@
+"""RoadsideDetector on synthetic range images (tests/core/evaluate/synthetic.py): the
+background, the foreground, clustering, fusion, box fitting, determinism."""
+
+import numpy as np
+import pytest
+
+from rls_addon.core.evaluate.background import BackgroundModel
+from rls_addon.core.evaluate.detections import Boxes
+from rls_addon.core.evaluate.detector import PEDESTRIAN, VEHICLE, RoadsideDetector
+from rls_addon.core.points import empty_points
+
+from .synthetic import Solid, car, frames, pose, scan
+
+# Tolerances for a box fitted to a fully or L-shape visible car (the car is larger than
+# the vehicle prior, so its size comes from the points, not from the prior).
+CENTRE_TOL = 0.25
+SIZE_TOL = 0.2
+YAW_TOL = np.radians(3.0)
+
+POLE = pose(0.0, 0.0, 6.0)
+WALL = Solid(45.0, 0.0, 1.0, 40.0, 0.0, 0.0, 10.0)            # a facade behind the street
+MAST = Solid(14.0, -9.0, 0.3, 0.3, 0.0, 0.0, 5.0)             # a pole beside the street
+STATIC = (WALL, MAST)
+
+
+_LEARNED = {}
+
+
+def learned(sensor_pose=POLE, static=STATIC, n=5, **kw):
+    """A detector that learned ``n`` frames of the static scene (kept for the module:
+    detecting does not change a detector)."""
+    key = (sensor_pose.tobytes(), repr(static), n, repr(sorted(kw.items())))
+    if key not in _LEARNED:
+        _LEARNED[key] = RoadsideDetector(**kw).learn([frames(sensor_pose, static, n=n)],
+                                                     [sensor_pose])
+    return _LEARNED[key]
+
+
+def yaw_diff(a, b):
+    """Heading difference up to a half turn (a box is the same turned by pi)."""
+    d = np.mod(a - b + np.pi / 2, np.pi) - np.pi / 2
+    return abs(d)
+
+
+def assert_matches(det_box, placed, centre_tol=CENTRE_TOL, size_tol=SIZE_TOL, yaw_tol=YAW_TOL):
+    assert np.hypot(*(det_box[:2] - placed[:2])) <= centre_tol, (det_box, placed)
+    assert abs(det_box[3] - placed[3]) <= size_tol, (det_box, placed)
+    assert abs(det_box[4] - placed[4]) <= size_tol, (det_box, placed)
+    assert yaw_diff(det_box[6], placed[6]) <= yaw_tol, (det_box, placed)
+
+
+def test_unchanged_frame_has_no_foreground():
+    det = learned()
+    frame = scan(POLE, STATIC, seed=7)
+    xyz, _, _ = det.foreground([frame], [POLE])
+    assert len(xyz) == 0
+    assert len(det.detect([frame], [POLE])) == 0
+
+
+def test_car_seen_from_a_pole_gives_one_matching_box():
+    det = learned()
+    placed = car(18.0, 7.0, yaw=np.radians(25.0), length=4.8, width=1.9)
+    boxes = det.detect([scan(POLE, STATIC + (placed,), seed=3)], [POLE], frame=4)
+    assert len(boxes) == 1
+    assert boxes.label[0] == VEHICLE and boxes.frame[0] == 4
+    assert_matches(boxes.box[0], placed.box)
+    assert 0.0 < boxes.score[0] <= 1.0
+    # height: from the lowest visible point (the body's lower edge) to the roof
+    assert abs(boxes.box[0, 2] - placed.box[2]) < 0.3
+    assert abs(boxes.box[0, 5] - placed.box[5]) < 0.3
+
+
+def test_l_shape_of_a_car_seen_from_one_corner():
+    """A sensor below the roof sees two sides only: the L-shape fit must still find the
+    heading and both extents."""
+    low = pose(0.0, 0.0, 1.6)
+    det = learned(low, ())
+    placed = car(14.0, 6.0, yaw=np.radians(-20.0), length=4.8, width=1.9)
+    frame = scan(low, (placed,), seed=3)
+    boxes = det.detect([frame], [low])
+    assert len(boxes) == 1
+    assert_matches(boxes.box[0], placed.box)
+
+
+def test_one_side_seen_is_grown_to_the_prior_away_from_the_sensor():
+    """A car seen side-on from the height of its roof shows one face: its width comes
+    from the vehicle prior, and the box grows away from the sensor."""
+    low = pose(0.0, 0.0, 1.0)
+    det = learned(low, ())
+    placed = car(15.0, 0.0, yaw=np.radians(90.0), length=4.5, width=1.8)
+    boxes = det.detect([scan(low, (placed,), seed=3)], [low])
+    assert len(boxes) == 1
+    b = boxes.box[0]
+    assert abs(b[4] - 1.8) < 0.05             # the prior's width
+    assert b[0] > 15.0 - 0.2                  # grown away from the sensor, not towards it
+    assert_matches(b, placed.box, centre_tol=0.3)
+
+
+@pytest.mark.parametrize("second", [car(22.0, 2.6), car(28.0, 0.0)],
+                         ids=["side by side, 0.8 m apart", "queued, 1.5 m apart"])
+def test_two_cars_close_together_are_two_boxes(second):
+    det = learned()
+    first = car(22.0, 0.0)
+    boxes = det.detect([scan(POLE, STATIC + (first, second), seed=5)], [POLE])
+    assert len(boxes) == 2
+    assert (boxes.label == VEHICLE).all()
+    for placed in (first, second):
+        k = int(np.argmin(np.hypot(*(boxes.box[:, :2] - placed.box[:2]).T)))
+        # the queued car's near end is hidden behind the first: 0.3 m on its centre
+        assert_matches(boxes.box[k], placed.box, centre_tol=0.3)
+
+
+def test_crossing_cars_whose_points_touch_are_split():
+    det = learned()
+    a, b = car(20.0, 0.0, yaw=0.0), car(22.5, 1.5, yaw=np.pi / 2)
+    boxes = det.detect([scan(POLE, STATIC + (a, b), seed=5)], [POLE])
+    assert len(boxes) == 2
+    for placed in (a, b):
+        k = int(np.argmin(np.hypot(*(boxes.box[:, :2] - placed.box[:2]).T)))
+        assert_matches(boxes.box[k], placed.box, centre_tol=0.5, size_tol=0.4,
+                       yaw_tol=np.radians(6))
+
+
+def test_a_car_cut_in_two_by_a_pole_in_front_is_one_box():
+    pole = Solid(10.0, 0.0, 0.5, 0.5, 0.0, 0.0, 8.0)
+    det = learned(static=STATIC + (pole,))
+    placed = car(20.0, 0.0, yaw=np.pi / 2)
+    frame = scan(POLE, STATIC + (pole, placed), seed=5)
+    boxes = det.detect([frame], [POLE])
+    assert len(boxes) == 1
+    assert_matches(boxes.box[0], placed.box, centre_tol=0.3)
+    # the two halves really are apart: without merging they stay two
+    unmerged = RoadsideDetector(merge_gap=0.0).learn(
+        [frames(POLE, STATIC + (pole,), n=5)], [POLE])
+    assert len(unmerged.detect([frame], [POLE])) == 2
+
+
+GLASS = Solid(30.0, 0.0, 1.0, 30.0, 0.0, 0.0, 12.0, glossy=True)
+
+
+def test_a_cell_flipping_between_two_ranges_is_not_foreground():
+    """Glass whose every return is either the glass or a ghost 5 m behind it, flipping
+    frame by frame (ghost, ghost, glass, ...): both ranges are background, so neither state
+    is foreground. A one-mode background keeps the commoner ghost and makes the glass
+    foreground."""
+    learn = [scan(POLE, (GLASS,), seed=200 + k, flip=k % 3 != 2) for k in range(6)]
+    model = BackgroundModel.learn(learn, margin=0.3)
+    glass_cells = (~np.isnan(model.modes[:, 1])).sum()
+    assert glass_cells > 1000
+    assert model.support[~np.isnan(model.modes[:, 1]), :2].min() > 0.3  # 1/3 and 2/3
+    for state in (False, True):
+        fg, _, _, _ = model.foreground(scan(POLE, (GLASS,), seed=999, flip=state))
+        assert not fg.any()
+    one_mode = BackgroundModel.learn(learn, margin=0.3, max_modes=1)
+    near = scan(POLE, (GLASS,), seed=999, flip=False)
+    assert one_mode.foreground(near)[0].sum() > 1000
+
+
+def test_a_glossy_facade_flipping_at_random_gives_no_boxes():
+    """Flips drawn per ray and frame (as RLS draws ghosts): after 20 learning frames,
+    less than 1% of the facade's returns are foreground (a cell whose glass was seen in
+    fewer than 30% of them by chance) and nothing is detected."""
+    learn = frames(POLE, (GLASS,), n=20, seed=200)
+    frame = scan(POLE, (GLASS,), seed=999)
+    fg, _, _, _ = BackgroundModel.learn(learn, margin=0.3).foreground(frame)
+    assert fg.sum() < 0.01 * len(frame)
+    det = RoadsideDetector().learn([learn], [POLE])
+    assert len(det.foreground([frame], [POLE])[0]) < 0.01 * len(frame)
+    assert len(det.detect([frame], [POLE])) == 0
+
+
+def test_a_sparse_device_s_rings_across_a_roof_are_one_car():
+    """32 rings over 35 degrees cross a car's roof as lines 1-1.7 m apart (more than
+    DBSCAN's eps) with nothing between them in the range image: they merge."""
+    sparse = np.linspace(-30.0, 5.0, 32)
+    det = RoadsideDetector().learn(
+        [[scan(POLE, STATIC, seed=100 + k, elevations_deg=sparse) for k in range(4)]], [POLE])
+    placed = car(18.0, 7.0, yaw=np.radians(25.0))
+    frame = scan(POLE, STATIC + (placed,), seed=3, elevations_deg=sparse)
+    xyz, which, pixel = det.foreground([frame], [POLE])
+    assert (det.cluster(det.columns(xyz)[0]).max() + 1) >= 3  # three lines
+    boxes = det.detect([frame], [POLE])
+    assert len(boxes) == 1 and boxes.label[0] == VEHICLE
+    assert np.hypot(*(boxes.box[0, :2] - placed.box[:2])) < 0.5
+
+
+def test_a_car_that_stood_through_most_learning_frames_is_not_background():
+    """Learning from frames with traffic: a car that stood for 60% of them and left is
+    one long run of frames, not background, so it is found when it stands there again."""
+    parked = car(20.0, -4.0, yaw=0.2)
+    learn = [scan(POLE, STATIC + ((parked,) if k < 18 else ()), seed=300 + k)
+             for k in range(30)]
+    det = RoadsideDetector().learn([learn], [POLE])
+    boxes = det.detect([scan(POLE, STATIC + (parked,), seed=5)], [POLE])
+    assert len(boxes) == 1
+    assert_matches(boxes.box[0], parked.box, centre_tol=0.3)
+
+
+def test_returns_where_the_background_had_none_are_kept_only_when_plausible():
+    """Beyond the end of the ground (cells that never returned) a car is found, a bird
+    high above the road is not."""
+    far_car = car(62.0, 3.0, yaw=0.7)
+    bird = Solid(30.0, -3.0, 0.6, 0.6, 0.0, 7.8, 8.3)
+    det = RoadsideDetector().learn([frames(POLE, (), n=3, ground_radius=50.0)], [POLE])
+    frame = scan(POLE, (far_car, bird), seed=9, ground_radius=50.0)
+    xyz, _, _ = det.foreground([frame], [POLE])
+    assert len(xyz) > 0 and (xyz[:, 2] < 4.5).all()
+    boxes = det.detect([frame], [POLE])
+    assert len(boxes) == 1
+    assert boxes.label[0] == VEHICLE
+    assert np.hypot(*(boxes.box[0, :2] - far_car.box[:2])) < 1.0
+
+
+def test_two_sensors_fused_give_one_box():
+    a = pose(0.0, 0.0, 6.0)
+    b = pose(40.0, 22.0, 6.0, yaw=np.pi)
+    static = (MAST,)
+    det = RoadsideDetector().learn([frames(a, static, n=4), frames(b, static, n=4, seed=50)],
+                                   [a, b])
+    placed = car(20.0, 10.0, yaw=np.radians(35.0), length=4.8, width=1.9)
+    pa, pb = scan(a, static + (placed,), seed=1), scan(b, static + (placed,), seed=2)
+    boxes = det.detect([pa, pb], [a, b])
+    assert len(boxes) == 1
+    assert_matches(boxes.box[0], placed.box)
+    # by name as well as by order
+    named = RoadsideDetector().learn(
+        {"a": frames(a, static, n=4), "b": frames(b, static, n=4, seed=50)}, {"a": a, "b": b})
+    assert np.array_equal(named.detect({"a": pa, "b": pb}, {"a": a, "b": b}).box, boxes.box)
+
+
+def test_same_input_same_boxes_bit_for_bit():
+    placed = (car(18.0, 7.0, yaw=0.4), car(25.0, -3.0, yaw=-0.1), car(30.0, 6.0, yaw=1.2))
+    frame = scan(POLE, STATIC + placed, seed=11)
+    fresh = RoadsideDetector().learn([frames(POLE, STATIC, n=5)], [POLE])
+    one = learned().detect([frame], [POLE])
+    two = fresh.detect([frame.copy()], [POLE])
+    again = learned().detect([frame], [POLE])
+    assert len(one) == 3
+    for other in (two, again):
+        assert one.box.tobytes() == other.box.tobytes()
+        assert one.score.tobytes() == other.score.tobytes()
+        assert np.array_equal(one.label, other.label)
+
+
+def test_empty_input_gives_no_boxes():
+    det = learned()
+    for empty in (empty_points(0), np.zeros((0, 4)), None):
+        boxes = det.detect([empty], [POLE], frame=3)
+        assert isinstance(boxes, Boxes) and len(boxes) == 0
+    # a background learned from empty frames: nothing to compare with, nothing plausible
+    det = RoadsideDetector().learn([[empty_points(0), empty_points(0)]], [POLE])
+    assert len(det.detect([empty_points(0)], [POLE])) == 0
+
+
+def test_learning_from_no_frames_is_refused():
+    from rls_addon.core.errors import InputError
+
+    with pytest.raises(InputError, match="at least one frame"):
+        RoadsideDetector().learn([[]], [POLE])
+
+
+def test_points_without_ring_use_elevation_bins():
+    """The KITTI layout's (N, 4) x y z intensity points: rows by elevation."""
+    def plain(p):
+        return np.stack([p["x"], p["y"], p["z"], p["intensity"]], 1).astype(np.float32)
+
+    det = RoadsideDetector().learn([[plain(f) for f in frames(POLE, STATIC, n=4)]], [POLE])
+    assert not det.backgrounds[0].model.grid.use_ring
+    placed = car(18.0, 7.0, yaw=np.radians(25.0), length=4.8, width=1.9)
+    boxes = det.detect([plain(scan(POLE, STATIC + (placed,), seed=3))], [POLE])
+    assert len(boxes) == 1
+    assert_matches(boxes.box[0], placed.box)
+
+
+def test_a_pedestrian_is_small_and_not_a_vehicle():
+    det = learned()
+    person = Solid(14.0, 3.0, 0.5, 0.6, 0.0, 0.0, 1.75)
+    boxes = det.detect([scan(POLE, STATIC + (person,), seed=3)], [POLE])
+    assert len(boxes) == 1 and boxes.label[0] == PEDESTRIAN
+    assert np.hypot(*(boxes.box[0, :2] - person.box[:2])) < 0.4
+
+
+def test_detect_needs_a_background():
+    from rls_addon.core.errors import InputError
+
+    with pytest.raises(InputError):
+        RoadsideDetector().detect([scan(POLE, ())], [POLE])
+
+
+def test_a_sensor_that_moved_since_learning_is_refused():
+    from rls_addon.core.errors import InputError
+
+    det = learned()
+    with pytest.raises(InputError, match="still sensors"):
+        det.detect([scan(POLE, STATIC)], [pose(0.5, 0.0, 6.0)])
