@@ -160,7 +160,7 @@ def _region(region):
     try:
         return as_polygon(region)
     except RegionError as exc:
-        raise InputError(f"region: {exc}") from None
+        raise InputError(str(exc)) from None
 
 
 def _classes(classes):

@@ -230,8 +230,8 @@ GT = truth([(1, 1, CAR, car(0, 0), 50)], frames=(1, 2))
     (dict(region=[(100, 100), (110, 100), (110, 110)]),
      r"no ground-truth box with >= 5 points has its centre inside the region; of 1 boxes "
      r".* 0 are centred inside .* x 100 to 110, y 100 to 110 m"),
-    (dict(region=[(0, 0), (1, 1), (2, 2)]), "region: .*zero area"),
-    (dict(region=[(0, 0), (1, 1)]), "region: .*at least 3 vertices"),
+    (dict(region=[(0, 0), (1, 1), (2, 2)]), "region outline has zero area"),
+    (dict(region=[(0, 0), (1, 1)]), "region outline needs at least 3 vertices"),
     (dict(min_points=-1), "min_points -1 must be a whole number >= 0"),
     (dict(distance_bins=(30, 10)), "distance bins .*increasing edges"),
     (dict(iou_thresholds=(0.5, 0)), "IoU threshold 0 must lie in"),
