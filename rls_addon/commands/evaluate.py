@@ -166,7 +166,7 @@ def _region(args):
         path, _, name = args.lob.rpartition(":")
         return polygon_from_blend(args.lob), f"{name} in {Path(path).name}"
     if args.region:
-        return parse_region(args.region), "--region"
+        return parse_region(args.region), "given by --region"
     return None, None
 
 

@@ -198,6 +198,16 @@ def test_several_lidars_are_scored_as_one(data, tmp_path):
               for t in (north, south)]
     assert min(points) > 5 and result["ground_truth"]["counted"] == 6
     assert result["classes"]["vehicle"]["all"]["3d"]["0.7"]["ap_r40"] == 1.0
+    # the same scans' sidecars (rls scan writes both sensors' into one folder) as truth
+    clouds = tmp_path / "clouds"
+    assert rls("scan", data["blend"], "--frames", "1-2", "--seed", "1", "--out",
+               clouds).returncode == 0
+    again, _ = evaluate(data, tmp_path / "det", tmp_path / "again.json", "--dataset",
+                        data["root"], truth=clouds)
+    assert again["ground_truth"]["sensors"] == ["Pole N", "Pole S"]
+    assert again["ground_truth"]["counted"] == 6
+    assert again["classes"]["vehicle"]["all"] == result["classes"]["vehicle"]["all"]
+    assert again["frames"] == result["frames"]
 
 
 class Touch:
