@@ -59,6 +59,7 @@ Same input, same boxes, bit for bit: every step is a pure function of its input 
 scipy and scikit-learn are imported when first needed.
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -205,7 +206,6 @@ class RoadsideDetector:
         self."""
         frames, poses = _by_sensor(frames_per_sensor, sensor_poses)
         self.backgrounds = {}
-        ground = []
         for key in frames:
             fr = frames[key]
             if isinstance(fr, np.ndarray) and (fr.dtype.names or fr.ndim == 2):
@@ -216,15 +216,35 @@ class RoadsideDetector:
                                           steady_support=self.steady_support,
                                           max_modes=self.max_modes,
                                           azimuth_res_deg=self.azimuth_res_deg)
-            pose = poses[key]
-            self.backgrounds[key] = SensorBackground(model, pose)
-            pts = model.background_xyz()
-            rng = np.linalg.norm(pts, axis=1)
-            pts = pts[rng <= self.max_range]
-            ground.append(pts @ pose[:3, :3].T + pose[:3, 3])
+            self.backgrounds[key] = SensorBackground(model, poses[key])
+        self._make_ground()
+        return self
+
+    def _make_ground(self):
+        """The ground grid from every sensor's background (within ``max_range``)."""
+        ground = []
+        for bg in self.backgrounds.values():
+            pts = bg.model.background_xyz()
+            pts = pts[np.linalg.norm(pts, axis=1) <= self.max_range]
+            ground.append(pts @ bg.pose[:3, :3].T + bg.pose[:3, 3])
         self.ground = GroundGrid(np.concatenate(ground) if ground else np.zeros((0, 3)),
                                  reach=self.ground_reach)
-        return self
+
+    def union(self, others):
+        """A detector of this one's sensors and those of ``others`` (learned apart, with
+        the same parameters, each of other sensors): their backgrounds side by side
+        and the ground grid of all of them, what learning them together gives. A
+        placement study learns each candidate once and fuses any set of them."""
+        out = dataclasses.replace(self, backgrounds=dict(self.backgrounds), ground=None)
+        for det in others:
+            if det.margin != self.margin or det.max_range != self.max_range:
+                raise InputError("detectors of other parameters cannot be fused")
+            for key, bg in det.backgrounds.items():
+                if key in out.backgrounds:
+                    raise InputError(f"sensor {key!r} is in two of the detectors to fuse")
+                out.backgrounds[key] = bg
+        out._make_ground()
+        return out
 
     def _ground_at(self, xy):
         z = self.ground.at(xy) if self.ground is not None else np.full(len(xy), np.nan)

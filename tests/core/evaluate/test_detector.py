@@ -4,6 +4,7 @@ background, the foreground, clustering, fusion, box fitting, determinism."""
 import numpy as np
 import pytest
 
+from rls_addon.core.errors import InputError
 from rls_addon.core.evaluate.background import BackgroundModel
 from rls_addon.core.evaluate.detections import Boxes
 from rls_addon.core.evaluate.detector import PEDESTRIAN, VEHICLE, RoadsideDetector
@@ -226,6 +227,26 @@ def test_two_sensors_fused_give_one_box():
     named = RoadsideDetector().learn(
         {"a": frames(a, static, n=4), "b": frames(b, static, n=4, seed=50)}, {"a": a, "b": b})
     assert np.array_equal(named.detect({"a": pa, "b": pb}, {"a": a, "b": b}).box, boxes.box)
+
+
+def test_detectors_learned_apart_fuse_as_if_learned_together():
+    """A study learns each candidate once; a set of them fuses their detectors: the same
+    boxes, bit for bit, as one detector that learned the sensors together."""
+    a = pose(0.0, 0.0, 6.0)
+    b = pose(40.0, 22.0, 6.0, yaw=np.pi)
+    static = (MAST,)
+    fa, fb = frames(a, static, n=4), frames(b, static, n=4, seed=50)
+    together = RoadsideDetector().learn({"a": fa, "b": fb}, {"a": a, "b": b})
+    apart = RoadsideDetector().learn({"a": fa}, {"a": a}).union(
+        [RoadsideDetector().learn({"b": fb}, {"b": b})])
+    placed = (car(20.0, 10.0, yaw=np.radians(35.0)), car(8.0, -4.0, yaw=0.2))
+    points = {"a": scan(a, static + placed, seed=1), "b": scan(b, static + placed, seed=2)}
+    want = together.detect(points, {"a": a, "b": b})
+    got = apart.detect(points, {"a": a, "b": b})
+    assert len(want) == 2 and got.box.tobytes() == want.box.tobytes()
+    assert got.score.tobytes() == want.score.tobytes()
+    with pytest.raises(InputError, match="in two of the detectors"):
+        apart.union([RoadsideDetector().learn({"b": fb}, {"b": b})])
 
 
 def test_same_input_same_boxes_bit_for_bit():
