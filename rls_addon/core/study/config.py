@@ -8,13 +8,13 @@ changed)."""
 
 import dataclasses
 
-
+from ..errors import SceneError
 from ..metrics.infra import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
 from ..metrics.visibility import THRESHOLDS
 from .placement import DEFAULT_EXHAUSTIVE_LIMIT
 
 
-TRAFFIC_LABELS = ("vehicle", "pedestrian")
+TRAFFIC_LABELS = ("vehicle", "pedestrian", "cyclist")
 
 
 @dataclasses.dataclass
@@ -50,3 +50,19 @@ class StudyConfig:
     traffic_frames: tuple = ()
     visibility_labels: tuple = ("vehicle",)
     visibility_thresholds: tuple = THRESHOLDS
+    # Placements scored by detection (``evaluation``): RLS's roadside detector on these
+    # frames of the traffic (they are traffic frames too: the default traffic frames
+    # when none are given), and the returns the study's candidates together must put
+    # on a box for it to count
+    evaluate_frames: tuple = ()
+    evaluate_min_points: int = 5
+
+    def __post_init__(self):
+        if self.evaluate_frames and not self.traffic_frames:
+            self.traffic_frames = tuple(self.evaluate_frames)
+        extra = sorted(set(self.evaluate_frames) - set(self.traffic_frames))
+        if extra:
+            raise SceneError(f"frames {extra[:5]} to evaluate are not among the traffic "
+                             "frames: evaluate a subset of --traffic, or leave --traffic out")
+        if self.evaluate_frames and int(self.evaluate_min_points) < 0:
+            raise SceneError("the points a box needs to count must be 0 or more")

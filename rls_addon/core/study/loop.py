@@ -15,6 +15,7 @@ from ..metrics.infra import density_map
 from ..metrics.visibility import VisibilityCounts, ranks
 from .placement import CandidateCounts, DiskLayout
 from .config import StudyConfig
+from .evaluation import StudyEvaluation
 from .scanner import StudyScanner, study_inputs
 
 
@@ -35,6 +36,7 @@ class StudyResult:
     structure_builds: int
     notices: list
     visibility: "TrafficVisibility" = None  # with cfg.traffic_frames
+    evaluation: "StudyEvaluation" = None   # with cfg.evaluate_frames
     # The study's scanner: the candidates keep only counts, so a density map scans its
     # set's members again (the same seeds: the same points). Kept: the points of those
     # scanned again, per candidate (a handful: the members of the sets drawn).
@@ -78,6 +80,7 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
     vehicle_points = (np.zeros((len(cands), len(scanner.vehicle_frames)), np.int64)
                       if scanner.traffic else None)
     scanned = np.zeros(len(cands), bool)
+    evaluations = [None] * len(cands)
 
     def on_scan(got):
         i = got.index
@@ -85,6 +88,7 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
         n_points[i], disk_counts[i] = got.n_points, got.disk_counts
         if vehicle_points is not None:
             vehicle_points[i] = got.vehicle_points
+        evaluations[i] = got.evaluation
         c = cands[i]
         c.n_points, c.scan_points, c.rays, c.seconds = (got.n_points, got.scan_points,
                                                         got.rays, got.seconds)
@@ -115,12 +119,19 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
     vis = None
     if scanner.traffic:
         vis = TrafficVisibility.of(scanner, cands, vehicle_points, groups, searches, cfg)
+    evaluation = None
+    if cfg.evaluate_frames:
+        t_eval = time.perf_counter()
+        evaluation = StudyEvaluation.of(cfg, scanner, cands, evaluations, searches, vis)
+        scanner.notices.append(f"evaluation: {len(cands)} candidates and "
+                               f"{len(evaluation.sets)} sets scored by detection in "
+                               f"{time.perf_counter() - t_eval:.1f} s")
     t_maps = time.perf_counter()
     result = StudyResult(cfg, scene.name, scanner.frame,
                          {"id": preset.id, "name": preset.name, "source": preset.source},
                          polygon, layout, cands, cc, searches, {}, scanner.hidden,
                          scanner.prepared.backend, scanner.session.builds, scanner.notices, vis,
-                         scanner)
+                         evaluation, scanner)
     # The density maps the report draws (the best set of each k): their members are
     # scanned again here with this process's scanner (in a run on workers the counts
     # came from its twins, built from the same scene and settings: the same points).

@@ -28,6 +28,7 @@ from ..world.bodies import RigidBodies
 from .placement import DiskLayout
 from .candidates import candidate_spots, make_candidates
 from .config import TRAFFIC_LABELS
+from .evaluation import CandidateEvaluation, evaluate_candidate, frame_truth
 
 
 @dataclasses.dataclass
@@ -43,6 +44,7 @@ class CandidateScan:
     rays: int
     seconds: float
     vehicle_points: np.ndarray = None  # (J,) points on each vehicle-frame (with traffic)
+    evaluation: "CandidateEvaluation" = None  # with evaluation frames (``evaluation``)
 
 
 # The point fields a study gathers: where a point is and what it hit (counted in the
@@ -51,6 +53,8 @@ STUDY_FIELDS = ("x", "y", "label")
 
 
 TRAFFIC_FIELDS = ("instance", "ghost")
+# ... and in the frames scored by detection, where each point is
+EVALUATE_FIELDS = ("x", "y", "z", "instance", "ghost")
 
 
 class StudyScanner:
@@ -85,6 +89,7 @@ class StudyScanner:
             # reuse theirs: the static scene seen from the same pose).
             self.prepared.reuse_casts = False
         self.traffic, self.vehicle_frames = [], []
+        self.truths = {}  # evaluation frame -> evaluation.FrameTruth
         self._arcs = {}  # the region's arc of directions from each mount
         if cfg.traffic_frames:
             self._traffic(scene)
@@ -111,6 +116,8 @@ class StudyScanner:
                     scored.append((len(self.vehicle_frames), objects[k].instance))
                     self.vehicle_frames.append((int(f), inst.key))
             self.traffic.append((int(f), group, scored))
+            if int(f) in self.cfg.evaluate_frames:
+                self.truths[int(f)] = frame_truth(f, insts, objects)
 
     def _static(self, cand):
         """(xy of the kept points, the frame's ``ScanResult``) of candidate ``cand``
@@ -154,19 +161,29 @@ class StudyScanner:
         n_points, counts = len(xy), self.layout.counts(xy)
         scan_points, rays = len(result.points), result.rays
         del xy, result
-        seen = None
+        seen, frame_points = None, {}
         if self.traffic:
             seen = np.zeros(len(self.vehicle_frames), np.int64)
             for f, group, scored in self.traffic:
+                evaluated = f in self.truths
                 res = scan_frame(self.prepared, self.preset.pattern(f), cand.pose, self.preset,
                                  self.settings, frame=f, sensor=cand.name,
                                  moving=[group] if group is not None else [],
-                                 fields=TRAFFIC_FIELDS)
-                instance = res.points["instance"][res.points["ghost"] == 0]
+                                 fields=EVALUATE_FIELDS if evaluated else TRAFFIC_FIELDS)
+                p = res.points
+                instance = p["instance"][p["ghost"] == 0]
                 for j, iid in scored:
                     seen[j] = int(np.count_nonzero(instance == iid))
+                if evaluated:
+                    frame_points[f] = (np.stack([p["x"], p["y"], p["z"]], 1).astype(np.float64),
+                                       p["instance"], p["ghost"])
+        evaluation = None
+        if frame_points:
+            evaluation = evaluate_candidate(
+                cand.name, cand.pose, frame_points, self.truths,
+                device_values(self.preset, self.settings).noise_sigma_m)
         return CandidateScan(cand.index, n_points, counts, scan_points, rays,
-                             time.perf_counter() - t, seen)
+                             time.perf_counter() - t, seen, evaluation)
 
 
 @dataclasses.dataclass

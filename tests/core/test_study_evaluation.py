@@ -1,0 +1,99 @@
+"""A placement study judged by detection (``study/evaluation.py``, ``rls study
+--evaluate``): a parked truck in front of one candidate takes its AP down, as it takes
+its visibility, while its InfraD (traffic removed) cannot see the truck at all."""
+
+import math
+
+import numpy as np
+import pytest
+
+from rls_addon.core.casting import NumpyCaster
+from rls_addon.core.errors import SceneError
+from rls_addon.core.scene.instances import Instance
+from rls_addon.core.study.config import StudyConfig
+from rls_addon.core.study.evaluation import frame_truth
+from rls_addon.core.study.loop import run_study
+
+from .scenes import BOX_TRIS, box_vertices
+from .test_study import TrafficStudyScene
+
+
+def factory(name):
+    return NumpyCaster, None
+
+
+def study(truck):
+    cfg = StudyConfig(device="generic_uniform32", k=(1, 2), disks=200, noise=False,
+                      dropout=False, evaluate_frames=(1, 2, 3, 4))
+    return run_study(TrafficStudyScene(truck=truck), cfg, factory=factory)
+
+
+@pytest.fixture(scope="module")
+def both():
+    return study(True), study(False)
+
+
+def test_an_occluded_candidates_ap_drops_as_its_visibility_does_and_its_infra_d_does_not(both):
+    with_truck, clear = both
+    names = [c.name for c in with_truck.candidates]
+    a = names.index("pole A")
+    ap = [ap for ap, _ in with_truck.evaluation.candidates]
+    ap_clear = [ap for ap, _ in clear.evaluation.candidates]
+    assert ap[a] < ap_clear[a] - 0.5          # the truck hides the cars from pole A
+    assert ap[a] < min(ap[i] for i in range(len(ap)) if i != a)
+    assert with_truck.visibility.candidates[a].score < clear.visibility.candidates[a].score
+    assert with_truck.candidates[a].infra_d == clear.candidates[a].infra_d  # blind to it
+
+
+def test_every_placement_is_scored_against_the_same_ground_truth(both):
+    ev = both[0].evaluation
+    gts = {rec["classes"]["vehicle"]["all"]["bev"]["0.5"]["gt"]
+           for _, rec in ev.candidates + list(ev.sets.values())}
+    assert len(gts) == 1 and gts.pop() > 0
+    assert ev.frames == [1, 2, 3, 4] and ev.min_points == 5
+
+
+def test_sets_are_scored_fused_and_the_best_by_ap_is_reported(both):
+    ev = both[0].evaluation
+    assert ev.sets and all(len(m) == 2 for m in ev.sets)
+    best2 = ev.best[2]
+    assert ev.ap_of(best2) == max(a for a, _ in ev.sets.values())
+    assert ev.ap_of(ev.best[1]) == max(a for a, _ in ev.candidates)
+    # the correlations ran over every placement scored, with their metrics
+    assert len(ev.placements) == len(ev.candidates) + len(ev.sets)
+    for metric in ("infra_d", "infra_nuc", "share_5", "share_20", "share_50"):
+        assert ev.correlation[metric]["n"] == len(ev.placements)
+
+
+def test_the_report_carries_the_evaluation(both):
+    names = [c.name for c in both[0].candidates]
+    d = both[0].evaluation.to_dict(names)
+    assert set(d["best_by_ap"]) == {"1", "2"}
+    assert d["candidates"][0]["candidate"] == names[0]
+    assert "matches" not in d["candidates"][0]["result"]
+
+
+def test_frame_truth_boxes_follow_the_objects_own_axes_and_scale():
+    m = np.eye(4)
+    yaw = math.radians(30)
+    m[:3, :3] = np.array([[math.cos(yaw), -math.sin(yaw), 0], [math.sin(yaw), math.cos(yaw), 0],
+                          [0, 0, 1]]) @ np.diag([2.0, 1.0, 1.5])
+    m[:3, 3] = (10.0, -4.0, 0.0)
+    car = Instance("car", "car", "", 11, box_vertices((-1, -0.9, 0), (1, 0.9, 1)), BOX_TRIS,
+                   np.ones(12), m, np.array([1]))
+    pole = Instance("pole", "pole", "", 6, box_vertices((0, 0, 0), (1, 1, 5)), BOX_TRIS,
+                    np.ones(12), np.eye(4), np.array([1]))
+
+    class Obj:
+        def __init__(self, i):
+            self.instance = i
+    t = frame_truth(7, [car, pole], [Obj(41), Obj(42)])
+    assert len(t.boxes) == 1 and list(t.instance) == [41] and t.boxes.frame[0] == 7
+    np.testing.assert_allclose(t.boxes.box[0], [10.0, -4.0, 0.75, 4.0, 1.8, 1.5, yaw],
+                               atol=1e-12)
+
+
+def test_evaluation_frames_must_be_traffic_frames():
+    with pytest.raises(SceneError, match="not among the traffic frames"):
+        StudyConfig(traffic_frames=(1, 2), evaluate_frames=(2, 3))
+    assert StudyConfig(evaluate_frames=(3, 4)).traffic_frames == (3, 4)
