@@ -7,7 +7,10 @@ for high density and low non-uniformity. With --traffic FRAMES each candidate is
 scanned over those frames of the scene's animated traffic and scored by how well it
 sees the vehicles in the region (the share of vehicle-frames with at least 5, 20, 50
 points, mean points per vehicle, the share never seen); sets combine by per-vehicle
-unions. Writes to --out:
+unions. With --evaluate FRAMES the placements are also judged by detection: RLS's
+roadside detector on each candidate and on the sets the study reports (early fusion),
+the vehicle AP_R40 at BEV IoU 0.5 in the region, and how well InfraD, InfraNUC and
+visibility predict it (docs/evaluate.md). Writes to --out:
 
   candidates.csv   one row per candidate: pose, points in the region, InfraD, InfraNUC
                    (and with --traffic: visibility and the ranks by InfraD and by it)
@@ -17,6 +20,7 @@ unions. Writes to --out:
   pareto.png       InfraD against InfraNUC for all candidates and sets, fronts marked
   density_k<K>.png density map of the best set of each k, sensors marked
   visibility.png   with --traffic: InfraD, InfraNUC and visibility per candidate/set
+  ap_vs_<metric>.png  with --evaluate: AP against each metric, one point per placement
 
 Charts need matplotlib (Agg); without it the density maps are written with RLS's own
 PNG writer and the other charts are skipped (a notice says so). Prints a JSON summary.
@@ -105,6 +109,15 @@ def add_parser(sub):
     p.add_argument("--traffic", metavar="FRAMES", default=None,
                    help="also score placements with the traffic in view over these frames "
                         "(5, 1-60 or 1-60:5): visibility of the vehicles in the region")
+    p.add_argument("--evaluate", metavar="FRAMES", default=None,
+                   help="also judge placements by detection over these frames of the "
+                        "traffic (they are traffic frames too; --traffic defaults to them): "
+                        "RLS's roadside detector on each candidate and on the reported "
+                        "sets (early fusion), vehicle AP_R40 at BEV IoU 0.5 in the "
+                        "region, and how well InfraD, InfraNUC and visibility predict it")
+    p.add_argument("--min-points", type=int, default=5,
+                   help="with --evaluate: the returns the candidates together must put on "
+                        "a box for it to count (default 5)")
     p.add_argument("--visibility-labels", default="vehicle",
                    help="labels of the objects scored for visibility (default: vehicle)")
     p.add_argument("--backend", choices=BACKENDS.ids, default="auto",
@@ -132,6 +145,8 @@ def config_from_args(args):
         backend=args.backend, frame=args.frame, one_per_mount=not args.allow_shared_mounts,
         exhaustive_limit=args.exhaustive_limit,
         traffic_frames=tuple(parse_frames(args.traffic, 0)) if args.traffic else (),
+        evaluate_frames=tuple(parse_frames(args.evaluate, 0)) if args.evaluate else (),
+        evaluate_min_points=args.min_points,
         visibility_labels=tuple(label_name(i) for i in label_ids(args.visibility_labels)))
 
 

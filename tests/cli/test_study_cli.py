@@ -135,3 +135,29 @@ def test_study_with_traffic_sees_a_parked_truck_the_traffic_free_metrics_miss(sa
     assert set(summary_of(proc)["best_by_visibility"]) == {"1", "2"}
     pytest.importorskip("matplotlib")
     assert (out / "visibility.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_study_evaluate_scores_placements_by_detection(sample_blends, tmp_path):
+    """--evaluate: the detector's AP per candidate and per reported set in the tables and
+    study.json, the best set by AP, and AP against each metric charted."""
+    out = tmp_path / "study"
+    proc = rls("study", sample_blends["t_junction"], "--k", "1,2", "--mount", "TL NE",
+               "--mount", "TL NW", "--mount", "TL SW", "--pitch", "10",
+               "--evaluate", "20-40:5", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    s = summary_of(proc)
+    assert set(s["best_by_ap"]) == {"1", "2"}
+    rows = list(csv.DictReader(open(out / "candidates.csv")))
+    assert all(0.0 <= float(r["ap_vehicle_bev50"]) <= 1.0 for r in rows)
+    assert all(r["share_20"] != "" for r in rows)  # the evaluate frames are traffic frames
+    report = json.loads((out / "study.json").read_text())
+    ev = report["evaluation"]
+    assert ev["frames"] == [20, 25, 30, 35, 40] and ev["min_points"] == 5
+    assert set(ev["correlation"]) >= {"infra_d", "infra_nuc", "share_20"}
+    best = s["best_by_ap"]["1"]
+    assert best["ap"] == max(float(r["ap_vehicle_bev50"]) for r in rows)
+    for name in ("infra_d", "infra_nuc", "share_20"):
+        assert (out / f"ap_vs_{name}.png").read_bytes()[:4] == b"\x89PNG"
+    line = one_line_error(rls("study", sample_blends["t_junction"], "--traffic", "1-5",
+                              "--evaluate", "10", "--out", tmp_path / "bad"))
+    assert "not among the traffic frames" in line

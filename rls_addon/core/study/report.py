@@ -12,6 +12,11 @@
                    region grey; every k on one colour scale (0 to the densest cell of any)
   visibility.png   with traffic: InfraD, InfraNUC and visibility of each candidate
                    and of the best sets, side by side
+  ap_vs_<metric>.png  with --evaluate: the detector's AP against InfraD, InfraNUC and
+                   each visibility share, one point per placement scored, the fit and
+                   its coefficients (``evaluate/correlation.py``); the AP of each
+                   candidate and scored set is the ``ap_vehicle_bev50`` column of the
+                   tables, the whole evaluation in study.json's ``evaluation``
 
 Charts need matplotlib (Agg); without it the density maps are written with RLS's own
 PNG writer (no axes or scale, each map scaled to its own maximum) and the other charts
@@ -56,6 +61,10 @@ def placement_rows(result):
                    "best": int(p.members == s.best.members), "method": s.method}
             if result.visibility is not None:
                 row.update(result.visibility.sets[k][p.members].to_dict())
+            if result.evaluation is not None:
+                ev = result.evaluation
+                scored = len(p.members) == 1 or tuple(p.members) in ev.sets
+                row[AP_FIELD] = ev.ap_of(p.members) if scored else None
             rows.append(row)
     return rows
 
@@ -94,6 +103,8 @@ def report_dict(result):
                  "rank_visibility": int(vis.rank_visibility[i])}
                 for i in range(len(names)) if vis.rank_infra_d[i] != vis.rank_visibility[i]],
         }
+    if result.evaluation is not None:
+        out["evaluation"] = result.evaluation.to_dict(names)
     for k, s in sorted(result.searches.items()):
         out["placements"][str(k)] = {
             "method": s.method, "sets": s.sets_total, "evaluated": len(s.evaluated),
@@ -105,6 +116,7 @@ def report_dict(result):
 
 
 REPORT_FILES = ("candidates.csv", "placements.csv", "study.json", "pareto.png")
+AP_FIELD = "ap_vehicle_bev50"  # with --evaluate: vehicle AP_R40 at BEV IoU 0.5
 VISIBILITY_FIELDS = ("share_5", "share_20", "share_50", "mean_points", "never_seen")
 VISIBILITY_ROWS = 30  # candidates listed in visibility.png (the best, and best-set members)
 
@@ -118,6 +130,9 @@ def candidate_rows(result):
         for i, r in enumerate(rows):
             r.update(vis.candidates[i].to_dict(), rank_infra_d=int(vis.rank_infra_d[i]),
                      rank_visibility=int(vis.rank_visibility[i]))
+    if result.evaluation is not None:
+        for r, (ap, _) in zip(rows, result.evaluation.candidates):
+            r[AP_FIELD] = ap
     return rows
 
 
@@ -130,9 +145,11 @@ def write_report(result, out_dir, overwrite=False, notices=None):
     files = {}
     files["candidates.csv"] = _csv(rows, list(rows[0].keys()))
     vis_fields = list(VISIBILITY_FIELDS) if result.visibility is not None else []
+    ap_fields = [AP_FIELD] if result.evaluation is not None else []
     files["placements.csv"] = _csv(placement_rows(result),
                                    ["k", "sensors", "members", "points_in_lob", "infra_d",
-                                    "infra_nuc", "pareto", "best", "method"] + vis_fields)
+                                    "infra_nuc", "pareto", "best", "method"] + vis_fields
+                                   + ap_fields)
     report = report_dict(result)
     charts, notice = charts_png(result)
     files.update(charts)
@@ -162,6 +179,8 @@ def write_report(result, out_dir, overwrite=False, notices=None):
             str(k): dict(v.to_dict(), sensors=[names[i] for i in v.members])
             for k, v in sorted(result.visibility.best.items())}}
            if result.visibility is not None else {}),
+        **({"best_by_ap": report["evaluation"]["best_by_ap"]}
+           if result.evaluation is not None else {}),
         "report": os.path.abspath(os.path.join(out_dir, "study.json")),
         "files": written,
     }
@@ -187,7 +206,37 @@ def charts_png(result):
               for k in maps}}
     if result.visibility is not None:
         out["visibility.png"] = _visibility_png(result)
+    if result.evaluation is not None:
+        out.update(_ap_charts(result))
     return out, None
+
+
+AP_METRICS = {"infra_d": "InfraD (points / m²)", "infra_nuc": "InfraNUC (no unit)",
+              "share_5": "share of vehicle-frames seen by >= 5 points (%)",
+              "share_20": "share of vehicle-frames seen by >= 20 points (%)",
+              "share_50": "share of vehicle-frames seen by >= 50 points (%)"}
+
+
+def _ap_charts(result):
+    """``ap_vs_<metric>.png``: AP against each metric, one point per placement scored."""
+    from ..evaluate.correlation import correlation_png
+
+    ev = result.evaluation
+    rows = ev.placements
+    aps = [100.0 * r["ap"] if r["ap"] is not None else float("nan") for r in rows]
+    out = {}
+    for name, label in AP_METRICS.items():
+        if name not in ev.correlation:
+            continue
+        scale = 100.0 if name.startswith("share_") else 1.0
+        x = [scale * r[name] if r.get(name) is not None else float("nan") for r in rows]
+        png = correlation_png(x, aps, label, "vehicle AP_R40, BEV IoU 0.5 (%)",
+                              result=ev.correlation[name],
+                              title=f"{result.scene}: detection AP against {name} "
+                                    f"({len(rows)} placements)")
+        if png is not None:
+            out[f"ap_vs_{name}.png"] = png
+    return out
 
 
 def _visibility_png(result):
