@@ -468,6 +468,10 @@ def _others_lines(costs):
         from bench import study_costs
 
         L.extend(study_costs.section(costs["study_costs"]))
+    if costs.get("evaluate_costs"):
+        from bench import evaluate_costs
+
+        L.extend(evaluate_costs.section(costs["evaluate_costs"]))
     if costs.get("scale_out"):
         from bench import scale_out
 

@@ -728,6 +728,11 @@ def measure(quick):
     from bench import study_costs
 
     costs["study_costs"] = study_costs.measure(quick)
+    log("bench: detection and scoring against the scan, rls study --evaluate "
+        "(bench/evaluate_costs.py)")
+    from bench import evaluate_costs
+
+    costs["evaluate_costs"] = evaluate_costs.measure(quick)
     info["loadavg_end"] = os.getloadavg()[0]
     return {"machine": info, "devices": dev, "triangles": tri_rows, "rays": ray_rows,
             "memory": mem, "tessellation": tess, "pattern_s": pattern_s, "hooks": hooks,
