@@ -8,6 +8,7 @@ value is checked against ``choices`` here, so a typo anywhere ends in one
 """
 
 import dataclasses
+import numbers
 from dataclasses import dataclass, field
 
 from ..choices import (
@@ -36,7 +37,7 @@ class ScanSettings:
 
     Range and noise fields left as None take the preset's values."""
 
-    seed: int = 0
+    seed: int = 0  # any whole number >= 0, used whole (effects.scan_rng)
     frame_space: str = "sensor"  # see choices.FRAME_SPACES
     noise: bool = True
     dropout: bool = True
@@ -70,6 +71,7 @@ class ScanSettings:
     return_mode: str = "preset"
 
     def __post_init__(self):
+        object.__setattr__(self, "seed", _seed(self.seed))
         FRAME_SPACES.check(self.frame_space)
         MOTION.check(self.motion)
         DETECTION.check(self.detection)
@@ -79,6 +81,14 @@ class ScanSettings:
         if int(self.substeps) != self.substeps or self.substeps < 0:
             raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "
                                 f"got {self.substeps}")
+
+
+def _seed(seed):
+    """A scan seed as a Python int: any whole number >= 0 (``effects.scan_rng`` uses all
+    of it); a negative one is refused rather than folded onto another seed."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise SettingsError(f"the seed must be a whole number >= 0, got {seed!r}")
+    return int(seed)
 
 
 @dataclass(frozen=True)
