@@ -175,3 +175,12 @@ def test_a_seed_is_used_whole_and_a_negative_one_refused(demo_run, tmp_path):
     assert len(set(clouds.values())) == 3
     proc = rls("scan", blend, "--frames", "1", "--out", tmp_path / "neg", "--seed", "-1")
     assert one_line_error(proc) == "rls: error: the seed must be a whole number >= 0, got -1"
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+def test_a_sweep_start_that_is_not_finite_is_one_line(demo_run, tmp_path, value):
+    proc = rls("scan", demo_run[0] / "intersection.blend", "--frames", "1", "--out", tmp_path,
+               f"--sweep-start={value}")
+    assert one_line_error(proc) == ("rls: error: the sweep start (sweep_start_deg, degrees) "
+                                    f"must be a finite number, got {float(value)!r}")
+    assert not list(tmp_path.iterdir())

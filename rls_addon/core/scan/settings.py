@@ -8,6 +8,7 @@ value is checked against ``choices`` here, so a typo anywhere ends in one
 """
 
 import dataclasses
+import math
 import numbers
 from dataclasses import dataclass, field
 
@@ -78,9 +79,35 @@ class ScanSettings:
         FOOTPRINT.check(self.footprint)
         RETURN_MODES.check(self.return_mode)
         object.__setattr__(self, "weather", weather_spec(self.weather))
-        if int(self.substeps) != self.substeps or self.substeps < 0:
+        for name, (what, lowest) in _NUMBERS.items():
+            _number(getattr(self, name), what, lowest)
+        if not math.isfinite(self.substeps) or int(self.substeps) != self.substeps \
+                or self.substeps < 0:
             raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "
                                 f"got {self.substeps}")
+
+
+# The number fields of ScanSettings (None: the preset's): what a user calls them, and
+# the least value that means something (">= 0", "> 0" or None: any finite number).
+_NUMBERS = {"min_range_m": ("the minimum range (min_range_m, m)", ">= 0"),
+            "max_range_m": ("the maximum range (max_range_m, m)", "> 0"),
+            "noise_sigma_m": ("the noise sigma (noise_sigma_m, m)", ">= 0"),
+            "attenuation_per_m": ("the attenuation (attenuation_per_m, 1/m)", ">= 0"),
+            "motion_tolerance_m": ("the motion tolerance (motion_tolerance_m, m)", ">= 0"),
+            "sweep_start_deg": ("the sweep start (sweep_start_deg, degrees)", None)}
+
+
+def _number(value, what, lowest):
+    """``SettingsError`` naming the setting ``what`` unless ``value`` is None or a
+    finite number satisfying ``lowest``."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise SettingsError(f"{what} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise SettingsError(f"{what} must be a finite number, got {value!r}")
+    if (lowest == ">= 0" and value < 0) or (lowest == "> 0" and value <= 0):
+        raise SettingsError(f"{what} must be {lowest}, got {value!r}")
 
 
 def _seed(seed):
