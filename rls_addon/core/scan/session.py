@@ -21,7 +21,9 @@ from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
 from .frame import scan_frame, sensor_frame
 from ..output.ground_truth import object_boxes
-from ..scene.instances import object_table, static_key, world_geometry
+from ..scene.geometry import nonfinite_warning
+from ..scene.instances import (object_table, static_key, without_nonfinite,
+                               world_geometry)
 from ..labels import DEFAULT_LABELS
 from ..scene.motion import pose_knots, rigid
 from .device_values import device_values
@@ -88,7 +90,8 @@ class ScanSession:
         centre = pose[:3, 3]
         anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
         read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
-        instances, materials = read.instances, read.materials
+        skipped = {}  # triangles with NaN or infinite coordinates, per object
+        instances, materials = without_nonfinite(read.instances, skipped), read.materials
         objects = object_table(instances)
         motion = SweepMotion()
         if settings.motion != "snapshot":
@@ -97,7 +100,7 @@ class ScanSession:
                                   source.mobility(instances, sensor), sensor)
                 n_used, substeps = self._substep_counts(preset, settings, instances, motion)
                 moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
-                                         motion, substeps)
+                                         motion, substeps, skipped)
         else:
             n_used, substeps, moving = None, {}, []
         # "substeps" motion with N = 0: the sweep is cast with the N chosen above.
@@ -122,6 +125,8 @@ class ScanSession:
                             cast_settings,
                             frame=frame, sensor=sensor, sensor_track=track, moving=moving,
                             keep_rays=boxes)
+        if skipped:
+            result.warnings.insert(0, nonfinite_warning(skipped))
         info = self._info(preset, settings, sensor, frame, frame_pose, rmin, rmax, motion,
                           instances, substeps, n_used, objects, scene, result, read)
         info.update(sensor_pose_record(frame_pose, track, preset.period))
@@ -146,13 +151,15 @@ class ScanSession:
                      for k, m in motion.deforming}
         return n_used, deforming
 
-    def _bodies_of(self, sweep, period, instances, objects, materials, motion, substeps):
+    def _bodies_of(self, sweep, period, instances, objects, materials, motion, substeps,
+                   skipped):
         """The moving bodies of a sweep: each deforming instance's sub-steps, then one
-        group of the rigid ones (kept by the session while their meshes are the same)."""
+        group of the rigid ones (kept by the session while their meshes are the same).
+        ``skipped``: see ``_substeps``."""
         bodies = []
         for k, _ in motion.deforming:
             bodies += self._substeps(sweep, period, instances[k], k, objects, materials,
-                                     substeps[k])
+                                     substeps[k], skipped)
         if motion.rigid:
             rigid = [(instances[k].key,
                       world_geometry(instances, objects, materials, select={k}, local=True),
@@ -164,12 +171,19 @@ class ScanSession:
             bodies.append(group)
         return bodies
 
-    def _substeps(self, sweep, period, inst, k, objects, materials, n):
-        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps."""
+    def _substeps(self, sweep, period, inst, k, objects, materials, n, skipped):
+        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps
+        (its triangles with NaN or infinite coordinates left out, and counted in
+        ``skipped`` once: the most of any sub-step)."""
         out = []
         step = period / n
         for j in range(n):
             snap = sweep.instance_at((j + 0.5) * step, inst)
+            if snap is not None:
+                bad = {}
+                snap = (without_nonfinite([snap], bad) or [None])[0]
+                if bad:
+                    skipped[inst.key] = max(skipped.get(inst.key, 0), bad[inst.key])
             if snap is None:
                 continue
             geom = world_geometry([snap], [objects[k]], materials)
