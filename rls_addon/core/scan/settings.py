@@ -143,6 +143,7 @@ class OutputSettings:
     def __post_init__(self):
         FORMATS.check(self.format)
         POINT_TYPE_CHOICES.check(self.point_type)
+        _number(self.start_time_s, "the start time (start_time_s, s)", None)
         if self.las_offset is not None and len(tuple(self.las_offset)) != 3:
             raise SettingsError(f"a LAS offset is x, y, z in metres, got {self.las_offset!r}")
         for f in self.fields:
