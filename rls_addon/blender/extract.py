@@ -33,8 +33,13 @@ def is_rls_helper(obj):
 
 
 def _bounds_distance(matrix, bound_box, centre):
+    """Distance from ``centre`` to an object's bounds in the world; 0 when they are not
+    finite (a NaN or infinite vertex or matrix): the object is read, and the core skips
+    its broken triangles with a warning naming it."""
     corners = np.array([tuple(c) for c in bound_box], dtype=np.float64)
     m = np.array(matrix, dtype=np.float64)
+    if not (np.isfinite(corners).all() and np.isfinite(m).all()):
+        return 0.0
     w = corners @ m[:3, :3].T + m[:3, 3]
     gap = np.maximum(np.maximum(w.min(0) - centre, centre - w.max(0)), 0.0)
     return float(np.sqrt(gap @ gap))

@@ -25,7 +25,8 @@ def add_parser(sub):
                    help="LiDAR object name (repeatable; default: every LiDAR in the scene)")
     p.add_argument("--classes", default="vehicle,pedestrian,cyclist",
                    help="labels whose objects get boxes (names or ids, comma separated)")
-    p.add_argument("--seed", type=int, default=None, help="override each LiDAR's seed")
+    p.add_argument("--seed", type=int, default=None,
+                   help="override each LiDAR's seed (a whole number >= 0)")
     p.add_argument("--motion", choices=MOTION.ids, default=None,
                    help="motion distortion (default: each LiDAR's setting)")
     p.add_argument("--substeps", type=int, default=None, help="sub-steps (0: adaptive)")

@@ -42,7 +42,8 @@ def add_parser(sub):
     p.add_argument("--template", default=None,
                    help="file name template with {scene}, {sensor}, {frame:06d} "
                         "(default: each LiDAR's)")
-    p.add_argument("--seed", type=int, default=None, help="override each LiDAR's seed")
+    p.add_argument("--seed", type=int, default=None,
+                   help="override each LiDAR's seed (a whole number >= 0)")
     p.add_argument("--frame-space", choices=FRAME_SPACES.ids, default=None,
                    help="point coordinates in the sensor or world frame (default: each LiDAR's)")
     p.add_argument("--motion", choices=MOTION.ids, default=None,

@@ -146,3 +146,29 @@ def test_nothing_in_range_warns(scene):
     result, info = scan(lidar)
     assert len(result.points) == 0
     assert any("no geometry" in w for w in info["warnings"])
+
+
+def test_nan_and_infinite_vertices_are_skipped_with_one_warning_naming_them(scene):
+    import warnings
+
+    ground()
+    broken = mesh_object("Broken", [(5, -3, 0), (5, 3, 0), (5, 3, 3), (5, -3, 3), (5, 0, 5)],
+                         [(0, 1, 2, 3), (2, 4, 3)])
+    far = mesh_object("Far", [(-5, -3, 0), (-5, 3, 0), (-5, 3, 3), (-5, -3, 3)], [(0, 1, 2, 3)])
+    for obj, vertex, value in ((broken, 4, np.nan), (far, 0, np.inf)):
+        # as an importer writes them (a vertex's co clamps infinity to the float maximum)
+        co = np.zeros(3 * len(obj.data.vertices), np.float32)
+        obj.data.attributes["position"].data.foreach_get("vector", co)
+        co[3 * vertex] = value
+        obj.data.attributes["position"].data.foreach_set("vector", co)
+        obj.data.update()
+    lidar = add_lidar(location=(0, 0, 1.5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # numpy prints nothing
+        result, info = scan(lidar)
+    said = [w for w in info["warnings"] if "NaN" in w or "degenerate" in w]
+    assert said == ["skipped 3 triangle(s) with NaN or infinite vertex coordinates: "
+                    "'Broken' (1), 'Far' (2); fix those objects' vertices or transforms to "
+                    "scan them"]
+    hit = {info["labels"][str(i)]["object"] for i in np.unique(result.points["instance"])}
+    assert hit == {"Ground", "Broken"}  # the rest of 'Broken' is scanned

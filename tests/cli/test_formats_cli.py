@@ -5,6 +5,9 @@ lossless point type (same seed, so the same points)."""
 
 import json
 import math
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -13,7 +16,7 @@ from rls_addon.core.output.io import pcd
 from tests.core import pcl_typed
 from tests.core.external_tools import require_module
 
-from .conftest import one_line_error, rls
+from .conftest import ROOT, one_line_error, rls
 
 START = 1_700_000_000.25  # --start-time: Unix seconds of frame 1
 ALL = "intensity,ring,time,label,instance,ghost,range"
@@ -187,3 +190,60 @@ def test_bag_refuses_world_frame_and_writes_nothing(reference, tmp_path):
                               "mcap", "--frame-space", "world", "--workers", "1"))
     assert "sensor-frame" in line and "--frame-space sensor" in line
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+# ``python -m rls_addon`` with the bag's MCAP file on a full disk (/dev/full): every
+# write to it fails with ENOSPC, as on a disk that filled up during a run.
+FULL_DISK = r"""
+import os, pathlib, runpy, sys
+real = pathlib.Path.open
+def full(self, mode="r", *args, **kwargs):
+    if self.suffix == ".mcap" and ("w" in mode or "x" in mode):
+        return open("/dev/full", "wb")
+    return real(self, mode, *args, **kwargs)
+pathlib.Path.open = full
+sys.argv = ["rls", *sys.argv[1:]]
+runpy.run_module("rls_addon", run_name="__main__", alter_sys=True)
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_a_bag_on_a_full_disk_is_one_line_and_leaves_nothing(demo_run, tmp_path):
+    blend = demo_run[0] / "intersection.blend"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run([sys.executable, "-c", FULL_DISK, "scan", str(blend), "--frames",
+                           "1-2", "--out", str(tmp_path), "--format", "mcap", "--workers", "1"],
+                          env=env, capture_output=True, text=True, timeout=600)
+    bag = tmp_path / "intersection_rosbag2"
+    assert one_line_error(proc).startswith(f"rls: error: cannot write bag {bag}: No space "
+                                           "left on device")
+    assert proc.returncode == 1
+    assert list(tmp_path.iterdir()) == []  # no bag, no temporary folder
+
+
+def test_a_start_time_that_is_not_finite_is_one_line(demo_run, tmp_path):
+    blend = demo_run[0] / "intersection.blend"
+    for fmt, value in (("las", "inf"), ("mcap", "nan"), ("pcd_binary", "inf")):
+        proc = rls("scan", blend, "--frames", "1", "--out", tmp_path, "--format", fmt,
+                   "--start-time", value, "--workers", "1")
+        assert one_line_error(proc) == ("rls: error: the start time (start_time_s, s) must be "
+                                        f"a finite number, got {float(value)!r}")
+        assert proc.returncode == 1 and list(tmp_path.iterdir()) == []
+
+
+def test_a_las_date_beyond_year_9999_is_one_line(demo_run, tmp_path):
+    proc = rls("scan", demo_run[0] / "intersection.blend", "--frames", "1", "--out", tmp_path,
+               "--format", "las", "--start-time", "1e300", "--workers", "1")
+    assert one_line_error(proc).startswith("rls: error: cannot write ")
+    assert "beyond the dates a LAS header holds (years 1 to 9999)" in proc.stderr
+    assert proc.returncode == 1
+
+
+def test_a_bag_stamp_before_1970_is_one_line_and_writes_nothing(demo_run, tmp_path):
+    proc = rls("scan", demo_run[0] / "intersection.blend", "--frames", "1", "--out", tmp_path,
+               "--format", "mcap", "--start-time=-5", "--workers", "1")
+    assert one_line_error(proc) == (
+        "rls: error: a ROS 2 bag's stamps are unsigned nanoseconds, from 0 (1970) to "
+        "18446744073.709551615 s: frame 1 would be stamped -5 s; give a start time "
+        "(--start-time) that puts every frame in that span")
+    assert proc.returncode == 1 and list(tmp_path.iterdir()) == []

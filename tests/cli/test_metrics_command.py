@@ -116,3 +116,14 @@ def test_bad_inputs_are_one_line_errors(tmp_path, polygon_file):
     cloud = write_cloud(tmp_path / "c.pcd", grid())
     assert "zero area" in one_line_error(rls("metrics", "--lob-polygon", flat, cloud))
     assert "not found" in one_line_error(rls("metrics", "--lob", tmp_path / "missing.blend:Lob", cloud))
+
+
+def test_a_crossing_region_and_a_negative_disk_seed_are_one_line_errors(tmp_path,
+                                                                        polygon_file):
+    cloud = write_cloud(tmp_path / "c.pcd", grid())
+    bow = tmp_path / "bow.json"
+    bow.write_text("[[-12, -12], [12, 12], [12, -12], [-12, 6]]")
+    assert one_line_error(rls("metrics", "--lob-polygon", bow, cloud)).startswith(
+        "rls: error: the region's outline crosses itself at (-1.71429, -1.71429): ")
+    line = one_line_error(rls("metrics", "--lob-polygon", polygon_file, "--seed=-1", cloud))
+    assert line == "rls: error: the disk seed must be a whole number >= 0, got -1"

@@ -159,3 +159,28 @@ def test_output_panel_point_type_is_what_scan_writes_unless_a_flag_overrides(mov
         assert proc.returncode == 0, proc.stderr
         head = (out / "moving_LiDAR_000001.pcd").read_text(errors="replace")[:300]
         assert f"FIELDS {fields}\n" in head, head
+
+
+def test_a_seed_is_used_whole_and_a_negative_one_refused(demo_run, tmp_path):
+    blend = demo_run[0] / "intersection.blend"
+    clouds = {}
+    for seed in (0, 2 ** 32, 2 ** 64):
+        out = tmp_path / str(seed)
+        proc = rls("scan", blend, "--frames", "1", "--out", out, "--workers", "1",
+                   "--seed", seed)
+        assert proc.returncode == 0, proc.stderr
+        side = json.loads((out / "intersection_LiDAR_000001.json").read_text())
+        assert side["seed"] == seed
+        clouds[seed] = (out / "intersection_LiDAR_000001.pcd").read_bytes()
+    assert len(set(clouds.values())) == 3
+    proc = rls("scan", blend, "--frames", "1", "--out", tmp_path / "neg", "--seed", "-1")
+    assert one_line_error(proc) == "rls: error: the seed must be a whole number >= 0, got -1"
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+def test_a_sweep_start_that_is_not_finite_is_one_line(demo_run, tmp_path, value):
+    proc = rls("scan", demo_run[0] / "intersection.blend", "--frames", "1", "--out", tmp_path,
+               f"--sweep-start={value}")
+    assert one_line_error(proc) == ("rls: error: the sweep start (sweep_start_deg, degrees) "
+                                    f"must be a finite number, got {float(value)!r}")
+    assert not list(tmp_path.iterdir())

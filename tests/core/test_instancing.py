@@ -105,16 +105,18 @@ def test_embree_worlds_with_rigid_bodies_are_instanced():
     g, rb = bodies(street(), Embree)
     world = World(PreparedScene(g, np.zeros(3), 100.0, Embree), [rb])
     assert world.instanced is not None
-    # one instance for the static scene, one per car
-    assert len(world.instanced.parts) == 3 and world.instanced.first == 1
+    # one instance for the static scene, one per car but the one turning too fast for
+    # Embree's steps (cast the portable way)
+    assert len(world.instanced.parts) == 2 and world.instanced.first == 1
+    assert world.instanced.portable == {1: [1]}
     # other backends cast each body on its own
     g, rb = bodies(street(), NumpyCaster)
     assert World(PreparedScene(g, np.zeros(3), 100.0, NumpyCaster), [rb]).instanced is None
-    # without the static scene: one instance per car
+    # without the static scene: one instance per car (but that one)
     g, rb = bodies(street(), Embree)
     alone = instancing.InstancedWorld.build(PreparedScene(g, np.zeros(3), 100.0, Embree), [rb],
                                             with_static=False)
-    assert len(alone.parts) == 3 and alone.first == 0
+    assert len(alone.parts) == 2 and alone.first == 0 and alone.portable == {1: [1]}
 
 
 def test_instanced_scan_equals_the_portable_path(monkeypatch):
@@ -165,10 +167,10 @@ def test_steps_follow_the_track_within_the_tolerance():
     got = [iw._steps(tr, rb.centres[k], rb.local[k][0]) for k, tr in enumerate(rb.tracks)]
     # straight at constant speed: two steps are exact; parked: one
     assert len(got[0][0]) == 2 and got[0][1] and len(got[2][0]) == 1 and got[2][1]
-    # 120 m/s through an 80 deg turn in 0.1 s: beyond Embree's 129 steps, so that car's
-    # hits are refined against the exact track instead (and match it, see above)
+    # 120 m/s through an 80 deg turn in 0.1 s: beyond Embree's 129 steps, so that car
+    # is cast the portable way instead (exact at each ray's time, see above)
     assert len(got[1][0]) == instancing.MAX_STEPS and not got[1][1]
-    assert [j for j, _, _, _ in iw.coarse] == [1]
+    assert iw.portable == {1: [1]}
     tr = realistic_turn()
     s, close = iw._steps(tr, rb.centres[1], rb.local[1][0])
     assert close and 2 < len(s) < instancing.MAX_STEPS
@@ -190,7 +192,7 @@ def test_realistic_turn_refined_in_the_loop_matches_the_portable_path(monkeypatc
     rb.tracks = [rb.tracks[0], realistic_turn(), rb.tracks[2]]
     static = PreparedScene(g, np.zeros(3), 100.0, Embree)
     world = World(static, [rb])
-    assert world.instanced.coarse == []
+    assert world.instanced.portable == {}
     a = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
     monkeypatch.setattr(instancing.InstancedWorld, "build", classmethod(lambda cls, s, m, with_static=True: None))
     b = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
@@ -271,3 +273,37 @@ def test_recheck_skips_rays_whose_crack_would_lie_beyond_their_limit():
     assert wc._starts_inside(inside) and not wc._starts_inside(o)
     limit[2] = 0.2
     assert sorted(wc._recheck(inside, d, 50.0, dist, tri, limit)) == [0, 1, 2]
+
+
+def jumping_track(samples=65):
+    """A car driving along +y whose keyframes put it 3 m aside halfway through the
+    sweep, sampled densely (as a sweep whose path bends between frames is): more
+    samples than Embree's 129 steps can follow."""
+    times = np.linspace(0.0, T, samples)
+    return Track(times, [pose(-10 - 3.0 * (t >= T / 2), -6 + 20 * t, -0.8, 30.0 * (t >= T / 2))
+                         for t in times])
+
+
+def test_a_body_whose_track_needs_more_than_embrees_steps_scans_as_the_portable_path(
+        monkeypatch):
+    g, rb = bodies(street(), Embree)
+    rb.tracks = [rb.tracks[0], jumping_track(), rb.tracks[2]]
+    static = PreparedScene(g, np.zeros(3), 100.0, Embree)
+    iw = World(static, [rb]).instanced
+    # the jumping car is cast the portable way; the others stay instances
+    assert iw.portable == {1: [1]} and len(iw.parts) == 2
+    assert all(len(m) <= instancing.MAX_STEPS for m, _ in rb.derived.values())
+    a = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
+    monkeypatch.setattr(instancing.InstancedWorld, "build",
+                        classmethod(lambda cls, s, m, with_static=True: None))
+    b = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, moving=[rb]).points
+    ka, kb = keyed(a), keyed(b)
+    assert len(set(ka) ^ set(kb)) <= 2
+    common = sorted(set(ka) & set(kb))
+    ia, ib = [ka[k] for k in common], [kb[k] for k in common]
+    assert np.array_equal(a["instance"][ia], b["instance"][ib])
+    assert np.abs(a["range"][ia] - b["range"][ib]).max() <= 1e-5
+    jumped = a["instance"][ia] == 11
+    assert jumped.sum() > 50
+    assert np.array_equal(a["range"][ia][jumped], b["range"][ib][jumped])
+    assert np.array_equal(a["x"][ia][jumped], b["x"][ib][jumped])

@@ -316,3 +316,16 @@ def test_no_point_in_any_disk_is_an_error_not_perfect_uniformity():
         infra_nuc(np.zeros(3), 5, 0.01)
     d, nuc = set_metrics([5, 5], [[0, 0, 0], [1, 0, 2]], 100.0, 0.01)
     assert np.isnan(nuc[0]) and nuc[1] > 0
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, True])
+def test_a_disk_seed_that_is_not_a_whole_number_from_0_is_a_region_error(seed):
+    from rls_addon.core.study.placement import DiskLayout
+
+    with pytest.raises(RegionError, match=r"^the disk seed must be a whole number >= 0, got "):
+        infra_lob_metrics(grid_cloud(1.0), RECT, disks=10, seed=seed)
+    with pytest.raises(RegionError, match=r"^the disk seed must be a whole number >= 0, got "):
+        DiskLayout.make(RECT, disks=10, seed=seed)
+    # a big seed is used whole: its disks are not seed 0's
+    a = DiskLayout.make(RECT, disks=10, seed=2 ** 64).centres
+    assert not np.array_equal(a, DiskLayout.make(RECT, disks=10, seed=0).centres)

@@ -26,6 +26,7 @@ for a 20 m x 30 m region with r = 0.7 m).
 import dataclasses
 import json
 import math
+import numbers
 
 import numpy as np
 
@@ -275,6 +276,14 @@ class InfraLOBResult:
         return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
 
 
+def disk_rng(seed):
+    """The generator that places the disks: ``numpy.random.default_rng(seed)`` of a
+    whole number ``seed`` >= 0 (all of it); ``RegionError`` for anything else."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise RegionError(f"the disk seed must be a whole number >= 0, got {seed!r}")
+    return np.random.default_rng(int(seed))
+
+
 def infra_lob_metrics(
     clouds,
     polygon,
@@ -312,7 +321,7 @@ def infra_lob_metrics(
             "and that the clouds are in world coordinates"
         )
     p = math.pi * radius * radius / area
-    rng = np.random.default_rng(seed)
+    rng = disk_rng(seed)
     margin = radius if disk_placement == "inside" else 0.0
     centres = sample_in_polygon(poly, disks, rng, margin=margin)
     counts = count_in_disks(xy, centres, radius)

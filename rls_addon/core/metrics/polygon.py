@@ -1,15 +1,22 @@
 """Simple polygons in the xy plane: validation, area, point-in-polygon, sampling.
 
 A polygon is an (M, 2) float64 array of vertices in order (either winding);
-the closing edge back to the first vertex is implied. Self-intersecting
-outlines are not rejected: point-in-polygon follows the even-odd rule.
+the closing edge back to the first vertex is implied. An outline that crosses or
+touches itself is refused (``as_polygon``): its net (shoelace) area and the area its
+even-odd inside covers differ, so no density over it would be right.
 """
+
+from fractions import Fraction
 
 import numpy as np
 
 from ..errors import RegionError
 
 MIN_AREA_M2 = 1e-9
+# Shewchuk's bound on the rounding of a float orientation (a - c) x (b - c): a sign
+# beyond it is certain; within it the orientation is worked out in exact rationals.
+_ORIENT_BOUND = (3.0 + 16.0 * 2.0 ** -53) * 2.0 ** -53
+_PAIRS_PER_CHUNK = 1 << 21
 
 
 def shoelace_area(poly):
@@ -32,10 +39,116 @@ def as_polygon(vertices):
         poly = poly[:-1]  # explicitly closed ring
     if len(poly) < 3:
         raise RegionError(f"region outline needs at least 3 vertices, got {len(poly)}")
+    _refuse_crossing(poly)
     area = abs(shoelace_area(poly))
     if area < MIN_AREA_M2:
         raise RegionError(f"region outline has zero area ({area:g} m^2): its vertices are collinear or repeated")
     return poly
+
+
+def _orientation(a, b, c):
+    """Exact sign (-1, 0, 1) of the orientation (a - c) x (b - c) of rows of points:
+    counter-clockwise positive. Float arithmetic where its error bound decides the
+    sign, exact rationals for the rest (points on one line, or nearly)."""
+    left = (a[:, 0] - c[:, 0]) * (b[:, 1] - c[:, 1])
+    right = (a[:, 1] - c[:, 1]) * (b[:, 0] - c[:, 0])
+    det = left - right
+    sign = np.sign(det).astype(np.int8)
+    for k in np.flatnonzero(np.abs(det) <= _ORIENT_BOUND * (np.abs(left) + np.abs(right))):
+        (ax, ay), (bx, by), (cx, cy) = ([Fraction(float(v)) for v in p[k]] for p in (a, b, c))
+        exact = (ax - cx) * (by - cy) - (ay - cy) * (bx - cx)
+        sign[k] = (exact > 0) - (exact < 0)
+    return sign
+
+
+def _within(a, b, p):
+    """Whether points p, on the lines through a and b, lie on the segments a-b."""
+    return ((np.minimum(a[:, 0], b[:, 0]) <= p[:, 0]) & (p[:, 0] <= np.maximum(a[:, 0], b[:, 0]))
+            & (np.minimum(a[:, 1], b[:, 1]) <= p[:, 1]) & (p[:, 1] <= np.maximum(a[:, 1], b[:, 1])))
+
+
+def _refuse_crossing(poly):
+    """``RegionError`` naming where the closed outline ``poly`` crosses or touches
+    itself (two edges that are not neighbours meet, or an edge runs back along its
+    neighbour), unless all its vertices lie on one line (``as_polygon`` says so then).
+    Exact: orientations by ``_orientation``, the rest comparisons. Repeated vertices
+    in a row are one vertex here (the last of them names it)."""
+    keep = np.r_[np.any(poly[1:] != poly[:-1], axis=1), True]  # the last of a run
+    ring = poly[keep]
+    at = np.flatnonzero(keep)  # the vertex numbers of the ring's vertices
+    if len(ring) > 1 and np.array_equal(ring[0], ring[-1]):
+        ring, at = ring[:-1], at[:-1]
+    m = len(ring)
+    if m < 3:
+        return
+    a, b = ring, np.roll(ring, -1, axis=0)
+    lo, hi = np.minimum(a, b), np.maximum(a, b)
+    found = []
+    # Neighbours meet at their shared vertex; they cross only by running back along
+    # each other: on one line, pointing apart.
+    c = np.roll(ring, -2, axis=0)
+    back = np.flatnonzero(_orientation(a, b, c) == 0)
+    for i in back:
+        u, v = ring[(i + 1) % m] - ring[i], ring[(i + 2) % m] - ring[(i + 1) % m]
+        if Fraction(float(u[0])) * Fraction(float(v[0])) + \
+                Fraction(float(u[1])) * Fraction(float(v[1])) < 0:
+            found.append((min(i, (i + 1) % m), max(i, (i + 1) % m), ring[(i + 1) % m]))
+            break
+    if back.size and len(back) == m:
+        return  # every vertex on one line: no area (as_polygon's message)
+    # Edges that are not neighbours and whose boxes overlap: with the edges sorted by
+    # their least x, each pair once, as (the one that starts first, one that starts
+    # within its x span); a chunk of pairs at a time.
+    order = np.argsort(lo[:, 0], kind="stable")
+    first_x = lo[order, 0]
+    count = np.searchsorted(first_x, hi[order, 0], side="right") - np.arange(m) - 1
+    count = np.maximum(count, 0)
+    ends = np.cumsum(count)
+    s0 = 0
+    while s0 < m:
+        s1 = max(s0 + 1, int(np.searchsorted(ends, (ends[s0 - 1] if s0 else 0)
+                                             + _PAIRS_PER_CHUNK, side="right")))
+        s1 = min(s1, m)
+        n = count[s0:s1]
+        pos = np.repeat(np.arange(s0, s1), n)
+        offset = np.arange(len(pos)) - np.repeat(np.cumsum(n) - n, n)
+        s0 = s1
+        e1, e2 = order[pos], order[pos + 1 + offset]
+        ii, jj = np.minimum(e1, e2), np.maximum(e1, e2)
+        ok = (jj - ii >= 2) & ~((ii == 0) & (jj == m - 1)) \
+            & (lo[ii, 1] <= hi[jj, 1]) & (lo[jj, 1] <= hi[ii, 1])
+        ii, jj = ii[ok], jj[ok]
+        if not len(ii):
+            continue
+        p, q, r, t = a[ii], b[ii], a[jj], b[jj]
+        o1, o2 = _orientation(p, q, r), _orientation(p, q, t)
+        o3, o4 = _orientation(r, t, p), _orientation(r, t, q)
+        on = [(o1 == 0) & _within(p, q, r), (o2 == 0) & _within(p, q, t),
+              (o3 == 0) & _within(r, t, p), (o4 == 0) & _within(r, t, q)]
+        hit = ((o1 * o2 < 0) & (o3 * o4 < 0)) | on[0] | on[1] | on[2] | on[3]
+        k = np.flatnonzero(hit)
+        if len(k):
+            k = k[np.lexsort((jj[k], ii[k]))[0]]  # the first pair: lowest edges
+            touch = [w for w, o in zip((r, t, p, q), on) if o[k]]
+            found.append((int(ii[k]), int(jj[k]),
+                          touch[0][k] if touch else _meet(p[k], q[k], r[k], t[k])))
+    if not found:
+        return
+    i, j, (x, y) = min(found, key=lambda f: (f[0], f[1]))
+
+    def edge(e):
+        return f"edge {at[e] + 1} (vertex {at[e] + 1} to {at[(e + 1) % m] + 1})"
+
+    raise RegionError(f"the region's outline crosses itself at ({x:g}, {y:g}): {edge(i)} "
+                      f"meets {edge(j)}; draw it as one loop that does not cross or touch "
+                      "itself")
+
+
+def _meet(p, q, r, t):
+    """Where the segments p-q and r-t, which cross, meet."""
+    d1, d2 = q - p, t - r
+    s = ((r[0] - p[0]) * d2[1] - (r[1] - p[1]) * d2[0]) / (d1[0] * d2[1] - d1[1] * d2[0])
+    return p + s * d1
 
 
 def polygon_area(vertices):

@@ -12,9 +12,19 @@ import numpy as np
 def scan_rng(seed, sensor, frame):
     """The generators of a scan, derived from (seed, sensor name, frame): one for range
     noise and dropout, one for the ghost choice. Separate streams keep a scan without
-    glossy hits byte-identical whether ghosting is on or off."""
+    glossy hits byte-identical whether ghosting is on or off.
+
+    ``seed`` is any whole number >= 0 (``ScanSettings`` checks), used in full: the
+    entropy is [its low 32 bits, sensor key, frame], followed by the rest of the seed
+    (``seed >> 32``) when that is not zero. A seed below 2^32 draws what it always drew,
+    and two different seeds never share their entropy: the rest, when present, ends in
+    a non-zero word, which no zero-padded shorter entropy has."""
     key = zlib.crc32(str(sensor).encode("utf-8"))
-    seq = np.random.SeedSequence([int(seed) & 0xFFFFFFFF, key, int(frame) & 0xFFFFFFFF])
+    seed = int(seed)
+    entropy = [seed & 0xFFFFFFFF, key, int(frame) & 0xFFFFFFFF]
+    if seed >> 32:
+        entropy.append(seed >> 32)
+    seq = np.random.SeedSequence(entropy)
     return [np.random.default_rng(s) for s in seq.spawn(2)]
 
 

@@ -14,7 +14,7 @@ from ..physics import echoes, effects, footprint, ghost, weather
 from ..physics.assemble import Draws, Effects, Hits, Rays, assemble
 from ..world.bodies import PreparedScene
 from ..errors import SceneError
-from ..scene.motion import effective_times, polar
+from ..scene.motion import effective_times, polar, rigid
 from .device_values import device_values
 from .sweep import adaptive_substeps
 from ..native.vectors import row_dot
@@ -74,8 +74,9 @@ def distinct_times(times):
 
 def sensor_axes(sensor_to_world):
     """Origins and orthonormal rotations of 4x4 poses (one (4, 4) or a stack (N, 4, 4));
-    scale and shear are removed, and a mirrored sensor still looks along its own axes.
-    A single pose's answer is kept (``_AXES``, a few poses): a still sensor asks with the
+    scale and shear are removed (``motion.polar``). A mirrored sensor (a negative scale
+    on any axis) looks along its own +X with its own +Z up: the mirror flips its +Y
+    only. A single pose's answer is kept (``_AXES``, a few poses): a still sensor asks with the
     same pose every frame, and the decomposition costs 0.2 ms."""
     m = np.asarray(sensor_to_world, dtype=np.float64)
     key = m.tobytes() if m.shape == (4, 4) else None
@@ -92,6 +93,31 @@ def sensor_axes(sensor_to_world):
 
 
 _AXES = {}
+
+# A LiDAR axis shorter than this share of its longest has zero scale: it has no axes.
+ZERO_SCALE = 1e-9
+
+
+def sensor_frame(matrix, sensor="sensor"):
+    """The 4x4 rigid pose(s) of a sensor's frame from its object's world matrix (one
+    (4, 4) or a stack (N, 4, 4)): its origin and ``sensor_axes``' rotation (``rigid``), the pose
+    that maps its sensor-frame points to the world (the sidecar's). ``SceneError``
+    naming ``sensor`` when a matrix is not finite or scales an axis to nothing."""
+    m = np.asarray(matrix, dtype=np.float64)
+    stack = m.reshape(-1, 4, 4)
+    if not np.isfinite(stack).all():
+        raise SceneError(f"LiDAR '{sensor}' has a position, rotation or scale that is not "
+                         "a finite number: set its transform (and its parents') to numbers")
+    lengths = np.linalg.norm(stack[:, :3, :3], axis=1)
+    sv = np.linalg.svd(stack[:, :3, :3], compute_uv=False)
+    zero = ~(sv[:, -1] > ZERO_SCALE * sv[:, 0])
+    if zero.any():
+        k = int(np.argmax(zero))
+        axes = ", ".join(f"{v:g}" for v in lengths[k])
+        raise SceneError(f"LiDAR '{sensor}' has zero scale on an axis: its axes have lengths "
+                         f"({axes}) in the world, so it has no sensor frame; give every "
+                         "scale value of it (and of its parents) a non-zero size")
+    return rigid(m)
 
 
 @dataclass

@@ -19,11 +19,13 @@ import numpy as np
 from ..world.bodies import PreparedScene, RigidBodies, TimedScene
 from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
-from .frame import scan_frame
+from .frame import scan_frame, sensor_frame
 from ..output.ground_truth import object_boxes
-from ..scene.instances import object_table, static_key, world_geometry
+from ..scene.geometry import nonfinite_warning
+from ..scene.instances import (object_table, static_key, without_nonfinite,
+                               world_geometry)
 from ..labels import DEFAULT_LABELS
-from ..scene.motion import pose_knots
+from ..scene.motion import pose_knots, rigid
 from .device_values import device_values
 from .settings import scan_pattern
 from .sweep import SweepMotion, classify, substep_count
@@ -82,12 +84,14 @@ class ScanSession:
         for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
         objects of these classes go into the info (``ground_truth``)."""
         pose = source.sensor_pose(sensor)
+        frame_pose = sensor_frame(pose, sensor)  # its sensor frame (no scale): the sidecar's
         values = device_values(preset, settings)
         rmin, rmax = values.range_m
         centre = pose[:3, 3]
         anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
         read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
-        instances, materials = read.instances, read.materials
+        skipped = {}  # triangles with NaN or infinite coordinates, per object
+        instances, materials = without_nonfinite(read.instances, skipped), read.materials
         objects = object_table(instances)
         motion = SweepMotion()
         if settings.motion != "snapshot":
@@ -96,7 +100,7 @@ class ScanSession:
                                   source.mobility(instances, sensor), sensor)
                 n_used, substeps = self._substep_counts(preset, settings, instances, motion)
                 moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
-                                         motion, substeps)
+                                         motion, substeps, skipped)
         else:
             n_used, substeps, moving = None, {}, []
         # "substeps" motion with N = 0: the sweep is cast with the N chosen above.
@@ -104,6 +108,7 @@ class ScanSession:
                                                                             substeps=n_used)
         track = motion.sensor
         if track is not None:
+            sensor_frame(track.matrices, sensor)  # a scale that reaches zero in the sweep
             sweep_path = track.matrices[:, :3, 3]
             if np.linalg.norm(sweep_path - anchor, axis=1).max() + rmax > reach:
                 # The sweep leaves the anchored scene: one around this sweep alone.
@@ -120,13 +125,15 @@ class ScanSession:
                             cast_settings,
                             frame=frame, sensor=sensor, sensor_track=track, moving=moving,
                             keep_rays=boxes)
-        info = self._info(preset, settings, sensor, frame, pose, rmin, rmax, motion, instances,
-                          substeps, n_used, objects, scene, result, read)
-        info.update(sensor_pose_record(pose, track, preset.period))
+        if skipped:
+            result.warnings.insert(0, nonfinite_warning(skipped))
+        info = self._info(preset, settings, sensor, frame, frame_pose, rmin, rmax, motion,
+                          instances, substeps, n_used, objects, scene, result, read)
+        info.update(sensor_pose_record(frame_pose, track, preset.period))
         if object_classes is not None:
             info["objects"] = [b.to_dict() for b in object_boxes(
                 instances, objects, motion.tracks if settings.motion != "snapshot" else {},
-                classes, result, _pose_function(pose, track), rmax,
+                classes, result, _pose_function(frame_pose, track), rmax,
                 values.noise_sigma_m, preset.period)] if boxes else []
             info["object_classes"] = sorted(classes)
         result.rays_cast = None  # large; the boxes hold what was wanted from it
@@ -144,13 +151,15 @@ class ScanSession:
                      for k, m in motion.deforming}
         return n_used, deforming
 
-    def _bodies_of(self, sweep, period, instances, objects, materials, motion, substeps):
+    def _bodies_of(self, sweep, period, instances, objects, materials, motion, substeps,
+                   skipped):
         """The moving bodies of a sweep: each deforming instance's sub-steps, then one
-        group of the rigid ones (kept by the session while their meshes are the same)."""
+        group of the rigid ones (kept by the session while their meshes are the same).
+        ``skipped``: see ``_substeps``."""
         bodies = []
         for k, _ in motion.deforming:
             bodies += self._substeps(sweep, period, instances[k], k, objects, materials,
-                                     substeps[k])
+                                     substeps[k], skipped)
         if motion.rigid:
             rigid = [(instances[k].key,
                       world_geometry(instances, objects, materials, select={k}, local=True),
@@ -162,12 +171,19 @@ class ScanSession:
             bodies.append(group)
         return bodies
 
-    def _substeps(self, sweep, period, inst, k, objects, materials, n):
-        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps."""
+    def _substeps(self, sweep, period, inst, k, objects, materials, n, skipped):
+        """TimedScenes of a deforming instance at the middle of each of n sub-sweeps
+        (its triangles with NaN or infinite coordinates left out, and counted in
+        ``skipped`` once: the most of any sub-step)."""
         out = []
         step = period / n
         for j in range(n):
             snap = sweep.instance_at((j + 0.5) * step, inst)
+            if snap is not None:
+                bad = {}
+                snap = (without_nonfinite([snap], bad) or [None])[0]
+                if bad:
+                    skipped[inst.key] = max(skipped.get(inst.key, 0), bad[inst.key])
             if snap is None:
                 continue
             geom = world_geometry([snap], [objects[k]], materials)
@@ -241,22 +257,24 @@ def _channels(preset):
 
 
 def _pose_function(pose, track):
-    """f(times) -> (N, 4, 4) sensor poses: the track's, or the still pose."""
+    """f(times) -> (N, 4, 4) poses of the sensor frame: the track's, or the still
+    ``pose`` (rigid already)."""
     if track is None:
         return lambda t: np.broadcast_to(pose, (len(np.atleast_1d(t)), 4, 4))
-    return track.at
+    return lambda t: rigid(track.at(t))
 
 
 def sensor_pose_record(pose, track, period):
-    """The sidecar's poses: at the sweep start and end, and for a moving sensor knots
-    that give its pose at any firing time within half a millimetre (``poses_at``:
-    linear translation, slerp rotation)."""
+    """The sidecar's poses of the sensor frame (the LiDAR object's matrix without its
+    scale and shear: ``frame.sensor_frame``; ``pose`` is rigid already): at the sweep
+    start and end, and for a moving sensor knots that give its pose at any firing time
+    within half a millimetre (``poses_at``: linear translation, slerp rotation)."""
     if track is None:
         return {"sensor_pose_start": pose.tolist(), "sensor_pose_end": pose.tolist(),
                 "sensor_moves": False, "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
     times, mats = pose_knots(track)
-    return {"sensor_pose_start": track.at([0.0])[0].tolist(),
-            "sensor_pose_end": track.at([period])[0].tolist(), "sensor_moves": True,
+    return {"sensor_pose_start": rigid(track.at([0.0])[0]).tolist(),
+            "sensor_pose_end": rigid(track.at([period])[0]).tolist(), "sensor_moves": True,
             "sensor_poses": {"times_s": times.tolist(), "matrices": mats.tolist(),
                              "interpolation": "between knots: translation linear, rotation "
                                               "by quaternion slerp; within 0.5 mm of the "

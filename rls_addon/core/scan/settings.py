@@ -8,6 +8,8 @@ value is checked against ``choices`` here, so a typo anywhere ends in one
 """
 
 import dataclasses
+import math
+import numbers
 from dataclasses import dataclass, field
 
 from ..choices import (
@@ -36,7 +38,7 @@ class ScanSettings:
 
     Range and noise fields left as None take the preset's values."""
 
-    seed: int = 0
+    seed: int = 0  # any whole number >= 0, used whole (effects.scan_rng)
     frame_space: str = "sensor"  # see choices.FRAME_SPACES
     noise: bool = True
     dropout: bool = True
@@ -70,15 +72,50 @@ class ScanSettings:
     return_mode: str = "preset"
 
     def __post_init__(self):
+        object.__setattr__(self, "seed", _seed(self.seed))
         FRAME_SPACES.check(self.frame_space)
         MOTION.check(self.motion)
         DETECTION.check(self.detection)
         FOOTPRINT.check(self.footprint)
         RETURN_MODES.check(self.return_mode)
         object.__setattr__(self, "weather", weather_spec(self.weather))
-        if int(self.substeps) != self.substeps or self.substeps < 0:
+        for name, (what, lowest) in _NUMBERS.items():
+            _number(getattr(self, name), what, lowest)
+        if not math.isfinite(self.substeps) or int(self.substeps) != self.substeps \
+                or self.substeps < 0:
             raise SettingsError(f"sub-steps must be a whole number >= 0 (0: adaptive), "
                                 f"got {self.substeps}")
+
+
+# The number fields of ScanSettings (None: the preset's): what a user calls them, and
+# the least value that means something (">= 0", "> 0" or None: any finite number).
+_NUMBERS = {"min_range_m": ("the minimum range (min_range_m, m)", ">= 0"),
+            "max_range_m": ("the maximum range (max_range_m, m)", "> 0"),
+            "noise_sigma_m": ("the noise sigma (noise_sigma_m, m)", ">= 0"),
+            "attenuation_per_m": ("the attenuation (attenuation_per_m, 1/m)", ">= 0"),
+            "motion_tolerance_m": ("the motion tolerance (motion_tolerance_m, m)", ">= 0"),
+            "sweep_start_deg": ("the sweep start (sweep_start_deg, degrees)", None)}
+
+
+def _number(value, what, lowest):
+    """``SettingsError`` naming the setting ``what`` unless ``value`` is None or a
+    finite number satisfying ``lowest``."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise SettingsError(f"{what} must be a number, got {value!r}")
+    if not math.isfinite(value):
+        raise SettingsError(f"{what} must be a finite number, got {value!r}")
+    if (lowest == ">= 0" and value < 0) or (lowest == "> 0" and value <= 0):
+        raise SettingsError(f"{what} must be {lowest}, got {value!r}")
+
+
+def _seed(seed):
+    """A scan seed as a Python int: any whole number >= 0 (``effects.scan_rng`` uses all
+    of it); a negative one is refused rather than folded onto another seed."""
+    if isinstance(seed, bool) or not isinstance(seed, numbers.Integral) or seed < 0:
+        raise SettingsError(f"the seed must be a whole number >= 0, got {seed!r}")
+    return int(seed)
 
 
 @dataclass(frozen=True)
@@ -106,6 +143,7 @@ class OutputSettings:
     def __post_init__(self):
         FORMATS.check(self.format)
         POINT_TYPE_CHOICES.check(self.point_type)
+        _number(self.start_time_s, "the start time (start_time_s, s)", None)
         if self.las_offset is not None and len(tuple(self.las_offset)) != 3:
             raise SettingsError(f"a LAS offset is x, y, z in metres, got {self.las_offset!r}")
         for f in self.fields:

@@ -159,10 +159,25 @@ def triangle_normals(vertices, triangles):
     return n, 0.5 * np.linalg.norm(n, axis=1)
 
 
+def finite_triangles(vertices, triangles):
+    """(T,) bool: whether each triangle's three vertices have finite coordinates."""
+    ok = np.isfinite(vertices).all(axis=1)
+    return ok[triangles].all(axis=1) if len(triangles) else np.ones(0, bool)
+
+
+def nonfinite_warning(skipped):
+    """The one warning for the triangles skipped for NaN or infinite coordinates:
+    ``skipped`` {object name: triangles skipped}."""
+    names = ", ".join(f"'{name}' ({n})" for name, n in sorted(skipped.items()))
+    return (f"skipped {sum(skipped.values())} triangle(s) with NaN or infinite vertex "
+            f"coordinates: {names}; fix those objects' vertices or transforms to scan them")
+
+
 def clean_for_casting(geometry, centre, max_range, min_area=1e-12):
     """Sensor-centred triangles for ray casting.
 
-    Returns (vertices - centre, triangles, kept_indices, warnings): degenerate
+    Returns (vertices - centre, triangles, kept_indices, warnings): triangles with a NaN
+    or infinite vertex coordinate (one warning naming their objects), degenerate
     (zero-area) triangles and triangles wholly beyond ``max_range`` of ``centre`` are
     dropped; coordinates are shifted before any float32 conversion so that scenes far
     from the origin keep their precision.
@@ -173,16 +188,26 @@ def clean_for_casting(geometry, centre, max_range, min_area=1e-12):
         return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64), warnings
     local = geometry.vertices - c
     tris = geometry.triangles
-    _, area = triangle_normals(local, tris)
-    good = area > min_area
-    n_bad = int((~good).sum())
-    if n_bad:
-        warnings.append(f"skipped {n_bad} degenerate (zero-area) triangle(s)")
-    # Distance from the sensor to each triangle's bounding box.
-    tv = local[tris]
-    lo, hi = tv.min(axis=1), tv.max(axis=1)
-    gap = np.maximum(np.maximum(lo, -hi), 0.0)
-    near = np.einsum("ij,ij->i", gap, gap) <= float(max_range) ** 2
+    finite = finite_triangles(local, tris)
+    if not finite.all():
+        objects = geometry.objects
+        counts = np.bincount(geometry.tri_object[~finite])
+        warnings.append(nonfinite_warning({
+            (objects[k].name if k < len(objects) else f"object {k}"): int(n)
+            for k, n in enumerate(counts) if n}))
+    # the skipped triangles' arithmetic gives NaN: they are dropped, quietly
+    with np.errstate(invalid="ignore", over="ignore"):
+        _, area = triangle_normals(local, tris)
+        good = area > min_area
+        n_bad = int(np.count_nonzero(finite & ~good))
+        good &= finite
+        if n_bad:
+            warnings.append(f"skipped {n_bad} degenerate (zero-area) triangle(s)")
+        # Distance from the sensor to each triangle's bounding box.
+        tv = local[tris]
+        lo, hi = tv.min(axis=1), tv.max(axis=1)
+        gap = np.maximum(np.maximum(lo, -hi), 0.0)
+        near = np.einsum("ij,ij->i", gap, gap) <= float(max_range) ** 2
     keep = np.nonzero(good & near)[0]
     return local, tris[keep], keep, warnings
 

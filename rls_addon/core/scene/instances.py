@@ -3,6 +3,7 @@ its own frame and its world matrix, sharing one material table. The core joins a
 subset of them in world space (``world_geometry``), or keeps one in its own frame for
 a moving body."""
 
+import dataclasses
 import hashlib
 from dataclasses import dataclass
 
@@ -51,6 +52,30 @@ def check_ids(id_map):
     object names})."""
     return [f"objects {', '.join(sorted(names))} share instance id {i}: rename one of them "
             "to tell their points apart" for i, names in sorted(id_map.items()) if len(names) > 1]
+
+
+def without_nonfinite(instances, skipped):
+    """``instances`` without their triangles that have a NaN or infinite vertex
+    coordinate (all of an instance whose matrix is not finite), vertices compacted;
+    each instance's count of skipped triangles is added to ``skipped`` ({key: count},
+    for ``geometry.nonfinite_warning``). Instances with nothing to skip are kept as they
+    are; instances left with no triangle are left out."""
+    out = []
+    for inst in instances:
+        ok = np.isfinite(inst.vertices).all(axis=1)
+        if ok.all() and np.isfinite(inst.matrix).all():
+            out.append(inst)
+            continue
+        keep = ok[inst.triangles].all(axis=1) if np.isfinite(inst.matrix).all() \
+            else np.zeros(len(inst.triangles), bool)
+        skipped[inst.key] = skipped.get(inst.key, 0) + int(np.count_nonzero(~keep))
+        if not keep.any():
+            continue
+        used, inverse = np.unique(inst.triangles[keep], return_inverse=True)
+        out.append(dataclasses.replace(inst, vertices=inst.vertices[used],
+                                       triangles=inverse.reshape(-1, 3),
+                                       materials=np.asarray(inst.materials)[keep]))
+    return out
 
 
 def world_geometry(instances, objects, materials, select=None, matrices=None, local=False):

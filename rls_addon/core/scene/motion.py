@@ -77,15 +77,30 @@ def slerp(q0, q1, a):
 
 
 def polar(linear):
-    """Split 3x3 matrices into rotation R (det +1 where possible) and S = R^T A."""
+    """Split 3x3 matrices A into a rotation R (det +1) and S = R^T A, so A = R S.
+
+    R is the orthogonal matrix nearest to A (scale and shear go into S). For a
+    mirroring A (det < 0) that matrix Q is a reflection, and R is Q with its second
+    column negated: R keeps A's own x and z axes and S holds the mirror (on y). So a
+    mirrored object keeps its forward (+X) and up (+Z), whichever axis its scale
+    mirrors: a mirrored LiDAR looks along its own +X with its own +Z up, its +Y the
+    mirror image of the object's."""
     u, _, vt = np.linalg.svd(linear)
     r = u @ vt
     flip = np.linalg.det(r) < 0
     if np.any(flip):
-        u = u.copy()
-        u[flip, :, -1] *= -1
-        r = u @ vt
+        r[flip, :, 1] *= -1
     return r, np.swapaxes(r, -1, -2) @ linear
+
+
+def rigid(matrices):
+    """4x4 poses (one (4, 4) or a stack (N, 4, 4)) without their scale and shear: the
+    3x3 replaced by ``polar``'s rotation, the translation kept."""
+    m = np.asarray(matrices, dtype=np.float64)
+    out = m.copy()
+    out[..., :3, :3] = polar(m.reshape(-1, 4, 4)[:, :3, :3])[0].reshape(m.shape[:-2] + (3, 3))
+    out[..., 3, :] = (0.0, 0.0, 0.0, 1.0)
+    return out
 
 
 def hermite(p0, v0, p1, v1, a, span):
@@ -253,26 +268,28 @@ KNOT_TOLERANCE_M = 5e-4  # pose knots: interpolation within half a millimetre
 
 
 def pose_knots(track, tolerance_m=KNOT_TOLERANCE_M, reach_m=1.0):
-    """Times and 4x4 poses of a moving sensor at enough knots over its sweep that
-    ``poses_at`` (linear translation, slerp rotation between knots) stays within
-    ``tolerance_m`` of the track, measured at the sensor and at ``reach_m`` along
-    each axis (a rotation error shows as a distance there). What the sidecar carries so
-    a sensor-frame cloud can be mapped to the world point by point."""
+    """Times and 4x4 rigid poses of a moving sensor's frame (its track without scale
+    and shear, ``rigid``: the frame its points are in) at enough knots over its sweep
+    that ``poses_at`` (linear translation, slerp rotation between knots) stays within
+    ``tolerance_m`` of it, measured at the sensor and at ``reach_m`` along each axis (a
+    rotation error shows as a distance there). What the sidecar carries so a
+    sensor-frame cloud can be mapped to the world point by point."""
     lo, hi = float(track.times[0]), float(track.times[-1])
     probe = np.array([[0, 0, 0, 1], [reach_m, 0, 0, 1], [0, reach_m, 0, 1], [0, 0, reach_m, 1]],
                      float).T
     times = np.array([lo, hi]) if hi > lo else np.array([lo])
     while len(times) < 4097:
-        mats = track.at(times)
+        mats = rigid(track.at(times))
         if len(times) == 1:
             return times, mats
         mids = (times[1:] + times[:-1]) / 2
-        err = np.linalg.norm((poses_at(times, mats, mids) - track.at(mids)) @ probe, axis=1)
+        err = np.linalg.norm((poses_at(times, mats, mids) - rigid(track.at(mids))) @ probe,
+                             axis=1)
         bad = err.max(axis=1) > tolerance_m
         if not bad.any():
             return times, mats
         times = np.sort(np.concatenate([times, mids[bad]]))
-    return times, track.at(times)
+    return times, rigid(track.at(times))
 
 
 def poses_at(times, matrices, t):

@@ -26,7 +26,7 @@ import numpy as np
 
 from ..metrics.disk_counter import DiskCounter
 from ..errors import InputError, RegionError, SettingsError
-from ..metrics.infra import DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, select_xy
+from ..metrics.infra import DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, disk_rng, select_xy
 from ..metrics.polygon import PreparedPolygon, as_polygon, sample_in_polygon, shoelace_area
 
 DEFAULT_WEIGHTS = tuple(np.round(np.linspace(0.0, 1.0, 11), 2))
@@ -56,7 +56,7 @@ class DiskLayout:
             raise RegionError(f"need at least one disk, got {disks}")
         if not (radius > 0 and math.isfinite(radius)):
             raise RegionError(f"disk radius must be a positive number of metres, got {radius}")
-        rng = np.random.default_rng(seed)
+        rng = disk_rng(seed)
         margin = radius if disk_placement == "inside" else 0.0
         centres = sample_in_polygon(poly, int(disks), rng, margin=margin)
         return cls(poly, abs(shoelace_area(poly)), centres, float(radius), int(seed), disk_placement)

@@ -241,13 +241,15 @@ class RigidBodies:
         box = self._swept_boxes[k] = (w.min(axis=(0, 1)) - pad, w.max(axis=(0, 1)) + pad)
         return box
 
-    def _pairs_each(self, o1, directions, times, max_range):
+    def _pairs_each(self, o1, directions, times, max_range, objects=None):
         """(ray index, object index, local origin, local direction, world-to-local linear
         map) for every ray that passes an object's swept bounding sphere and then its
-        swept box. (Vectorising this over all objects at once measured slower: the
+        swept box (of the objects ``objects``, or all). (Vectorising this over all objects at once measured slower: the
         (rays x objects) masks cost more than the loop.)"""
         parts = []
         for k, track in enumerate(self.tracks):
+            if objects is not None and k not in objects:
+                continue
             centre, radius = self._swept_sphere(k)
             idx = np.nonzero(ray_meets_sphere(o1, directions, centre, radius, max_range))[0]
             if len(idx) == 0:
@@ -268,7 +270,10 @@ class RigidBodies:
             return z, z, np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3))
         return tuple(np.concatenate([p[j] for p in parts]) for j in range(5))
 
-    def cast(self, origins, directions, times, max_range, watertight=True):
+    def cast(self, origins, directions, times, max_range, watertight=True, objects=None):
+        """Per ray: (dist, triangle of ``geometry`` or -1, unit world normal) of its
+        nearest hit on these objects (those whose index is in ``objects``, or all), each
+        where it is at the ray's time."""
         n = directions.shape[0]
         dist = np.full(n, np.inf)
         tri = np.full(n, -1, np.int64)
@@ -276,7 +281,7 @@ class RigidBodies:
         if self.scene.caster is None or n == 0:
             return dist, tri, normals
         o1 = np.asarray(origins, np.float64).reshape(-1, 3)
-        ray, obj, o_l, d_l, a = self._pairs_each(o1, directions, times, max_range)
+        ray, obj, o_l, d_l, a = self._pairs_each(o1, directions, times, max_range, objects)
         if len(ray) == 0:
             return dist, tri, normals
         scale = np.linalg.norm(d_l, axis=1)

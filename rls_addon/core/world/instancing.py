@@ -15,12 +15,14 @@ a moving object against its triangle's plane in the object's own coordinates, wi
 the object's matrix interpolated at the ray's own time. The steps are dense enough
 that this interpolated pose stays within ``STEP_TOLERANCE_M`` of the track (two
 steps are exact for a car driving straight), so ranges match ``RigidBodies`` to a
-hundredth of a millimetre.
+hundredth of a millimetre. An object whose track Embree's most steps
+(``MAX_STEPS``) cannot follow that closely (it jumps, or turns sharply, within the
+sweep) is not an instance: it is cast the portable way (``RigidBodies.cast`` of that
+object alone, exact at every ray's time) and its hits merged in (``portable``).
 """
 
 import numpy as np
 
-from ..casting import GRAZING
 from ..scene.geometry import hit_body
 
 STEP_TOLERANCE_M = 1e-5  # steps: linear interpolation within 10 um of the track
@@ -35,7 +37,8 @@ class InstancedWorld:
         self.static = static
         self.centre = static.centre
         primary = static.primary
-        placed, self.parts, self.coarse = [], [], []
+        placed, self.parts = [], []
+        self.portable = {}  # world body index -> its objects cast the portable way
         self.first = 0
         if primary is not None and with_static:
             placed.append((primary, np.eye(4), static.planes))
@@ -56,14 +59,16 @@ class InstancedWorld:
                 if got is None:
                     got = rb.derived[key] = self._steps(track, rb.centres[k], rb.local[k][0])
                 mats, close = got
-                # Motion too fast for Embree's steps to follow within the tolerance:
-                # its hits are refined here instead, against the exact track.
-                placed.append((caster, mats, planes if close else None))
-                self.parts.append((body, rb, k))
                 if not close:
-                    self.coarse.append((len(self.parts) - 1, rb, k, planes))
-        self.instances = instances_cls(placed)
-        self.traced = {body for body, _ in rigid}  # world body indices traced here
+                    # Motion Embree's steps cannot follow within the tolerance: this
+                    # object is cast on its own, exactly (World.start merges it in).
+                    self.portable.setdefault(body, []).append(k)
+                    continue
+                placed.append((caster, mats, planes))
+                self.parts.append((body, rb, k))
+        self.instances = instances_cls(placed) if placed else None
+        # world body indices traced here (their objects in ``portable`` excepted)
+        self.traced = {body for body, _ in rigid}
         self._part_body = np.array([b for b, _, _ in self.parts], np.int64)
         self._part_tri_start = np.array([rb.tri_start[k] for _, rb, k in self.parts], np.int64)
 
@@ -102,14 +107,16 @@ class InstancedWorld:
         for _, b in rigid:
             if not all(c is None or instances_cls.usable(c[0]) for c in b.local_casters()):
                 return None
-        return cls(static, rigid, instances_cls, with_static)
+        built = cls(static, rigid, instances_cls, with_static)
+        return built if built.instances is not None else None  # nothing left to instance
 
     def _steps(self, track, centre, local_vertices):
         """((S, 4, 4) matrices from the object's centred coordinates to the static
         scene's centre-relative frame at S evenly spaced times over [t0, t1], whether
-        they follow the track within STEP_TOLERANCE_M): S is doubled until linear
-        interpolation between steps stays that close to the track at the middle of
-        every step (on the object's bounding box), or reaches Embree's limit."""
+        they follow the track within STEP_TOLERANCE_M): S starts at four steps per
+        segment of the track and is doubled until linear interpolation between steps
+        stays that close to the track at the middle of every step (on the object's
+        bounding box); never more than Embree's limit, ``MAX_STEPS``."""
         shift = np.eye(4)
         shift[:3, 3] = centre
         if not self.moving or len(track.times) < 2 or track.is_static:
@@ -118,7 +125,7 @@ class InstancedWorld:
             return m[None], True
         lo, hi = local_vertices.min(0), local_vertices.max(0)
         corners = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(-1, 3)
-        steps = 2 if len(track.times) == 2 else 4 * (len(track.times) - 1) + 1
+        steps = 2 if len(track.times) == 2 else min(4 * (len(track.times) - 1) + 1, MAX_STEPS)
         while True:
             t = np.linspace(self.t0, self.t1, steps)
             m = track.at(t) @ shift
@@ -146,12 +153,6 @@ class InstancedWorld:
     def _finish(self, got, o, d, t, max_range, watertight):
         dist, tri, normals, inst = got
         first = self.first
-        for j, rb, k, planes in self.coarse:
-            sel = np.nonzero(inst == first + j)[0]
-            if len(sel):
-                dist[sel], normals[sel] = _refine_on_track(
-                    rb.tracks[k], rb.centres[k], planes, tri.take(sel),
-                    o if o.shape[0] == 1 else o[sel], d[sel], t[sel], dist[sel])
         far = np.nonzero((inst >= first) & ~(dist <= max_range))[0]
         inst[far], dist[far], normals[far] = -1, np.inf, 0.0
         st = np.where(inst == 0, tri, -1) if first else np.full(len(dist), -1, np.int64)
@@ -182,22 +183,3 @@ def _same(a, b):
     return len(a) == len(b) and all(
         ka == kb and ba is bb and len(ta) == len(tb) and all(x is y for x, y in zip(ta, tb))
         for (ka, ba, ta), (kb, bb, tb) in zip(a, b))
-
-
-def _refine_on_track(track, centre, planes, tri, o, d, t, dist):
-    """Exact world range and unit world normal of rays ``o + s d`` (world) on the
-    planes of triangles ``tri`` of an object centred on ``centre``, with the object at
-    its exact pose at each ray's time ``t``; Embree's ``dist`` is kept where the ray
-    grazes the plane (as ``casting.refine_hits`` does)."""
-    o_l, d_l, a = track.rays_to_local(t, o, d)
-    pl = planes.take(tri, axis=0)
-    nrm = pl[:, :3]
-    denom = np.einsum("ij,ij->i", nrm, d_l)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        exact = (pl[:, 3] - np.einsum("ij,ij->i", nrm, o_l - centre)) / denom
-    use = np.isfinite(exact) & (np.abs(denom) > GRAZING * np.linalg.norm(d_l, axis=1)) \
-        & (exact > 0)
-    # Normals go back with the inverse transpose of the object's matrix: A^T n.
-    nw = nrm @ a if a.ndim == 2 else np.einsum("nji,nj->ni", a, nrm)
-    nw /= np.maximum(np.linalg.norm(nw, axis=1, keepdims=True), 1e-300)
-    return np.where(use, exact, dist), nw

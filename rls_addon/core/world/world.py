@@ -86,11 +86,16 @@ class World:
             if inst is not None:  # the moving bodies, as instances without the static scene
                 movers = inst.start(origins, directions, times, max_range, order, True)
                 pending = lambda: _nearer(got, movers())  # noqa: E731
-        if not rest:
-            return pending
         # Bodies cast on their own (deforming sub-steps; every body on backends that
-        # cannot instance): their nearest hits are merged in.
+        # cannot instance), and the objects of instanced bodies whose motion Embree's
+        # steps cannot follow: their nearest hits are merged in.
         more = [(k, b.cast(origins, directions, times, max_range, watertight)) for k, b in rest]
+        if inst is not None:
+            more += [(k, self.moving[k - 1].cast(origins, directions, times, max_range,
+                                                 watertight, objects=objs))
+                     for k, objs in inst.portable.items()]
+        if not more:
+            return pending
 
         def merged():
             got = pending()

@@ -191,7 +191,10 @@ class LasWriter:
     def write_merged(self, path, clouds):
         """Write several clouds into one file: ``clouds`` is an iterable of
         (sensor, points (N,) world frame, sweep start s). Returns the path."""
-        las = self.build(clouds)
+        try:
+            las = self.build(clouds)
+        except OutputError as exc:
+            raise OutputError(f"cannot write {path}: {exc}") from None
         return atomic_write_bytes(path, las.write, overwrite=self.overwrite)
 
     def build(self, clouds):
@@ -219,8 +222,7 @@ class LasWriter:
         if standard and len(start):
             # the file's date: the (UTC) day of its first sweep, so equal runs write
             # equal bytes
-            header.creation_date = datetime.datetime.fromtimestamp(
-                float(start.min()), datetime.UTC).date()
+            header.creation_date = _date(float(start.min()))
         if self.crs is not None:
             header.add_crs(self.crs)
 
@@ -243,6 +245,17 @@ class LasWriter:
             setattr(las, name, points[name].astype(dtype))
         las.update_header()
         return las
+
+
+def _date(unix_s):
+    """The UTC date of Unix time ``unix_s``; ``OutputError`` beyond the dates a LAS
+    header (and Python) holds."""
+    try:
+        return datetime.datetime.fromtimestamp(unix_s, datetime.UTC).date()
+    except (OverflowError, ValueError, OSError):
+        raise OutputError(f"its first sweep's time, {unix_s:g} s, is beyond the dates a LAS "
+                          "header holds (years 1 to 9999): give a start time (--start-time) "
+                          "within them") from None
 
 
 def class_table():

@@ -80,7 +80,9 @@ def ros_name(name):
 
 def frame_stamp_ns(start_time_s, frame, first_frame, fps):
     """Integer nanoseconds of frame ``frame``'s stamp: ``start_time_s`` (s) at
-    ``first_frame``, plus (frame - first_frame) / fps."""
+    ``first_frame`` (a finite number: ``OutputSettings`` checks), plus (frame -
+    first_frame) / fps. ``SettingsError`` when it is not a bag's stamp (unsigned 64-bit
+    nanoseconds: from 1970 to 2554)."""
     if not fps > 0:
         raise SettingsError(f"frame rate must be positive, got {fps!r}")
     # the start as written (shortest decimal of the float): 1.7e9 s is 1.7e18 ns, which a
@@ -88,7 +90,14 @@ def frame_stamp_ns(start_time_s, frame, first_frame, fps):
     start_ns = int((decimal.Decimal(repr(float(start_time_s))) * 10**9).to_integral_value(
         decimal.ROUND_HALF_EVEN))
     offset = fractions.Fraction(int(frame) - int(first_frame)) * 10**9 / fractions.Fraction(fps)
-    return start_ns + round(offset)
+    stamp = start_ns + round(offset)
+    if not 0 <= stamp < 2 ** 64:
+        raise SettingsError(
+            f"a ROS 2 bag's stamps are unsigned nanoseconds, from 0 (1970) to "
+            f"{decimal.Decimal(2 ** 64 - 1) / 10 ** 9} s: frame {frame} would be stamped "
+            f"{float(decimal.Decimal(stamp) / 10 ** 9):g} s; give a start time "
+            "(--start-time) that puts every frame in that span")
+    return stamp
 
 
 def rigid_transform(matrix):
@@ -173,9 +182,19 @@ class BagWriter:
             self._writer.set_custom_data("rls.point_type", self.layout.name)
             self._writer.set_custom_data("rls.world_frame", self.world_frame)
             self._writer.set_custom_data("rls.software", f"rls {VERSION}")
+        except OSError as exc:
+            self.abort()
+            raise self._cannot(exc) from None
         except BaseException:
             self.abort()
             raise
+
+    def _cannot(self, exc, frame=None):
+        """The ``OutputError`` of an ``OSError`` (a full disk, a lost mount) while the
+        bag is written; the bag is dropped."""
+        where = "" if frame is None else f" (frame {frame})"
+        return OutputError(f"cannot write bag {self.path}: {exc.strerror or exc}{where}; "
+                           "no bag was left")
 
     # -- messages -----------------------------------------------------------------------
 
@@ -239,6 +258,9 @@ class BagWriter:
         except OutputError as exc:
             self.abort()
             raise OutputError(f"{exc} (frame {frame}; bag {self.path} not written)") from None
+        except OSError as exc:
+            self.abort()
+            raise self._cannot(exc, frame) from None
         except BaseException:
             self.abort()
             raise
@@ -285,6 +307,9 @@ class BagWriter:
             self._writer.close()
             self._closed = True
             self._publish()
+        except OSError as exc:
+            self.abort()
+            raise self._cannot(exc) from None
         except BaseException:
             self.abort()
             raise

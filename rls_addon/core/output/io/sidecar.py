@@ -4,7 +4,8 @@ The caller supplies the contents (device preset and source, sensor pose,
 frame, seed, effect settings, label map, software version). Readers of the
 cloud (``rls metrics``) look at two keys: ``"frame"`` (``"sensor"`` or
 ``"world"``: the coordinate frame of the points) and ``"sensor_to_world"``
-(4x4 nested list, row-major, maps sensor-frame points to world), and for a sensor
+(4x4 nested list, row-major, rigid: maps sensor-frame points to world; the LiDAR
+object's matrix without its scale, ``frame.sensor_frame``), and for a sensor
 that moved during its sweep ``"sensor_poses"``; ``points_to_world`` reads all three.
 """
 

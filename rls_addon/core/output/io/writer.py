@@ -262,6 +262,8 @@ class BagWriter:
         from . import rosbag
 
         rosbag._rosbags()  # the library is there
+        # the run's first frame has a bag stamp (later ones are checked as written)
+        rosbag.frame_stamp_ns(self.start_time_s, frame, self.first_frame, self.fps)
 
     def existing(self, sensor, output, frame):
         return None
