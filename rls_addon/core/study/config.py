@@ -14,7 +14,7 @@ from ..metrics.visibility import THRESHOLDS
 from .placement import DEFAULT_EXHAUSTIVE_LIMIT
 
 
-TRAFFIC_LABELS = ("vehicle", "pedestrian")
+TRAFFIC_LABELS = ("vehicle", "pedestrian", "cyclist")
 
 
 @dataclasses.dataclass
