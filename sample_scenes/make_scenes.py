@@ -35,7 +35,9 @@ def main(argv=None):
             bpy.ops.wm.save_as_mainfile(filepath=tmp, compress=True)
         os.replace(tmp, path)
         print(f"{path}: region {info['infralob']}, {len(info['mounts'])} mounts "
-              f"({', '.join(info['mounts'])}), vehicles {', '.join(info['vehicles'])}")
+              f"({', '.join(info['mounts'])}), {len(info['vehicles'])} vehicles "
+              f"({len(info['parked'])} parked), {len(info['pedestrians'])} pedestrians, "
+              f"{len(info['cyclists'])} cyclists")
     return 0
 
 

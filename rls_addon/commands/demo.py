@@ -11,14 +11,14 @@ from .scan import check_output_dir
 
 DEMO_SCENE = "intersection"
 DEMO_MOUNT = "TL SW"      # a traffic-light pole at a corner of the junction
-DEMO_FRAME = 24           # its four cars are near the junction then
+DEMO_FRAME = 24           # its first four cars are near the junction then
 DEMO_PITCH_DEG = 12.0     # nose down: the junction's far side within the upper beams
 
 
 def add_parser(sub):
     p = sub.add_parser("demo", help="scan the bundled sample intersection once",
                        description="Generate the sample intersection (roads, buildings, a "
-                                   "glass facade, four cars driving), mount a LiDAR on a "
+                                   "glass facade, traffic), mount a LiDAR on a "
                                    "traffic-light pole, scan one frame, write the point cloud "
                                    "and its picture, and run a small placement study.")
     p.add_argument("--out", default="out/demo", help="output directory (default: out/demo)")

@@ -1,16 +1,16 @@
 """``rls study``: where to mount k LiDARs over an InfraLOB.
 
 Every candidate placement (a mount or grid point, times each pitch and yaw) of one
-device is scanned once over the static scene (vehicles and pedestrians left out),
-InfraD and InfraNUC are measured in the InfraLOB, and sets of k sensors are searched
-for high density and low non-uniformity. With --traffic FRAMES each candidate is also
-scanned over those frames of the scene's animated traffic and scored by how well it
-sees the vehicles in the region (the share of vehicle-frames with at least 5, 20, 50
-points, mean points per vehicle, the share never seen); sets combine by per-vehicle
-unions. With --evaluate FRAMES the placements are also judged by detection: RLS's
-roadside detector on each candidate and on the sets the study reports (early fusion),
-the vehicle AP_R40 at BEV IoU 0.5 in the region, and how well InfraD, InfraNUC and
-visibility predict it (docs/evaluate.md). Writes to --out:
+device is scanned once over the static scene (vehicles, pedestrians and cyclists left
+out), InfraD and InfraNUC are measured in the InfraLOB, and sets of k sensors are
+searched for high density and low non-uniformity. With --traffic FRAMES each candidate
+is also scanned over those frames of the scene's animated traffic and scored by how
+well it sees the vehicles in the region (the share of vehicle-frames with at least 5,
+20, 50 points, mean points per vehicle, the share never seen); sets combine by
+per-vehicle unions. With --evaluate FRAMES the placements are also judged by detection:
+RLS's roadside detector on each candidate and on the sets the study reports (early
+fusion), the vehicle AP_R40 at BEV IoU 0.5 in the region, and how well InfraD,
+InfraNUC and visibility predict it (docs/evaluate.md). Writes to --out:
 
   candidates.csv   one row per candidate: pose, points in the region, InfraD, InfraNUC
                    (and with --traffic: visibility and the ranks by InfraD and by it)
@@ -100,7 +100,7 @@ def add_parser(sub):
     p.add_argument("--no-noise", action="store_true")
     p.add_argument("--no-dropout", action="store_true")
     p.add_argument("--keep-traffic", action="store_true",
-                   help="keep vehicles and pedestrians (the paper removes them)")
+                   help="keep vehicles, pedestrians and cyclists (the paper removes them)")
     p.add_argument("--frame", type=int, help="scene frame (default: the current one)")
     p.add_argument("--allow-shared-mounts", action="store_true",
                    help="let a set use several orientations on the same mount")

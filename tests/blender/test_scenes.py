@@ -19,7 +19,7 @@ def test_scene_contents(scene, name):
     lob = bpy.data.objects[info["infralob"]]
     assert lob.get("rls_infralob") and lob.hide_render
     labels = {object_label(o) for o in scene.objects if o.type == "MESH"}
-    for want in ("road", "sidewalk", "building", "vehicle"):
+    for want in ("road", "sidewalk", "building", "vehicle", "pedestrian", "cyclist"):
         assert label_id(want) in labels, want
     mounts = [o for o in scene.objects if is_mount(o)]
     assert len(mounts) >= 4 and sorted(o.name for o in mounts) == info["mounts"]
@@ -28,9 +28,9 @@ def test_scene_contents(scene, name):
         assert z > 5.0  # on top of a traffic-light or street-light pole
     glossy = [m for m in bpy.data.materials if material_info(m).glossy]
     assert glossy and any(o.active_material in glossy for o in scene.objects if o.type == "MESH")
-    # cars drive through: keyframed, in the Vehicles collection
-    cars = [bpy.data.objects[n] for n in info["vehicles"]]
-    assert len(cars) >= 3
+    # cars drive through: keyframed, in the Vehicles collection (beside the parked ones)
+    cars = [bpy.data.objects[n] for n in info["vehicles"] if n not in info["parked"]]
+    assert len(cars) >= 3 and info["parked"]
     scene.frame_set(1)
     start = [tuple(c.matrix_world.translation) for c in cars]
     scene.frame_set(30)
@@ -63,8 +63,8 @@ def test_study_scan_matches_a_lidar_object_scan(scene):
     res = run_study(scene, cfg)
     cand = res.candidates[0]
     assert res.structure_builds == 1
-    assert sorted(res.hidden_traffic) == info["vehicles"]
-    for name in info["vehicles"]:
+    assert sorted(res.hidden_traffic) == info["traffic"]  # vehicles, pedestrians, cyclists
+    for name in info["traffic"]:
         bpy.data.objects[name].hide_render = True
     lidar = add_lidar("Check", location=cand.position,
                       rotation=(0.0, np.radians(cand.pitch_deg), np.radians(cand.yaw_deg)))

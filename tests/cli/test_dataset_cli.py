@@ -1,6 +1,7 @@
-"""``rls dataset`` on the intersection sample scene (cars driving at 15-18 m/s, two
-LiDARs on traffic-light poles), judged by the readers detectors use: numpy for
-OpenPCDet's files, Open3D's legacy reader and PyYAML as OpenCOOD reads OPV2V."""
+"""``rls dataset`` on the intersection sample scene (its traffic: vehicles at 5-17 m/s,
+parked ones, pedestrians and cyclists; two LiDARs on traffic-light poles), judged by
+the readers detectors use: numpy for OpenPCDet's files, Open3D's legacy reader and
+PyYAML as OpenCOOD reads OPV2V."""
 
 import json
 import math
@@ -12,9 +13,13 @@ from .conftest import SCENE_SCRIPT_HEAD, build_blend, rls
 
 FRAMES = (26, 29)
 FPS = 10.0
-# The sample scene's straight cars: (start xy, end xy) over frames 1..60
+# The sample scene's first four cars, straight: (start xy, end xy) over frames 1..60
 CARS = {"Car west": ((50, 1.75), (-50, 1.75)), "Car east": ((-50, -5.25), (50, -5.25)),
         "Car north": ((1.75, -50), (1.75, 50)), "Car south": ((-5.25, 50), (-5.25, -50))}
+# The rest of its traffic by the first word of a name: KITTI class and box size (l, w, h)
+KINDS = {"Car": ("Vehicle", (4.5, 1.8, 1.5)), "Van": ("Vehicle", (5.2, 2.0, 2.2)),
+         "Truck": ("Vehicle", (9.0, 2.5, 3.2)), "Pedestrian": ("Pedestrian", (0.6, 0.6, 1.75)),
+         "Cyclist": ("Cyclist", (1.8, 0.6, 1.7))}
 
 BUILD = SCENE_SCRIPT_HEAD + r"""
 from rls_addon.blender.scenes import build_scene
@@ -76,7 +81,7 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
         assert listed == [f"{f:06d}" for f in range(FRAMES[0], FRAMES[1] + 1)]
         info = json.loads((root / "dataset.json").read_text())
         assert info["class_names"] == ["Vehicle", "Pedestrian", "Cyclist"]
-        checked = 0
+        checked, seen = 0, set()
         for f in range(FRAMES[0], FRAMES[1] + 1):
             pts = np.load(root / "points" / f"{f:06d}.npy")
             assert pts.dtype == np.float32 and pts.shape[1] == 4
@@ -93,13 +98,17 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
                 if not b["seen"]:
                     continue
                 box = b["frame_box"]
+                kind, size = KINDS[b["object"].split()[0]]
                 row = [r for r in boxes if np.allclose(r[:3], box["xyz"], atol=1e-5)]
-                assert len(row) == 1 and names[boxes.tolist().index(row[0].tolist())] == "Vehicle"
-                np.testing.assert_allclose(box["lwh"], [4.5, 1.8, 1.5], atol=0.01)
-                # >= 95% of the points carrying the car's instance id lie in its box
+                assert len(row) == 1 and names[boxes.tolist().index(row[0].tolist())] == kind
+                np.testing.assert_allclose(box["lwh"], size, atol=0.01)
+                # >= 95% of the points carrying the object's instance id lie in its box
                 own = (scan["instance"] == b["instance"]) & (scan["ghost"] == 0)
                 inside = boxes_contain(pts[own, :3].astype(np.float64), box, 3 * sigma + 0.02)
                 assert inside.mean() >= 0.95, (sensor, f, b["object"], inside.mean())
+                seen.add(kind)
+                if b["object"] not in CARS:
+                    continue
                 # heading within 0.5 deg of the animation (level frame: yaw of the sensor)
                 t = (f - 1) / FPS + b["time_s"]
                 centre_xy, heading = car_at(b["object"], t)
@@ -109,8 +118,8 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
                 world = frame_to_world[:3, :3] @ box["xyz"] + frame_to_world[:3, 3]
                 np.testing.assert_allclose(world[:2], centre_xy, atol=1e-3)
                 checked += 1
-        assert checked >= 8
-    assert all(len(v) == 1 for v in ids.values()) and len(ids) == 4  # one id per car
+        assert checked >= 8 and seen == {"Vehicle", "Pedestrian", "Cyclist"}
+    assert all(len(v) == 1 for v in ids.values()) and set(CARS) < set(ids)  # one id an object
     # resuming a complete dataset scans nothing
     again = rls("dataset", junction, "--layout", "kitti", "--frames", frames, "--out", out,
                 "--level", "--seed", "3", "--resume")

