@@ -10,7 +10,6 @@ summary and the study's tables are what one process writes (seeds come from
 again elsewhere, and it keeps the frames the first attempt finished.
 """
 
-import glob
 import os
 import sys
 import time
@@ -129,24 +128,10 @@ def run_scan(args, run, blend, by_sensor=True):
 
 
 def remove_temporaries(run):
-    """What killed workers left beside this run's outputs: temporary files of a write in
-    progress (``.<file name>.<random>.tmp`` next to the file, ``io.atomic``) and the
-    files of a scan whose last file was never written (a cloud without its sidecar);
-    a later --resume scans those again."""
-    for frame, job in run.plan:
-        for path in run.writer.incomplete(job.name, job.settings.output, frame):
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
-        for path in run.writer.planned_files(job.name, job.settings.output, frame):
-            pattern = os.path.join(glob.escape(os.path.dirname(os.path.abspath(path))),
-                                   "." + glob.escape(os.path.basename(path)) + ".*.tmp")
-            for tmp in glob.glob(pattern):
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
+    """What killed workers left beside this run's outputs (``ScanRun.remove_leftovers``:
+    temporaries of writes in progress, clouds without their sidecar); a later --resume
+    scans those again."""
+    run.remove_leftovers()
 
 
 def study_scan_all(args, blend):

@@ -110,6 +110,8 @@ class ScanRun:
         if writer is not None:  # fail before scanning anything
             for job in self.sensors:
                 writer.check(job.name, job.settings.output, self.frames[0])
+            if not piece and (getattr(writer, "resume", False) or getattr(writer, "overwrite", False)):
+                self.remove_leftovers()  # what a killed earlier run of these outputs left
         self.sessions, self.notices = ({} if sessions is None else sessions), []
         self.piece = piece
         for job in self.sensors:
@@ -264,6 +266,25 @@ class ScanRun:
             self.frames_done = list(self.frames)
             self._complete()
 
+    def remove_leftovers(self):
+        """Remove what a killed process left of this run's outputs: temporaries of
+        writes in progress (``io.atomic``: a SIGKILL, a lost node or a dead worker can
+        leave one) and the files of a scan whose last file was never written (a cloud
+        without its sidecar); those scans are then done again. Only for runs that may
+        replace their outputs (--resume, --overwrite) and once every worker stopped."""
+        from ..output.io.atomic import stale_temporaries
+
+        incomplete = getattr(self.writer, "incomplete", None)
+        planned = []
+        for frame, job in self.plan:
+            out = job.settings.output
+            if incomplete is not None:
+                for path in incomplete(job.name, out, frame):
+                    _unlink(path)
+            planned += self.writer.planned_files(job.name, out, frame)
+        for tmp in stale_temporaries(planned):
+            _unlink(tmp)
+
     def free_outputs(self):
         """Without --overwrite or --resume, an existing file of this run is an error
         before anything is scanned (pieces run again after a failed worker then keep
@@ -319,3 +340,10 @@ class ScanRun:
         if s.resumed:
             out["resumed"] = True
         return out
+
+
+def _unlink(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
