@@ -20,7 +20,7 @@ from ..casting import caster_factory
 from ..errors import SceneError
 from ..scene.instances import check_ids
 from ..labels import label_id, label_name
-from .session import ScanSession
+from .session import ScanSession, settings_record
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,9 @@ class Writer(Protocol):
 
     def check(self, sensor: str, output, frame: int) -> None: ...
 
-    def existing(self, sensor: str, output, frame: int) -> int | None: ...
+    def existing(self, sensor: str, output, frame: int, settings: dict = None) -> int | None:
+        """The point count of an earlier output to keep (resuming), else None; a writer
+        that can compares ``settings`` (``session.settings_record``) with its files'."""
 
     def write(self, sensor: str, output, frame: int, points, info: dict): ...
 
@@ -112,7 +114,12 @@ class ScanRun:
                 writer.check(job.name, job.settings.output, self.frames[0])
             if not piece and (getattr(writer, "resume", False) or getattr(writer, "overwrite", False)):
                 self.remove_leftovers()  # what a killed earlier run of these outputs left
+        self._records = {j.name: settings_record(j.preset, j.settings.scan) for j in self.sensors}
+        self._told_stale = set()  # sensors whose files of other settings were reported
         self.sessions, self.notices = ({} if sessions is None else sessions), []
+        if writer is not None and not piece and hasattr(writer, "orphans"):
+            self._orphans_notice(writer.orphans([(j.name, j.settings.output, f)
+                                                 for f, j in self.plan]))
         self.piece = piece
         for job in self.sensors:
             backend = job.settings.backend
@@ -163,7 +170,11 @@ class ScanRun:
             return False
         frame, job = self.plan[self.index]
         out = job.settings.output
-        kept = self.writer.existing(job.name, out, frame) if self.writer is not None else None
+        kept, told = None, []
+        if self.writer is not None:
+            kept = self.writer.existing(job.name, out, frame, self._records[job.name])
+            if kept is None:
+                told = self._stale_notice(job, frame)
         if kept is not None:
             self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
                                         str(self.writer.path(job.name, out, frame)), True))
@@ -193,13 +204,37 @@ class ScanRun:
             self.on_result(job, frame, result, info)
         self.scanned += 1
         self._scan_time += time.perf_counter() - t
-        warnings = [f"{job.name} frame {frame}: {w}" for w in result.warnings]
+        warnings = told + [f"{job.name} frame {frame}: {w}" for w in result.warnings]
         self.warnings += warnings
         self.last = (result, info)
         self._done(frame, job, Step(frame, job.name, self.index + 1, self.total,
                                     len(result.points), result.seconds, path, False,
                                     warnings=warnings))
         return not self.finished
+
+    def _stale_notice(self, job, frame):
+        """Once per sensor, when resuming: its earlier files written with other settings
+        are scanned again, naming the settings that differ."""
+        if not getattr(self.writer, "resume", False) or job.name in self._told_stale \
+                or not hasattr(self.writer, "stale_settings"):
+            return []
+        names = self.writer.stale_settings(job.name, job.settings.output, frame,
+                                           self._records[job.name])
+        if not names:
+            return []
+        self._told_stale.add(job.name)
+        return [f"{job.name} frame {frame} was written with other settings "
+                f"({', '.join(names)}): scanning it again, and every other frame of "
+                f"{job.name} written so"]
+
+    def _orphans_notice(self, orphans):
+        if not orphans:
+            return
+        exts = sorted({os.path.splitext(p)[1] for p in orphans})
+        self.notices.append(
+            f"{len(orphans)} file(s) of another format ({', '.join(exts)}) beside this "
+            f"run's outputs, e.g. {orphans[0]}: an earlier run's, left as they are (their "
+            "sidecars now describe this run's files)")
 
     def _done(self, frame, job, step):
         self.index += 1
