@@ -87,9 +87,7 @@ def run_scan(args, run, blend, by_sensor=True):
         workers = 1
     if workers == 1:
         return run.run()
-    writer = run.writer
-    if not (writer.overwrite or writer.resume):
-        run.free_outputs()
+    writer = run.writer  # existing files were refused when the run was made (ScanRun)
     # A piece run again after its worker died keeps what the first attempt finished.
     writer.resume = not writer.overwrite
     t0 = time.perf_counter()

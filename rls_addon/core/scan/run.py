@@ -110,8 +110,12 @@ class ScanRun:
         self._cancelled = cancelled or (lambda: False)
         self.plan = [(f, job) for f in self.frames for job in self.sensors]
         if writer is not None:  # fail before scanning anything
+            self._distinct_outputs()
             for job in self.sensors:
                 writer.check(job.name, job.settings.output, self.frames[0])
+            if not piece and not (getattr(writer, "resume", False)
+                                  or getattr(writer, "overwrite", False)):
+                self.free_outputs()
             if not piece and (getattr(writer, "resume", False) or getattr(writer, "overwrite", False)):
                 self.remove_leftovers()  # what a killed earlier run of these outputs left
         self._records = {j.name: settings_record(j.preset, j.settings.scan) for j in self.sensors}
@@ -320,17 +324,53 @@ class ScanRun:
         for tmp in stale_temporaries(planned):
             _unlink(tmp)
 
+    def _planned(self):
+        """(frame, job, files) of every step: the files a writer says a scan writes."""
+        planned = getattr(self.writer, "planned_files", None)
+        for frame, job in self.plan:
+            out = job.settings.output
+            yield frame, job, (planned(job.name, out, frame) if planned is not None
+                               else [self.writer.path(job.name, out, frame)])
+
+    def _distinct_outputs(self):
+        """Every scan writes files of its own, decided before any work: two LiDARs whose
+        names give the same file names (names that differ only in characters a file
+        name cannot hold), or a file name template without {frame} over several frames,
+        end the run here, naming them. Writers of one file per run (a bag) say so
+        (``per_scan = False``)."""
+        from ..errors import OutputError
+
+        if not getattr(self.writer, "per_scan", True):
+            return
+        owner = {}
+        for frame, job, files in self._planned():
+            for path in files:
+                key = os.path.abspath(os.fspath(path))
+                first = owner.setdefault(key, (frame, job))
+                if first == (frame, job):
+                    continue
+                f0, j0 = first
+                if j0.name != job.name:
+                    raise OutputError(
+                        f"LiDARs '{j0.name}' and '{job.name}' would write the same file "
+                        f"{path} (their names give the same file name): rename one, or give "
+                        "it an output folder or file name template of its own")
+                raise OutputError(
+                    f"{job.name}'s file name template {job.settings.output.template!r} gives "
+                    f"the same file {path} for frames {f0} and {frame}: put {{frame}} in it "
+                    "(e.g. --template '{scene}_{sensor}_{frame:06d}'), or scan one frame")
+
     def free_outputs(self):
         """Without --overwrite or --resume, an existing file of this run is an error
         before anything is scanned (pieces run again after a failed worker then keep
         what they wrote the first time)."""
         from ..errors import OutputError
 
-        for frame, job in self.plan:
-            path = self.writer.path(job.name, job.settings.output, frame)
-            if os.path.exists(path):
-                raise OutputError(f"{path} already exists; pass --overwrite to replace it "
-                                  "or --resume to keep it")
+        for _, _, files in self._planned():
+            for path in files:
+                if os.path.exists(path):
+                    raise OutputError(f"{path} already exists; pass --overwrite to replace it "
+                                      "or --resume to keep it")
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when

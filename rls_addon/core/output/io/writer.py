@@ -277,6 +277,7 @@ class BagWriter:
     workers (``shardable``)."""
 
     shardable = False
+    per_scan = False  # one file for every scan of the run
 
     def __init__(self, scene_name, folder, point_type="rls", fps=24.0, first_frame=1,
                  start_time_s=0.0, overwrite=False, resume=False):
