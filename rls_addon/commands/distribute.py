@@ -21,6 +21,7 @@ from ..core.scan.cluster import (
     parse_workers,
     run_tasks,
     shards,
+    worker_memory,
 )
 from ..core.errors import SceneError
 
@@ -60,13 +61,24 @@ def _local_cluster_possible():
         return False
 
 
-def worker_count(args, scans, rays):
+def worker_count(args, scans, rays, blend=None):
+    """The workers of a run of ``scans`` scans of ``rays`` rays in all, of the scene in
+    ``blend``: what --workers asks, capped at what this machine holds (a notice)."""
     requested = parse_workers(args.workers)
     local_ok = _local_cluster_possible()
     if requested != "auto" and requested > 1 and not args.scheduler and not local_ok:
         raise ClusterError("a local cluster needs the bpy module (python -m rls_addon ...); "
                            "from the Blender program use --workers 1 or --scheduler ADDRESS")
-    return choose_workers(requested, scans, rays, args.scheduler, local_ok)
+    try:
+        scene_bytes = os.path.getsize(blend) if blend else 0
+    except OSError:
+        scene_bytes = 0
+    notices = []
+    n = choose_workers(requested, scans, rays, args.scheduler, local_ok,
+                       worker_memory(scene_bytes, rays // max(1, scans)), notices)
+    for notice in notices:
+        print(f"rls: notice: {notice}", file=sys.stderr, flush=True)
+    return n
 
 
 def _eta(done, total, t0):
@@ -79,7 +91,7 @@ def run_scan(args, run, blend, by_sensor=True):
     """Run ``run`` (a ``core.run.ScanRun``) here or over workers, as ``--workers`` and
     ``--scheduler`` say; returns it, complete."""
     rays = sum(len(j.preset.pattern(run.frames[0])) for j in run.sensors) * len(run.frames)
-    workers = worker_count(args, run.total, rays)
+    workers = worker_count(args, run.total, rays, blend)
     if workers != 1 and not run.writer.shardable:
         if args.scheduler or parse_workers(args.workers) != "auto":
             print("rls: notice: a ROS 2 bag is written by one process: running here",
@@ -143,7 +155,7 @@ def study_scan_all(args, blend):
     def scan_all(scanner, cands, on_scan):
         rays = len(scanner.preset.pattern(scanner.frame)) * len(cands) \
             * (1 + len(scanner.traffic))
-        workers = worker_count(args, len(cands) * (1 + len(scanner.traffic)), rays)
+        workers = worker_count(args, len(cands) * (1 + len(scanner.traffic)), rays, blend)
         if workers == 1:
             for c in cands:
                 on_scan(scanner.scan(c))
