@@ -106,7 +106,7 @@ def run_scan(args, run, blend, by_sensor=True):
     from .worker import scan_piece
 
     jobs = {j.name: j for j in run.sensors}
-    notices = []
+    notices, said = [], set()
     try:
         with cluster_client(workers, args.scheduler) as client:
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
@@ -123,6 +123,10 @@ def run_scan(args, run, blend, by_sensor=True):
                 print(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
                       f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
                       "left", file=sys.stderr, flush=True)
+                for w in (w for s in got.steps for w in s.warnings):  # as a serial run says
+                    if w not in said:  # them, each once
+                        said.add(w)
+                        print(f"rls: warning: {w}", file=sys.stderr)
 
             run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer,
                                              args.prepare_blender))

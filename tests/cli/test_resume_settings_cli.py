@@ -53,3 +53,15 @@ def test_resume_reports_files_of_another_format(demo_run, tmp_path):
             and "another format" in ln]
     assert len(told) == 1 and "2 " in told[0] and ".pcd" in told[0], again.stderr
     assert (out / "intersection_LiDAR_000001.pcd").exists()  # reported, not removed
+
+
+def test_resume_over_workers_says_so_too(demo_run, tmp_path):
+    blend = demo_run[0] / "intersection.blend"
+    out = tmp_path / "scan"
+    assert rls("scan", blend, "--frames", "1-4", "--out", out, "--workers", "1").returncode == 0
+    again = rls("scan", blend, "--frames", "1-4", "--out", out, "--resume", "--seed", "7",
+                "--workers", "2")
+    assert again.returncode == 0, again.stderr
+    assert (summary(again)["resumed"], summary(again)["scanned"]) == (0, 4)
+    told = [ln for ln in again.stderr.splitlines() if "other settings" in ln]
+    assert told and all("seed" in ln for ln in told), again.stderr

@@ -227,9 +227,8 @@ class ScanRun:
         if not names:
             return []
         self._told_stale.add(job.name)
-        return [f"{job.name} frame {frame} was written with other settings "
-                f"({', '.join(names)}): scanning it again, and every other frame of "
-                f"{job.name} written so"]
+        return [f"{job.name}: frames written with other settings ({', '.join(names)}) "
+                "are scanned again"]
 
     def _orphans_notice(self, orphans):
         if not orphans:
