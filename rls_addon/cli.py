@@ -3,10 +3,12 @@
 
 import argparse
 import re
+import signal
 import sys
+import threading
 
 from .commands import load_commands
-from .core.errors import RLSError
+from .core.errors import Interrupted, RLSError, interrupt_exit_code
 from .version import VERSION
 
 
@@ -48,15 +50,39 @@ def main(argv=None, prepare_blender=None):
     except SystemExit as exc:  # --help, --version, usage errors
         return int(exc.code or 0)
     args.prepare_blender = prepare_blender or _nothing
+    previous = _stop_on_signals()
     try:
         return int(args.func(args) or 0)
     except RLSError as exc:
         print(f"rls: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("rls: interrupted: files already written are complete, none is left half-written",
               file=sys.stderr)
-        return 130
+        return interrupt_exit_code(exc)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))
+
+
+def _stop_on_signals():
+    """SIGTERM and SIGHUP raise ``Interrupted`` (a KeyboardInterrupt) as Ctrl-C does, so
+    every command stops the way it stops on Ctrl-C: the write under way ends or its
+    temporary is removed, and the exit code is 128 + the signal. The first signal
+    counts; a repeat while the run winds down is ignored. Returns the handlers
+    replaced (restored when the command ends)."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+
+    def stop(signum, frame):
+        for s in STOP_SIGNALS:
+            signal.signal(s, signal.SIG_IGN)
+        raise Interrupted(signum)
+
+    return {s: signal.signal(s, stop) for s in STOP_SIGNALS}
 
 
 def _nothing():

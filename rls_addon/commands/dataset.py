@@ -117,6 +117,7 @@ def dataset_run(args):
 
 
 def run(args):
+    from ..core.errors import interrupt_exit_code
     from .distribute import run_scan, scene_file
 
     job = None
@@ -126,11 +127,11 @@ def run(args):
             print(f"rls: notice: {notice}", file=sys.stderr)
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         where = f" after {job.index} of {job.total} scans" if job is not None else ""
         print(f"rls: interrupted{where}; finished files are complete, nothing partial was "
               "left; rerun with --resume to continue", file=sys.stderr)
-        return 130
+        return interrupt_exit_code(exc)
     for notice in writer.notices:
         print(f"rls: notice: {notice}", file=sys.stderr)
     summary = job.summary()

@@ -10,7 +10,6 @@ summary and the study's tables are what one process writes (seeds come from
 again elsewhere, and it keeps the frames the first attempt finished.
 """
 
-import glob
 import os
 import sys
 import time
@@ -22,6 +21,7 @@ from ..core.scan.cluster import (
     parse_workers,
     run_tasks,
     shards,
+    worker_memory,
 )
 from ..core.errors import SceneError
 
@@ -61,13 +61,24 @@ def _local_cluster_possible():
         return False
 
 
-def worker_count(args, scans, rays):
+def worker_count(args, scans, rays, blend=None):
+    """The workers of a run of ``scans`` scans of ``rays`` rays in all, of the scene in
+    ``blend``: what --workers asks, capped at what this machine holds (a notice)."""
     requested = parse_workers(args.workers)
     local_ok = _local_cluster_possible()
     if requested != "auto" and requested > 1 and not args.scheduler and not local_ok:
         raise ClusterError("a local cluster needs the bpy module (python -m rls_addon ...); "
                            "from the Blender program use --workers 1 or --scheduler ADDRESS")
-    return choose_workers(requested, scans, rays, args.scheduler, local_ok)
+    try:
+        scene_bytes = os.path.getsize(blend) if blend else 0
+    except OSError:
+        scene_bytes = 0
+    notices = []
+    n = choose_workers(requested, scans, rays, args.scheduler, local_ok,
+                       worker_memory(scene_bytes, rays // max(1, scans)), notices)
+    for notice in notices:
+        print(f"rls: notice: {notice}", file=sys.stderr, flush=True)
+    return n
 
 
 def _eta(done, total, t0):
@@ -80,7 +91,7 @@ def run_scan(args, run, blend, by_sensor=True):
     """Run ``run`` (a ``core.run.ScanRun``) here or over workers, as ``--workers`` and
     ``--scheduler`` say; returns it, complete."""
     rays = sum(len(j.preset.pattern(run.frames[0])) for j in run.sensors) * len(run.frames)
-    workers = worker_count(args, run.total, rays)
+    workers = worker_count(args, run.total, rays, blend)
     if workers != 1 and not run.writer.shardable:
         if args.scheduler or parse_workers(args.workers) != "auto":
             print("rls: notice: a ROS 2 bag is written by one process: running here",
@@ -88,16 +99,14 @@ def run_scan(args, run, blend, by_sensor=True):
         workers = 1
     if workers == 1:
         return run.run()
-    writer = run.writer
-    if not (writer.overwrite or writer.resume):
-        run.free_outputs()
+    writer = run.writer  # existing files were refused when the run was made (ScanRun)
     # A piece run again after its worker died keeps what the first attempt finished.
     writer.resume = not writer.overwrite
     t0 = time.perf_counter()
     from .worker import scan_piece
 
     jobs = {j.name: j for j in run.sensors}
-    notices = []
+    notices, said = [], set()
     try:
         with cluster_client(workers, args.scheduler) as client:
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
@@ -114,6 +123,10 @@ def run_scan(args, run, blend, by_sensor=True):
                 print(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
                       f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
                       "left", file=sys.stderr, flush=True)
+                for w in (w for s in got.steps for w in s.warnings):  # as a serial run says
+                    if w not in said:  # them, each once
+                        said.add(w)
+                        print(f"rls: warning: {w}", file=sys.stderr)
 
             run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer,
                                              args.prepare_blender))
@@ -129,24 +142,10 @@ def run_scan(args, run, blend, by_sensor=True):
 
 
 def remove_temporaries(run):
-    """What killed workers left beside this run's outputs: temporary files of a write in
-    progress (``.<file name>.<random>.tmp`` next to the file, ``io.atomic``) and the
-    files of a scan whose last file was never written (a cloud without its sidecar);
-    a later --resume scans those again."""
-    for frame, job in run.plan:
-        for path in run.writer.incomplete(job.name, job.settings.output, frame):
-            try:
-                os.unlink(path)
-            except OSError:
-                pass
-        for path in run.writer.planned_files(job.name, job.settings.output, frame):
-            pattern = os.path.join(glob.escape(os.path.dirname(os.path.abspath(path))),
-                                   "." + glob.escape(os.path.basename(path)) + ".*.tmp")
-            for tmp in glob.glob(pattern):
-                try:
-                    os.unlink(tmp)
-                except OSError:
-                    pass
+    """What killed workers left beside this run's outputs (``ScanRun.remove_leftovers``:
+    temporaries of writes in progress, clouds without their sidecar); a later --resume
+    scans those again."""
+    run.remove_leftovers()
 
 
 def study_scan_all(args, blend):
@@ -160,7 +159,7 @@ def study_scan_all(args, blend):
     def scan_all(scanner, cands, on_scan):
         rays = len(scanner.preset.pattern(scanner.frame)) * len(cands) \
             * (1 + len(scanner.traffic))
-        workers = worker_count(args, len(cands) * (1 + len(scanner.traffic)), rays)
+        workers = worker_count(args, len(cands) * (1 + len(scanner.traffic)), rays, blend)
         if workers == 1:
             for c in cands:
                 on_scan(scanner.scan(c))

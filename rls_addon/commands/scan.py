@@ -226,6 +226,7 @@ def scan_run(args):
 
 
 def run(args):
+    from ..core.errors import interrupt_exit_code
     from .distribute import run_scan, scene_file
 
     job = None
@@ -234,10 +235,10 @@ def run(args):
         for notice in job.notices:
             print(f"rls: notice: {notice}", file=sys.stderr)
         run_scan(args, job, scene_file(args))
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         where = f" after {job.index} of {job.total} scans" if job is not None else ""
         print(f"rls: interrupted{where}; finished files are complete, nothing partial was "
               "left; rerun with --resume to continue", file=sys.stderr)
-        return 130
+        return interrupt_exit_code(exc)
     print(json.dumps(job.summary(), indent=2))
     return 0

@@ -35,3 +35,19 @@ class CastingError(RLSError):
 
 class InputError(RLSError):
     """An input file (point cloud, sidecar, polygon) is missing or malformed."""
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (kill, SLURM, Kubernetes, systemd), raised where Ctrl-C raises
+    KeyboardInterrupt, so a run stops the same way; ``exit_code`` is 128 + the signal's
+    number, as a shell reports a process the signal ended."""
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = int(signum)
+        self.exit_code = 128 + self.signum
+
+
+def interrupt_exit_code(exc):
+    """The exit code of a run stopped by ``exc``: 130 for Ctrl-C, 128 + N for signal N."""
+    return getattr(exc, "exit_code", 130)

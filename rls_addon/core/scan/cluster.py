@@ -24,6 +24,11 @@ from ..errors import RLSError, SettingsError
 AUTO_MIN_SECONDS = 20.0
 # What a worker holds: the bpy module, one open scene, prepared ray-casting structures.
 WORKER_MEMORY_BYTES = 2 * 1024 ** 3
+# A worker of a bigger scene (``worker_memory``), an estimate: the scene's meshes in
+# Blender and again in the casting structures, several times the .blend's size; a
+# scan's arrays per ray (directions, hits, draws, the point records).
+SCENE_MEMORY_FACTOR = 8
+BYTES_PER_RAY = 400
 # A rough serial cost model for ``auto``: per scan and per ray (Embree, one core)
 SECONDS_PER_SCAN = 0.05
 SECONDS_PER_RAY = 2.5e-7
@@ -75,23 +80,48 @@ def parse_workers(text):
     return n
 
 
-def choose_workers(requested, scans, rays, scheduler=None, local_ok=True):
+def worker_memory(scene_bytes=0, rays_per_scan=0):
+    """An estimate of one worker's memory for a scene of ``scene_bytes`` (its .blend)
+    scanned ``rays_per_scan`` rays at a time: at least ``WORKER_MEMORY_BYTES``."""
+    return int(WORKER_MEMORY_BYTES + SCENE_MEMORY_FACTOR * max(0, scene_bytes)
+               + BYTES_PER_RAY * max(0, rays_per_scan))
+
+
+def machine_cap(worker_bytes=WORKER_MEMORY_BYTES):
+    """The most local workers this machine holds, and why: one per core, and no more
+    than its free memory holds workers of ``worker_bytes``."""
+    n, why = cores(), f"this machine has {cores()} cores"
+    mem = available_memory()
+    if mem is not None and mem // worker_bytes < n:
+        n = max(1, int(mem // worker_bytes))
+        why = (f"its {mem / 1024 ** 3:.1f} GB of free memory hold {n} worker(s) of about "
+               f"{worker_bytes / 1024 ** 3:.1f} GB for this scene")
+    return n, why
+
+
+def choose_workers(requested, scans, rays, scheduler=None, local_ok=True,
+                   worker_bytes=WORKER_MEMORY_BYTES, notices=None):
     """How many workers a run gets: 1 means in-process (today's run). With a scheduler
-    address the cluster decides (returns 0: 'whatever the scheduler has')."""
+    address the cluster decides (returns 0: 'whatever the scheduler has'). A number
+    beyond this machine's cores or memory (``machine_cap``, workers of ``worker_bytes``)
+    is capped, and a notice naming the cap is added to ``notices``."""
     if scheduler:
         return 0
     if requested != "auto":
-        return int(requested)
+        n = int(requested)
+        cap, why = machine_cap(worker_bytes)
+        if n > cap:
+            if notices is not None:
+                notices.append(f"--workers {n}: capped at {cap} ({why})")
+            n = cap
+        return n
     n = cores()
     if not local_ok or n < 2:
         return 1
     estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
     if estimate < AUTO_MIN_SECONDS or scans < 2 * n:
         return 1
-    mem = available_memory()
-    if mem is not None:
-        n = max(1, min(n, mem // WORKER_MEMORY_BYTES))
-    return int(n)
+    return int(machine_cap(worker_bytes)[0])
 
 
 def threads_per_worker(workers):

@@ -20,7 +20,7 @@ from ..casting import caster_factory
 from ..errors import SceneError
 from ..scene.instances import check_ids
 from ..labels import label_id, label_name
-from .session import ScanSession
+from .session import ScanSession, settings_record
 
 
 @dataclass(frozen=True)
@@ -61,7 +61,9 @@ class Writer(Protocol):
 
     def check(self, sensor: str, output, frame: int) -> None: ...
 
-    def existing(self, sensor: str, output, frame: int) -> int | None: ...
+    def existing(self, sensor: str, output, frame: int, settings: dict = None) -> int | None:
+        """The point count of an earlier output to keep (resuming), else None; a writer
+        that can compares ``settings`` (``session.settings_record``) with its files'."""
 
     def write(self, sensor: str, output, frame: int, points, info: dict): ...
 
@@ -108,9 +110,20 @@ class ScanRun:
         self._cancelled = cancelled or (lambda: False)
         self.plan = [(f, job) for f in self.frames for job in self.sensors]
         if writer is not None:  # fail before scanning anything
+            self._distinct_outputs()
             for job in self.sensors:
                 writer.check(job.name, job.settings.output, self.frames[0])
+            if not piece and not (getattr(writer, "resume", False)
+                                  or getattr(writer, "overwrite", False)):
+                self.free_outputs()
+            if not piece and (getattr(writer, "resume", False) or getattr(writer, "overwrite", False)):
+                self.remove_leftovers()  # what a killed earlier run of these outputs left
+        self._records = {j.name: settings_record(j.preset, j.settings.scan) for j in self.sensors}
+        self._told_stale = set()  # sensors whose files of other settings were reported
         self.sessions, self.notices = ({} if sessions is None else sessions), []
+        if writer is not None and not piece and hasattr(writer, "orphans"):
+            self._orphans_notice(writer.orphans([(j.name, j.settings.output, f)
+                                                 for f, j in self.plan]))
         self.piece = piece
         for job in self.sensors:
             backend = job.settings.backend
@@ -161,7 +174,11 @@ class ScanRun:
             return False
         frame, job = self.plan[self.index]
         out = job.settings.output
-        kept = self.writer.existing(job.name, out, frame) if self.writer is not None else None
+        kept, told = None, []
+        if self.writer is not None:
+            kept = self.writer.existing(job.name, out, frame, self._records[job.name])
+            if kept is None:
+                told = self._stale_notice(job, frame)
         if kept is not None:
             self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
                                         str(self.writer.path(job.name, out, frame)), True))
@@ -191,13 +208,36 @@ class ScanRun:
             self.on_result(job, frame, result, info)
         self.scanned += 1
         self._scan_time += time.perf_counter() - t
-        warnings = [f"{job.name} frame {frame}: {w}" for w in result.warnings]
+        warnings = told + [f"{job.name} frame {frame}: {w}" for w in result.warnings]
         self.warnings += warnings
         self.last = (result, info)
         self._done(frame, job, Step(frame, job.name, self.index + 1, self.total,
                                     len(result.points), result.seconds, path, False,
                                     warnings=warnings))
         return not self.finished
+
+    def _stale_notice(self, job, frame):
+        """Once per sensor, when resuming: its earlier files written with other settings
+        are scanned again, naming the settings that differ."""
+        if not getattr(self.writer, "resume", False) or job.name in self._told_stale \
+                or not hasattr(self.writer, "stale_settings"):
+            return []
+        names = self.writer.stale_settings(job.name, job.settings.output, frame,
+                                           self._records[job.name])
+        if not names:
+            return []
+        self._told_stale.add(job.name)
+        return [f"{job.name}: frames written with other settings ({', '.join(names)}) "
+                "are scanned again"]
+
+    def _orphans_notice(self, orphans):
+        if not orphans:
+            return
+        exts = sorted({os.path.splitext(p)[1] for p in orphans})
+        self.notices.append(
+            f"{len(orphans)} file(s) of another format ({', '.join(exts)}) beside this "
+            f"run's outputs, e.g. {orphans[0]}: an earlier run's, left as they are (their "
+            "sidecars now describe this run's files)")
 
     def _done(self, frame, job, step):
         self.index += 1
@@ -264,17 +304,72 @@ class ScanRun:
             self.frames_done = list(self.frames)
             self._complete()
 
+    def remove_leftovers(self):
+        """Remove what a killed process left of this run's outputs: temporaries of
+        writes in progress (``io.atomic``: a SIGKILL, a lost node or a dead worker can
+        leave one) and the files of a scan whose last file was never written (a cloud
+        without its sidecar); those scans are then done again. Only for runs that may
+        replace their outputs (--resume, --overwrite) and once every worker stopped."""
+        from ..output.io.atomic import stale_temporaries
+
+        incomplete = getattr(self.writer, "incomplete", None)
+        planned = []
+        for frame, job in self.plan:
+            out = job.settings.output
+            if incomplete is not None:
+                for path in incomplete(job.name, out, frame):
+                    _unlink(path)
+            planned += self.writer.planned_files(job.name, out, frame)
+        for tmp in stale_temporaries(planned):
+            _unlink(tmp)
+
+    def _planned(self):
+        """(frame, job, files) of every step: the files a writer says a scan writes."""
+        planned = getattr(self.writer, "planned_files", None)
+        for frame, job in self.plan:
+            out = job.settings.output
+            yield frame, job, (planned(job.name, out, frame) if planned is not None
+                               else [self.writer.path(job.name, out, frame)])
+
+    def _distinct_outputs(self):
+        """Every scan writes files of its own, decided before any work: two LiDARs whose
+        names give the same file names (names that differ only in characters a file
+        name cannot hold), or a file name template without {frame} over several frames,
+        end the run here, naming them. Writers of one file per run (a bag) say so
+        (``per_scan = False``)."""
+        from ..errors import OutputError
+
+        if not getattr(self.writer, "per_scan", True):
+            return
+        owner = {}
+        for frame, job, files in self._planned():
+            for path in files:
+                key = os.path.abspath(os.fspath(path))
+                first = owner.setdefault(key, (frame, job))
+                if first == (frame, job):
+                    continue
+                f0, j0 = first
+                if j0.name != job.name:
+                    raise OutputError(
+                        f"LiDARs '{j0.name}' and '{job.name}' would write the same file "
+                        f"{path} (their names give the same file name): rename one, or give "
+                        "it an output folder or file name template of its own")
+                raise OutputError(
+                    f"{job.name}'s file name template {job.settings.output.template!r} gives "
+                    f"the same file {path} for frames {f0} and {frame}: put {{frame}} in it "
+                    "(e.g. --template '{scene}_{sensor}_{frame:06d}'), or scan one frame")
+
     def free_outputs(self):
         """Without --overwrite or --resume, an existing file of this run is an error
         before anything is scanned (pieces run again after a failed worker then keep
         what they wrote the first time)."""
         from ..errors import OutputError
 
-        for frame, job in self.plan:
-            path = self.writer.path(job.name, job.settings.output, frame)
-            if os.path.exists(path):
-                raise OutputError(f"{path} already exists; pass --overwrite to replace it "
-                                  "or --resume to keep it")
+        for _, _, files in self._planned():
+            for path in files:
+                if os.path.exists(path):
+                    raise OutputError(f"{path} already exists; pass --overwrite to replace it "
+                                      "or --resume to keep it")
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when
@@ -319,3 +414,10 @@ class ScanRun:
         if s.resumed:
             out["resumed"] = True
         return out
+
+
+def _unlink(path):
+    try:
+        os.unlink(path)
+    except OSError:
+        pass

@@ -212,16 +212,8 @@ class ScanSession:
             "frame_space": settings.frame_space,
             "sensor_to_world": pose.tolist(),
             "seed": settings.seed,
-            "effects": {"noise": settings.noise, "dropout": settings.dropout,
-                        "range_m": [rmin, rmax],
-                        "noise_sigma_m": device_values(preset, settings).noise_sigma_m,
-                        "motion": settings.motion, "substeps": settings.substeps,
-                        "sweep_start_deg": settings.sweep_start_deg,
-                        "substeps_used": n_used, "ghosting": settings.ghosting,
-                        "detection": settings.detection,
-                        "weather": _weather_info(device_values(preset, settings)),
-                        "footprint": settings.footprint,
-                        "return_mode": settings.return_mode},
+            "effects": dict(effects_info(preset, settings), range_m=[rmin, rmax],
+                            substeps_used=n_used),
             "motion": summary,
             "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
             "backend": scene.backend,
@@ -238,6 +230,26 @@ class ScanSession:
             "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }
+
+
+def effects_info(preset, settings):
+    """The sidecar's ``effects``: what a scan's settings made of the device (all but the
+    sub-steps a frame chose, ``substeps_used``)."""
+    values = device_values(preset, settings)
+    return {"noise": settings.noise, "dropout": settings.dropout,
+            "range_m": list(values.range_m), "noise_sigma_m": values.noise_sigma_m,
+            "motion": settings.motion, "substeps": settings.substeps,
+            "sweep_start_deg": settings.sweep_start_deg, "ghosting": settings.ghosting,
+            "detection": settings.detection, "weather": _weather_info(values),
+            "footprint": settings.footprint, "return_mode": settings.return_mode}
+
+
+def settings_record(preset, settings):
+    """The settings of a scan as its sidecar states them (``_info``), by name: the
+    device, the seed, the frame space and every effect. A resumed run keeps a frame only
+    when its sidecar states the same (``io.sidecar.settings_differences``)."""
+    return {"device": preset.id, "seed": settings.seed, "frame_space": settings.frame_space,
+            **effects_info(preset, settings)}
 
 
 def _weather_info(values):

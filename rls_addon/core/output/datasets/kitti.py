@@ -93,7 +93,7 @@ class KittiWriter:
         check_root(self.root)
         frame_id(frame)
 
-    def existing(self, sensor, output, frame):
+    def existing(self, sensor, output, frame, settings=None):
         """A complete earlier frame (points, labels and meta; the points read back with
         the meta's count), when resuming."""
         if not self.resume:

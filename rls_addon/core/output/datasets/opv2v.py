@@ -116,7 +116,7 @@ class Opv2vWriter:
         frame_id(frame)
         _yaml_module()
 
-    def existing(self, sensor, output, frame):
+    def existing(self, sensor, output, frame, settings=None):
         if not self.resume:
             return None
         cloud, side = self.path(sensor, output, frame), self._yaml(sensor, frame)

@@ -1,17 +1,51 @@
 """Write a file all at once or not at all.
 
-Data goes to a hidden temporary file in the target directory, which then
+Data goes to a hidden temporary file in the target directory
+(``.<file name>.rls-<random>.tmp``, ``temporary_name``), which then
 replaces the target (``os.replace``; without ``overwrite`` a hard link, which
 fails if the target appeared meanwhile). Any exception, KeyboardInterrupt
-included, removes the temporary file. OS failures become ``OutputError``.
+included, removes the temporary file. OS failures become ``OutputError``. A process killed outright (SIGKILL, a lost node)
+can still leave a temporary: ``stale_temporaries`` finds those of given files so a
+later run can remove them.
 """
 
 import errno
 import os
 import pathlib
+import re
 import tempfile
 
 from ...errors import OutputError
+
+
+TEMPORARY_MARK = ".rls-"
+TEMPORARY_SUFFIX = ".tmp"
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.rls-[A-Za-z0-9_]+\.tmp$")
+
+
+def temporary_name(name, random):
+    """The name of the temporary file a write of file ``name`` goes through."""
+    return f".{name}{TEMPORARY_MARK}{random}{TEMPORARY_SUFFIX}"
+
+
+def stale_temporaries(paths):
+    """The temporary files (full paths) of writes of ``paths`` that did not end: one
+    listing per folder, whatever the number of paths."""
+    by_folder = {}
+    for p in paths:
+        p = os.path.abspath(os.fspath(p))
+        by_folder.setdefault(os.path.dirname(p), set()).add(os.path.basename(p))
+    found = []
+    for folder, names in by_folder.items():
+        try:
+            entries = os.listdir(folder)
+        except OSError:
+            continue
+        for entry in entries:
+            m = _TEMPORARY.match(entry)
+            if m and m.group("name") in names:
+                found.append(os.path.join(folder, entry))
+    return sorted(found)
 
 
 def _oserror(path, exc, action="write"):
@@ -68,7 +102,8 @@ def atomic_write_bytes(path, data, overwrite=False):
         raise _exists_error(path)
     ensure_directory(path.parent)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TEMPORARY_MARK}",
+                                   suffix=TEMPORARY_SUFFIX, dir=path.parent)
     except OSError as exc:
         raise _oserror(path, exc) from None
     try:

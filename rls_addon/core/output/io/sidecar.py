@@ -52,6 +52,24 @@ def write_sidecar(cloud_path, info, overwrite=False):
     return atomic_write_bytes(path, (text + "\n").encode("utf-8"), overwrite=overwrite)
 
 
+def recorded_settings(info):
+    """The settings a sidecar states, by name (``scan.session.settings_record``'s names,
+    and the writer's format, fields and point type)."""
+    rec = {"device": (info.get("device") or {}).get("id"), "seed": info.get("seed"),
+           "frame_space": info.get("frame_space")}
+    rec.update({k: v for k, v in (info.get("effects") or {}).items() if k != "substeps_used"})
+    rec.update({k: info.get(k) for k in ("format", "fields", "point_type")})
+    return rec
+
+
+def settings_differences(info, expected):
+    """The names of the settings in ``expected`` that sidecar ``info`` states otherwise
+    (compared as JSON holds them)."""
+    got = recorded_settings(info)
+    want = json.loads(json.dumps(_plain(expected), allow_nan=False))
+    return [k for k in want if got.get(k) != want[k]]
+
+
 def read_sidecar(cloud_path):
     """The sidecar dict of ``cloud_path``, or ``None`` if there is none."""
     path = sidecar_path(cloud_path)

@@ -16,7 +16,7 @@ from .atomic import atomic_write_bytes, writable_folder
 from .cloud import encode_records, read_records, write_cloud
 from .paths import output_path, sanitize_name
 from .point_types import to_point_type
-from .sidecar import read_sidecar, sidecar_path, write_sidecar
+from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
 
 
 class CloudWriter:
@@ -78,10 +78,11 @@ class CloudWriter:
 
             _plt()
 
-    def existing(self, sensor, output, frame):
+    def existing(self, sensor, output, frame, settings=None):
         """The point count of a finished earlier output (when resuming), else None: the
         cloud must read back, and its sidecar must exist and name the same sensor,
-        frame and point count."""
+        frame and point count, and state the same ``settings`` (the run's
+        ``session.settings_record``; with the output's format, fields and point type)."""
         if not self.resume:
             return None
         path = self.path(sensor, output, frame)
@@ -91,10 +92,53 @@ class CloudWriter:
             info = read_sidecar(path)
             if not info or info.get("sensor") != sensor or info.get("frame") != frame:
                 return None
+            if settings is not None and settings_differences(info, self._record(output, settings)):
+                return None
             n = _count(path)
         except (RLSError, OSError, ValueError):
             return None
         return n if info.get("points") == n else None
+
+    def stale_settings(self, sensor, output, frame, settings):
+        """The names of the settings an earlier output of (sensor, frame) was written
+        with otherwise than ``settings`` say (empty: the same, or no such output)."""
+        path = self.path(sensor, output, frame)
+        try:
+            info = read_sidecar(path) if os.path.isfile(path) else None
+        except RLSError:
+            return []
+        return settings_differences(info, self._record(output, settings)) if info else []
+
+    @staticmethod
+    def _record(output, settings):
+        rec = dict(settings, format=output.format, point_type=output.point_type)
+        if output.format != "las" and output.point_type == "rls":
+            rec["fields"] = list(output.fields)
+        return rec
+
+    def orphans(self, planned):
+        """Clouds of another format beside the outputs of ``planned`` [(sensor, output,
+        frame)] (an earlier run in another format): the same name but the extension.
+        One listing per folder."""
+        from .fields import FORMAT_EXT
+
+        exts = {e for e in FORMAT_EXT.values() if e}
+        names = {}
+        for sensor, output, frame in planned:
+            p = self.path(sensor, output, frame)
+            names.setdefault(os.path.dirname(os.path.abspath(p)), set()).add(os.path.basename(p))
+        found = []
+        for folder, mine in names.items():
+            stems = {os.path.splitext(n)[0] for n in mine}
+            try:
+                entries = os.listdir(folder)
+            except OSError:
+                continue
+            for e in entries:
+                stem, ext = os.path.splitext(e)
+                if ext.lower() in exts and stem in stems and e not in mine:
+                    found.append(os.path.join(folder, e))
+        return sorted(found)
 
     def flush(self):
         """Wait for the background write under way, if any; raises what it raised."""
@@ -144,7 +188,9 @@ class CloudWriter:
 
     def _write(self, path, sensor, output, points, info):
         existed = os.path.exists(path)
-        overwrite = self.overwrite or (self.resume and existed)
+        # resuming replaces what it scans again, a sidecar left by a cloud of another
+        # format included
+        overwrite = self.overwrite or (self.resume and (existed or sidecar_path(path).exists()))
         fields = list(output.fields)
         try:
             if output.format == "las":
@@ -231,6 +277,7 @@ class BagWriter:
     workers (``shardable``)."""
 
     shardable = False
+    per_scan = False  # one file for every scan of the run
 
     def __init__(self, scene_name, folder, point_type="rls", fps=24.0, first_frame=1,
                  start_time_s=0.0, overwrite=False, resume=False):
@@ -265,7 +312,7 @@ class BagWriter:
         # the run's first frame has a bag stamp (later ones are checked as written)
         rosbag.frame_stamp_ns(self.start_time_s, frame, self.first_frame, self.fps)
 
-    def existing(self, sensor, output, frame):
+    def existing(self, sensor, output, frame, settings=None):
         return None
 
     def write(self, sensor, output, frame, points, info):

@@ -1,0 +1,102 @@
+"""SIGTERM and SIGHUP (kill, SLURM, Kubernetes, systemd) stop a run as Ctrl-C does, and
+the temporaries a SIGKILL leaves are removed by the next --resume or --overwrite run."""
+
+import hashlib
+import json
+import os
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from .conftest import ROOT, rls
+
+
+def start_scan(blend, out, frames="1-200"):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    return subprocess.Popen([sys.executable, "-m", "rls_addon", "scan", str(blend), "--frames",
+                             frames, "--out", str(out), "--workers", "1"],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def complete_clouds(out):
+    """Only complete clouds, each with its sidecar, and no temporary file."""
+    from rls_addon.core.output.io import read_cloud, read_sidecar
+
+    names = sorted(os.listdir(out))
+    assert not [n for n in names if n.startswith(".") or n.endswith(".tmp")], names
+    clouds = [n for n in names if n.endswith(".pcd")]
+    assert sorted(n[:-4] + ".json" for n in clouds) == \
+        sorted(n for n in names if n.endswith(".json") and "_instances" not in n)
+    for n in clouds:
+        assert len(read_cloud(out / n)) == read_sidecar(out / n)["points"]
+    return clouds
+
+
+@pytest.mark.parametrize("sig,code,after", [(signal.SIGTERM, 143, 0), (signal.SIGTERM, 143, 1),
+                                            (signal.SIGTERM, 143, 3), (signal.SIGHUP, 129, 2)])
+def test_sigterm_and_sighup_stop_like_ctrl_c(demo_run, tmp_path, sig, code, after):
+    demo_out, _, _ = demo_run
+    out = tmp_path / "scan"
+    proc = start_scan(demo_out / "intersection.blend", out)
+    try:
+        for _ in range(after):  # let some scans finish, then stop mid-run
+            assert proc.stderr.readline().startswith("[")
+        if not after:  # while the scene is opened or the first frame scanned
+            import time
+
+            time.sleep(1.5)
+        proc.send_signal(sig)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == code, stderr
+    lines = [ln for ln in stderr.splitlines() if ln.strip() and not ln.startswith("[")]
+    assert len(lines) == 1 and lines[0].startswith("rls: interrupted"), stderr
+    assert stdout == ""
+    if out.exists():
+        assert len(complete_clouds(out)) < 200
+
+
+def digests(folder):
+    """Every file's bytes; of a sidecar, all but whether the run reused the previous
+    frame's static cast (how the run went, not what it wrote)."""
+    out = {}
+    for p in sorted(folder.iterdir()):
+        data = p.read_bytes()
+        if p.suffix == ".json" and "_instances" not in p.name:
+            info = json.loads(data)
+            info.pop("static_cast_reused", None)
+            data = json.dumps(info, sort_keys=True).encode()
+        out[p.name] = hashlib.sha256(data).hexdigest()
+    return out
+
+
+def test_resume_removes_what_a_sigkill_left(demo_run, tmp_path):
+    demo_out, _, _ = demo_run
+    blend = demo_out / "intersection.blend"
+    whole = tmp_path / "whole"
+    assert rls("scan", blend, "--frames", "1-3", "--out", whole).returncode == 0
+    out = tmp_path / "killed"
+    first = rls("scan", blend, "--frames", "1", "--out", out)
+    assert first.returncode == 0, first.stderr
+    # what a write of frame 2 killed by SIGKILL leaves: a truncated temporary
+    from rls_addon.core.output.io.atomic import temporary_name
+
+    cloud2 = whole / "intersection_LiDAR_000002.pcd"
+    stale = out / temporary_name("intersection_LiDAR_000002.pcd", "k1ll3d")
+    stale.write_bytes(cloud2.read_bytes()[:200])
+    again = rls("scan", blend, "--frames", "1-3", "--out", out, "--resume")
+    assert again.returncode == 0, again.stderr
+    assert not stale.exists()
+    complete_clouds(out)
+    assert digests(out) == digests(whole)
+    # --overwrite cleans its outputs' temporaries too
+    stale.write_bytes(b"partial")
+    over = rls("scan", blend, "--frames", "1-3", "--out", out, "--overwrite")
+    assert over.returncode == 0, over.stderr
+    assert not stale.exists()
+    assert digests(out) == digests(whole)
