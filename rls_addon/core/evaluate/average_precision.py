@@ -119,8 +119,9 @@ def _classes(classes):
     return out
 
 
-def _bins(distance_bins, sensor_xy):
-    """[(low, high)] metres from the bin edges, or [] without bins."""
+def distance_bins_of(distance_bins):
+    """[(low, high)] metres from the bin edges (increasing, from 0 m or more), or []
+    without bins; one ``InputError`` for edges that are not."""
     if distance_bins is None:
         return []
     try:
@@ -128,14 +129,20 @@ def _bins(distance_bins, sensor_xy):
     except (TypeError, ValueError):
         raise InputError(f"distance bins {distance_bins!r}: give the bin edges in metres, "
                          "e.g. 0, 30, 50, inf") from None
-    if len(edges) < 2 or edges[0] < 0 or any(math.isnan(e) for e in edges) or \
+    if len(edges) < 2 or any(math.isnan(e) for e in edges) or edges[0] < 0 or \
             any(b <= a for a, b in zip(edges, edges[1:])):
-        raise InputError(f"distance bins {distance_bins!r}: give at least two increasing "
-                         "edges from 0 m or more, e.g. 0, 30, 50, inf")
-    if sensor_xy is None:
+        raise InputError(f"distance bins {edges!r}: give at least two increasing edges "
+                         "from 0 m or more, e.g. 0, 30, 50, inf")
+    return list(zip(edges, edges[1:]))
+
+
+def _bins(distance_bins, sensor_xy):
+    """``distance_bins_of``, with the sensor's position the distances are measured from."""
+    bins = distance_bins_of(distance_bins)
+    if bins and sensor_xy is None:
         raise InputError("distance bins need the sensor's position (sensor_xy, world x "
                          "and y in metres) to measure distances from")
-    return list(zip(edges, edges[1:]))
+    return bins
 
 
 def _sensor(sensor_xy):

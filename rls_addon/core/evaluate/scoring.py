@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError, RegionError
 from ..labels import DEFAULT_LABELS
 from ..metrics.polygon import as_polygon, points_in_polygon, shoelace_area
-from .average_precision import DEFAULT_THRESHOLDS, evaluate
+from .average_precision import DEFAULT_THRESHOLDS, distance_bins_of, evaluate
 from .detections import CLASS_IDS, Boxes, class_id
 from .ground_truth_files import GroundTruth
 from .matching import FP, IGNORED, TP, check_threshold, match, pair_overlaps
@@ -190,22 +190,6 @@ def _min_points(min_points):
     return int(min_points)
 
 
-def _bins(distance_bins):
-    """[(low, high)] from bin edges in metres, or []."""
-    if distance_bins is None:
-        return []
-    try:
-        edges = [float(e) for e in distance_bins]
-    except (TypeError, ValueError):
-        raise InputError(f"distance bins {distance_bins!r}: give the bin edges in metres, "
-                         "e.g. 0, 30, 50, inf") from None
-    if len(edges) < 2 or any(math.isnan(e) for e in edges) or edges[0] < 0 or \
-            any(b <= a for a, b in zip(edges, edges[1:])):
-        raise InputError(f"distance bins {list(distance_bins)!r}: give at least two "
-                         "increasing edges from 0 m or more, e.g. 0, 30, 50, inf")
-    return list(zip(edges, edges[1:]))
-
-
 def _detection_frames(detections, truth_frames):
     """(Boxes, frames the detections cover) of ``Boxes`` or ``readers.DetectionFiles``;
     ``InputError`` for frames the ground truth does not have."""
@@ -255,7 +239,7 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
     poly = _region(region)
     min_points = _min_points(min_points)
     class_ids = _classes(classes)
-    bins = _bins(distance_bins)
+    bins = distance_bins_of(distance_bins)
     kinds = [kinds] if isinstance(kinds, str) else list(dict.fromkeys(kinds))
     for kind in kinds:
         if kind not in IOU_KINDS:
