@@ -274,8 +274,6 @@ def test_empty_input_gives_no_boxes():
 
 
 def test_learning_from_no_frames_is_refused():
-    from rls_addon.core.errors import InputError
-
     with pytest.raises(InputError, match="at least one frame"):
         RoadsideDetector().learn([[]], [POLE])
 
@@ -302,15 +300,11 @@ def test_a_pedestrian_is_small_and_not_a_vehicle():
 
 
 def test_detect_needs_a_background():
-    from rls_addon.core.errors import InputError
-
     with pytest.raises(InputError):
         RoadsideDetector().detect([scan(POLE, ())], [POLE])
 
 
 def test_a_sensor_that_moved_since_learning_is_refused():
-    from rls_addon.core.errors import InputError
-
     det = learned()
     with pytest.raises(InputError, match="still sensors"):
         det.detect([scan(POLE, STATIC)], [pose(0.5, 0.0, 6.0)])
