@@ -45,7 +45,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-# The sample intersection (four cars driving through it over frames 1-60) with six
+# The sample intersection (its traffic driving through it over frames 1-60) with six
 # LiDARs: two Pandar64 and an OS1-64 on traffic-light poles looking into the junction,
 # two VLP-16 and a VLP-32C on the roofs of three of the cars.
 SCENE_SCRIPT = r"""
@@ -77,7 +77,7 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 DEVICES = {"Pole NE": "hesai_pandar64", "Pole SW": "hesai_pandar64", "Pole NW": "ouster_os1_64",
            "Roof west": "velodyne_vlp16", "Roof east": "velodyne_vlp16",
            "Roof north": "velodyne_vlp32c"}
-SCENE_TEXT = ("the sample intersection (`rls_addon/blender/scenes`, four cars driving "
+SCENE_TEXT = ("the sample intersection (`rls_addon/blender/scenes`, its traffic driving "
               "through it over frames 1-60) with six LiDARs: two Pandar64 and an OS1-64 on "
               "traffic-light poles, two VLP-16 and a VLP-32C on the roofs of three cars "
               "(`bench/scale_out.py`)")
