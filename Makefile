@@ -107,8 +107,8 @@ test-cli: $(TEST_STAMP) build-linux
 # The quick loop: the core and Blender tiers without the tests marked slow, on every
 # core (pytest-xdist); the command-line tier runs with make test-cli.
 test-fast: $(TEST_STAMP) build-linux
-	$(PY) -m pytest tests/core -p tests.no_blender -m "not slow" -q -n auto
-	$(PY) -m pytest tests/blender -m "not slow" -q -n auto
+	$(PY) -m pytest tests/core -p tests.no_blender -m "not slow" -q -n auto --dist loadfile
+	$(PY) -m pytest tests/blender -m "not slow" -q -n auto --dist loadfile
 
 # The benchmark needs what the tests need (open3d as the reference caster).
 bench: $(TEST_STAMP) native

@@ -292,6 +292,7 @@ class TrafficStudyScene(FakeStudyScene):
         return out
 
 
+@pytest.mark.slow  # two whole studies with their traffic
 def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
     """A candidate a parked truck occludes ranks lower on visibility than on InfraD."""
     from rls_addon.core.casting import NumpyCaster

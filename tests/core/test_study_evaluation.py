@@ -33,6 +33,7 @@ def both():
     return study(True), study(False)
 
 
+@pytest.mark.slow  # two whole studies with their traffic and detector
 def test_an_occluded_candidates_ap_drops_as_its_visibility_does_and_its_infra_d_does_not(both):
     with_truck, clear = both
     names = [c.name for c in with_truck.candidates]
@@ -45,6 +46,7 @@ def test_an_occluded_candidates_ap_drops_as_its_visibility_does_and_its_infra_d_
     assert with_truck.candidates[a].infra_d == clear.candidates[a].infra_d  # blind to it
 
 
+@pytest.mark.slow  # two whole studies with their traffic and detector
 def test_every_placement_is_scored_against_the_same_ground_truth(both):
     ev = both[0].evaluation
     gts = {rec["classes"]["vehicle"]["all"]["bev"]["0.5"]["gt"]
@@ -53,6 +55,7 @@ def test_every_placement_is_scored_against_the_same_ground_truth(both):
     assert ev.frames == [1, 2, 3, 4] and ev.min_points == 5
 
 
+@pytest.mark.slow  # two whole studies with their traffic and detector
 def test_sets_are_scored_fused_and_the_best_by_ap_is_reported(both):
     ev = both[0].evaluation
     assert ev.sets and all(len(m) == 2 for m in ev.sets)
@@ -65,6 +68,7 @@ def test_sets_are_scored_fused_and_the_best_by_ap_is_reported(both):
         assert ev.correlation[metric]["n"] == len(ev.placements)
 
 
+@pytest.mark.slow  # two whole studies with their traffic and detector
 def test_the_report_carries_the_evaluation(both):
     names = [c.name for c in both[0].candidates]
     d = both[0].evaluation.to_dict(names)

@@ -157,6 +157,7 @@ def test_a_cell_flipping_between_two_ranges_is_not_foreground():
     assert one_mode.foreground(near)[0].sum() > 1000
 
 
+@pytest.mark.slow  # many synthetic frames learned
 def test_a_glossy_facade_flipping_at_random_gives_no_boxes():
     """Flips drawn per ray and frame (as RLS draws ghosts): after 20 learning frames,
     less than 1% of the facade's returns are foreground (a cell whose glass was seen in
@@ -185,6 +186,7 @@ def test_a_sparse_device_s_rings_across_a_roof_are_one_car():
     assert np.hypot(*(boxes.box[0, :2] - placed.box[:2])) < 0.5
 
 
+@pytest.mark.slow  # many synthetic frames learned
 def test_a_car_that_stood_through_most_learning_frames_is_not_background():
     """Learning from frames with traffic: a car that stood for 60% of them and left is
     one long run of frames, not background, so it is found when it stands there again."""
