@@ -18,6 +18,7 @@ don't-care, so its AP drops as its visibility does. The headline number is the v
 AP_R40 at BEV IoU 0.5 (``HEADLINE``); the whole record is kept."""
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,7 @@ from ..evaluate.detections import CLASS_IDS, Boxes
 from ..evaluate.detector import RoadsideDetector
 from ..evaluate.ground_truth_files import GroundTruth
 from ..evaluate.scoring import score
+from ..output.ground_truth import box_frame
 
 HEADLINE = ("vehicle", "bev", "0.5", "ap_r40")
 IOU_THRESHOLDS = (0.3, 0.5, 0.7)
@@ -48,14 +50,10 @@ def frame_truth(frame, instances, objects):
     for inst, obj in zip(instances, objects):
         if inst.label not in CLASS_IDS or not len(inst.vertices):
             continue
-        m = np.asarray(inst.matrix, np.float64)
-        scale = np.linalg.norm(m[:3, :3], axis=0)
-        if not (scale > 0).all():
+        if not (np.linalg.norm(np.asarray(inst.matrix, np.float64)[:3, :3], axis=0) > 0).all():
             continue  # a flattened object has no box
-        lo, hi = inst.vertices.min(0), inst.vertices.max(0)
-        centre = m[:3, :3] @ ((lo + hi) / 2) + m[:3, 3]
-        rot = m[:3, :3] / scale
-        rows.append([*centre, *((hi - lo) * scale), math.atan2(rot[1, 0], rot[0, 0])])
+        pose, size = box_frame(inst.matrix, inst.vertices.min(0), inst.vertices.max(0))
+        rows.append([*pose[:3, 3], *size, math.atan2(pose[1, 0], pose[0, 0])])
         labels.append(inst.label)
         ids.append(obj.instance)
     box = np.asarray(rows, np.float64).reshape(-1, 7)
@@ -81,8 +79,6 @@ def evaluate_candidate(name, pose, frame_points, truths, noise_sigma):
     """``CandidateEvaluation`` of candidate ``name`` at ``pose`` (4x4, still) from its
     scans ``frame_points`` {frame: (world xyz (N, 3), instance (N,), ghost (N,))} and
     the frames' ``truths`` {frame: FrameTruth}."""
-    import time
-
     to_sensor = np.linalg.inv(pose)
     local = {f: xyz @ to_sensor[:3, :3].T + to_sensor[:3, 3]
              for f, (xyz, _, _) in frame_points.items()}
@@ -199,16 +195,15 @@ class StudyEvaluation:
                 rec = placement_score([evaluations[i] for i in members], truths, polygon, mp,
                                       ref)
                 sets[members] = (headline(rec), rec)
-        single = {(i,): (headline(r), r) for i, r in enumerate(records)}
+        scored = {**{(i,): (headline(r), r) for i, r in enumerate(records)}, **sets}
         best = {}
         for k in sorted(searches):
-            pool = {m: v for m, v in {**single, **sets}.items() if len(m) == k and
-                    v[0] is not None}
+            pool = {m: v for m, v in scored.items() if len(m) == k and v[0] is not None}
             if pool:
                 best[k] = max(pool, key=lambda m: (pool[m][0], -sum(m)))
         rows = []
         metric_of = {}
-        for members, (ap, _) in sorted({**single, **sets}.items()):
+        for members, (ap, _) in sorted(scored.items()):
             p = _metrics(members, cands, searches, visibility)
             rows.append(dict(members=list(members), sensors=[cands[i].name for i in members],
                              ap=ap, **p))
