@@ -13,11 +13,9 @@ Presets are TOML data validated on load (``core.presets``); nothing here execute
 import os
 import tempfile
 from dataclasses import dataclass
-from pathlib import Path
 
 from ..core.errors import PresetError
-from ..core.device.presets import FAMILIES, builtin_presets, get_preset, load_preset
-from ..core.device.user_presets import user_presets
+from ..core.device.presets import FAMILIES, builtin_presets, get_preset, load_preset, readable_presets_in
 
 ENV_USER_DIR = "RLS_USER_PRESET_DIR"
 FAMILY_LABELS = {"spinning": "Spinning", "mems": "MEMS", "risley": "Risley", "custom": "Custom"}
@@ -81,19 +79,8 @@ def refresh():
     taken = {e.id for e in entries}
     d = user_dir(create=False)
     if os.path.isdir(d):
-        try:
-            found = user_presets(d)
-        except PresetError as exc:
-            found = {}
-            errors.append(str(exc))
-            for f in sorted(Path(d).glob("*.toml")):  # list the readable ones anyway
-                try:
-                    p = get_preset(str(f))
-                except PresetError as exc2:
-                    if str(exc2) != str(exc):
-                        errors.append(str(exc2))
-                    continue
-                found.setdefault(p.id, p)
+        found, problems = readable_presets_in(d)
+        errors.extend(problems)
         for pid, p in found.items():
             if pid in taken:
                 errors.append(f"{p.path}: user preset id '{pid}' is shadowed by a built-in preset")
@@ -148,10 +135,13 @@ def resolve(preset_id):
         if e is not None and not e.builtin:
             return load_preset(e.path)
         users = [x.id for x in catalog() if not x.builtin]
+        broken = errors()
+        unread = (f"; {len(broken)} user preset file(s) could not be read, the first: "
+                  f"{broken[0]}") if broken else ""
         raise PresetError(
             f"unknown device preset '{preset_id}'; built-in: "
             f"{', '.join(x.id for x in catalog() if x.builtin)}; user presets in "
-            f"{user_dir(create=False)}: {', '.join(users) or 'none'}") from None
+            f"{user_dir(create=False)}: {', '.join(users) or 'none'}{unread}") from None
 
 
 def clear():

@@ -1,6 +1,7 @@
 """``rls presets``: list, show, validate, import and export device presets (no bpy)."""
 
 import json
+import sys
 from pathlib import Path
 
 from ..core.errors import PresetError
@@ -41,20 +42,27 @@ def run(args):
     from ..core.device import presets as pr
 
     if args.action == "list":
-        items = dict(pr.builtin_presets())
+        items, problems = dict(pr.builtin_presets()), []
         if args.user_dir:
-            from ..core.device.user_presets import user_presets
-
-            for pid, p in user_presets(args.user_dir).items():
+            if not Path(args.user_dir).is_dir():
+                raise PresetError(f"{args.user_dir}: no such folder of user presets")
+            found, problems = pr.readable_presets_in(args.user_dir)
+            for pid, p in found.items():
+                if pid in items:
+                    problems.append(f"{p.path}: user preset id '{pid}' is shadowed by a "
+                                    f"built-in preset")
                 items.setdefault(pid, p)
         if args.json:
             print(json.dumps([_summary(p) for p in items.values()], indent=2))
-            return 0
-        for p in items.values():
-            rays = "?" if p.rays_per_frame is None else p.rays_per_frame
-            fit = " (fitted)" if p.fitted else ""
-            print(f"{p.id:22s} {p.family:9s} {p.frequency_hz:5g} Hz {rays:>8} rays/frame  {p.name}{fit}")
-        return 0
+        else:
+            for p in items.values():
+                rays = "?" if p.rays_per_frame is None else p.rays_per_frame
+                fit = " (fitted)" if p.fitted else ""
+                print(f"{p.id:22s} {p.family:9s} {p.frequency_hz:5g} Hz {rays:>8} rays/frame  "
+                      f"{p.name}{fit}")
+        for problem in problems:  # listed, then named: a broken file is never silent
+            print(f"rls: error: {problem}", file=sys.stderr)
+        return 1 if problems else 0
     if args.action == "show":
         p = pr.get_preset(args.name, args.user_dir)
         out = _summary(p)

@@ -161,6 +161,18 @@ def test_a_broken_user_file_does_not_hide_the_others(scene, user_dir):
     assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}  # built-in and user still resolve
 
 
+def test_an_unknown_preset_names_the_user_files_that_did_not_load(scene, user_dir):
+    """Issue 31: a LiDAR naming a user preset whose file is broken used to hear 'user
+    presets: none', never why."""
+    add_lidar_op("velodyne_vlp16")
+    user_dir.mkdir(parents=True, exist_ok=True)
+    (user_dir / "mine.toml").write_text('schema = 1\nid = "mine"\nname = "Mine"\n')
+    assert bpy.ops.rls.preset_refresh() == {"FINISHED"}
+    bpy.context.active_object.rls_lidar["preset_id"] = "mine"
+    with pytest.raises(RuntimeError, match=r"could not be read.*mine\.toml.*family"):
+        bpy.ops.rls.scan_frame(write=False)
+
+
 def test_default_user_folder_from_the_source_tree(addon, monkeypatch):
     from rls_addon.blender import preset_catalog
 

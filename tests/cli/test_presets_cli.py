@@ -26,6 +26,18 @@ def test_presets_list():
     assert len(ids) >= 24
 
 
+def test_presets_list_names_a_broken_user_file_and_lists_the_rest(tmp_path):
+    """Issue 31: one broken user preset stopped the listing with only its error."""
+    text = (ROOT / "presets" / "generic_uniform32.toml").read_text()
+    (tmp_path / "mine.toml").write_text(text.replace('id = "generic_uniform32"', 'id = "mine"'))
+    (tmp_path / "broken.toml").write_text('schema = 1\nid = "broken"\nname = "B"\n')
+    out = rls("presets", "list", "--user-dir", tmp_path)
+    assert out.returncode == 1
+    assert "mine" in out.stdout and "velodyne_vlp16" in out.stdout
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "broken.toml" in lines[0] and "family" in lines[0]
+
+
 def test_presets_show():
     out = rls("presets", "show", "Livox Horizon")
     assert out.returncode == 0, out.stderr

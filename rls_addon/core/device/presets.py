@@ -301,13 +301,28 @@ def builtin_presets_dir():
 
 def presets_in(directory):
     """All presets (``*.toml``) in one folder by id, sorted by id; a duplicate id is an error."""
-    out = {}
+    out, problems = readable_presets_in(directory)
+    if problems:
+        raise PresetError(problems[0])
+    return out
+
+
+def readable_presets_in(directory):
+    """``(presets by id, problems)``: every preset of one folder that validates, and one
+    message per file that does not (or whose id another file already uses), so one broken
+    file neither hides the others nor goes unreported."""
+    out, problems = {}, []
     for f in sorted(Path(directory).glob("*.toml")):
-        p = load_preset(f)
+        try:
+            p = load_preset(f)
+        except PresetError as exc:
+            problems.append(str(exc))
+            continue
         if p.id in out:
-            raise PresetError(f"{f}: id '{p.id}' already used by {out[p.id].path}")
+            problems.append(f"{f}: id '{p.id}' already used by {out[p.id].path}")
+            continue
         out[p.id] = p
-    return dict(sorted(out.items()))
+    return dict(sorted(out.items())), problems
 
 
 def builtin_presets():
@@ -362,6 +377,6 @@ def pattern_span(preset, duration_s):
 
 __all__ = [
     "FAMILIES", "RangeModel", "DropoutModel", "DevicePreset", "ScanPattern", "preset_from_dict",
-    "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "get_preset",
+    "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "readable_presets_in", "get_preset",
     "pattern_span", "spinning_elevations_offsets", "custom_pattern_path",
 ]
