@@ -184,3 +184,26 @@ def test_a_sweep_start_that_is_not_finite_is_one_line(demo_run, tmp_path, value)
     assert one_line_error(proc) == ("rls: error: the sweep start (sweep_start_deg, degrees) "
                                     f"must be a finite number, got {float(value)!r}")
     assert not list(tmp_path.iterdir())
+
+
+def test_a_scene_from_a_newer_blender_is_scanned_with_a_warning(tmp_path):
+    """Issue 31: Blender's "expect loss of data" for a file of a newer Blender went to the
+    silenced log. The file is one of this Blender's, its header marked 5.2 (as 5.2 would
+    write it); the scan still runs and says what may be lost."""
+    blend = build_blend(tmp_path, "plain.blend", SCENE_SCRIPT_HEAD + r"""
+box("Wall", (8, -5, -1), (9, 5, 3))
+lidar = bpy.data.objects.new("Lidar", None)
+bpy.context.scene.collection.objects.link(lidar)
+lidar.rls_lidar.is_lidar, lidar.rls_lidar.preset_id = True, "velodyne_vlp16"
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2], compress=False)
+""")
+    data = bytearray(blend.read_bytes())
+    assert data[:13] == b"BLENDER17-01v" and data[13:17] == b"0500", data[:17]
+    newer = tmp_path / "newer.blend"
+    newer.write_bytes(data[:13] + b"0502" + data[17:])
+    same = rls("scan", blend, "--out", tmp_path / "same", "--format", "ply_binary")
+    assert same.returncode == 0 and "newer" not in same.stderr, same.stderr
+    proc = rls("scan", newer, "--out", tmp_path / "newer", "--format", "ply_binary")
+    assert proc.returncode == 0, proc.stderr
+    warning = [ln for ln in proc.stderr.splitlines() if ln.startswith("rls: warning:")]
+    assert len(warning) == 1 and "newer.blend" in warning[0] and "Blender 5.2" in warning[0]
