@@ -106,6 +106,35 @@ def cloud_names(paths):
     return list(dict.fromkeys(names))
 
 
+def sensor_markers(paths):
+    """(name, x, y, heading_deg) of each sensor the clouds' sidecars place, once per
+    sensor: where its sweep started (``sensor_pose_start``, else ``sensor_to_world``)
+    and the way its +X axis pointed. Clouds without a sidecar or pose add nothing."""
+    import numpy as np
+
+    from ..core.output.io import read_sidecar
+
+    markers = {}
+    for path in paths:
+        try:
+            info = read_sidecar(path) or {}
+        except (InputError, OSError, ValueError):
+            continue
+        pose = info.get("sensor_pose_start", info.get("sensor_to_world"))
+        try:
+            m = np.asarray(pose, dtype=np.float64)
+        except (TypeError, ValueError):
+            continue
+        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+            continue
+        name = str(info.get("sensor") or os.path.splitext(os.path.basename(str(path)))[0])
+        forward = m[:2, 0]
+        heading = (float(np.degrees(np.arctan2(forward[1], forward[0])))
+                   if np.hypot(*forward) > 1e-9 else None)  # pointing straight up or down
+        markers.setdefault(name, (name, float(m[0, 3]), float(m[1, 3]), heading))
+    return list(markers.values())
+
+
 def chart_title(args, result):
     """The density chart's title: the region, the clouds, InfraD and InfraNUC."""
     from ..core.metrics.charts import density_title
@@ -136,7 +165,8 @@ def run(args):
         if not args.density_png.lower().endswith(".png"):
             raise OutputError(f"--density-png must name a .png file, got {args.density_png}")
         png, notice = density_png(result.density, chart_title(args, result),
-                                  polygon=result.polygon_xy)
+                                  polygon=result.polygon_xy,
+                                  sensors=sensor_markers(args.clouds))
         if notice:
             print(f"rls: notice: {notice}", file=sys.stderr)
         atomic_write_bytes(args.density_png, png, overwrite=args.overwrite)

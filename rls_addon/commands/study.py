@@ -1,7 +1,7 @@
 """``rls study``: where to mount k LiDARs over an InfraLOB.
 
 Every candidate placement (a mount or grid point, times each pitch and yaw) of one
-device is scanned once over the static scene (vehicles, pedestrians and cyclists left
+device (--device, default generic_uniform32; not the scene's LiDAR objects) is scanned once over the static scene (vehicles, pedestrians and cyclists left
 out), InfraD and InfraNUC are measured in the InfraLOB, and sets of k sensors are
 searched for high density and low non-uniformity. With --traffic FRAMES each candidate
 is also scanned over those frames of the scene's animated traffic and scored by how
@@ -76,7 +76,10 @@ def add_parser(sub):
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("blend", nargs="?", help="scene file (omit inside 'blender -b scene.blend -c rls')")
     p.add_argument("--out", required=True, help="output directory for the report")
-    p.add_argument("--device", default="generic_uniform32", help="device preset id or name")
+    p.add_argument("--device", default="generic_uniform32",
+                   help="device preset id or name placed at every candidate (default "
+                        "generic_uniform32, the paper's uniform 32-channel LiDAR); the "
+                        "scene's own LiDAR objects are not used")
     p.add_argument("--k", default="1", help="sensors per placement: 2, 1,2,3 or 1:3:1 (default 1)")
     p.add_argument("--lob", help="InfraLOB object (default: the object marked rls_infralob)")
     p.add_argument("--mount", action="append", default=[],
@@ -157,11 +160,24 @@ def _progress(done, total, cand, eta):
 
 
 def run(args):
-    from ..blender.study import run_study
-
     cfg = config_from_args(args)
     scene = open_scene(args.blend, args.prepare_blender)
+    created = not os.path.isdir(args.out)
     check_output_dir(args.out)
+    try:
+        return _study(args, cfg, scene)
+    except BaseException:
+        if created:  # a failed study leaves no empty folder behind
+            try:
+                os.rmdir(args.out)
+            except OSError:
+                pass
+        raise
+
+
+def _study(args, cfg, scene):
+    from ..blender.study import run_study
+
     if not args.overwrite:
         names = list(REPORT_FILES) + [f"density_k{k}.png" for k in cfg.k]
         clash = [f for f in names if os.path.exists(os.path.join(args.out, f))]

@@ -127,3 +127,36 @@ def test_a_crossing_region_and_a_negative_disk_seed_are_one_line_errors(tmp_path
         "rls: error: the region's outline crosses itself at (-1.71429, -1.71429): ")
     line = one_line_error(rls("metrics", "--lob-polygon", polygon_file, "--seed=-1", cloud))
     assert line == "rls: error: the disk seed must be a whole number >= 0, got -1"
+
+
+def test_density_chart_marks_the_sensors_of_the_clouds_sidecars(tmp_path, polygon_file):
+    """Issue 31: the README promised sensor markers the chart did not draw."""
+    from rls_addon.commands.metrics import sensor_markers
+
+    yaw90 = np.array([[0.0, -1, 0, 10], [1, 0, 0, -4], [0, 0, 1, 6], [0, 0, 0, 1]])
+    frames = []
+    for f in (1, 2):  # one sensor over two frames: one marker, where its first sweep began
+        cloud = write_cloud(tmp_path / f"pole_{f}.pcd", grid(), "pcd_binary_compressed")
+        pose = yaw90.copy()
+        pose[0, 3] += f
+        write_sidecar(cloud, {"sensor": "Pole", "frame": f, "frame_space": "world",
+                              "sensor_to_world": pose})
+        frames.append(cloud)
+    plain = write_cloud(tmp_path / "plain.pcd", grid(), "pcd_binary_compressed")
+    (name, x, y, heading), = sensor_markers([*frames, plain])
+    assert (name, x, y) == ("Pole", 11.0, -4.0) and heading == pytest.approx(90.0)
+
+    def red_pixels(png):
+        from matplotlib.image import imread  # matplotlib's chart PNGs use every filter
+
+        img = imread(str(png))
+        r, g, b = img[..., 0], img[..., 1], img[..., 2]
+        return int(np.count_nonzero((r > 0.8) & (g < 0.15) & (b < 0.15)))
+
+    pngs = {}
+    for key, clouds in (("with", frames[:1]), ("without", [plain])):
+        pngs[key] = tmp_path / f"{key}.png"
+        proc = rls("metrics", "--lob-polygon", polygon_file, "--disks", 100, "--cell", 2,
+                   "--density-png", pngs[key], *clouds)
+        assert proc.returncode == 0, proc.stderr
+    assert red_pixels(pngs["without"]) == 0 and red_pixels(pngs["with"]) > 30

@@ -81,6 +81,7 @@ def test_study_pitch_and_grid_candidates(sample_blends, tmp_path):
 def test_study_errors_are_one_line(sample_blends, tmp_path, args, message):
     proc = rls("study", sample_blends["t_junction"], "--out", tmp_path / "o", *args)
     assert message in one_line_error(proc)
+    assert not (tmp_path / "o").exists()  # issue 31: a failed study left an empty folder
 
 
 def test_study_missing_scene(tmp_path):

@@ -222,3 +222,28 @@ def test_sidecar_rejects_unserialisable(tmp_path):
     with pytest.raises(OutputError, match="JSON"):
         write_sidecar(tmp_path / "c.pcd", {"x": object()})
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_set_of_files_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
+    """Issue 31: a failed study report left some of its files. A full disk on the third
+    file of a set leaves none of the set and no temporary."""
+    files = {tmp_path / f"{n}.txt": n.encode() * 10 for n in ("a", "b", "c", "d")}
+    real_fdopen, calls = os.fdopen, []
+
+    def failing_fdopen(fd, *a, **k):
+        calls.append(fd)
+        if len(calls) == 3:
+            os.close(fd)
+            raise OSError(28, "No space left on device")
+        return real_fdopen(fd, *a, **k)
+
+    monkeypatch.setattr(atomic_mod.os, "fdopen", failing_fdopen)
+    with pytest.raises(OutputError, match="disk full.*c.txt"):
+        atomic_mod.atomic_write_files(files)
+    assert sorted(os.listdir(tmp_path)) == []
+    monkeypatch.setattr(atomic_mod.os, "fdopen", real_fdopen)
+    written = atomic_mod.atomic_write_files(files)
+    assert [p.read_bytes() for p in written] == list(files.values())
+    with pytest.raises(OutputError, match="already exists"):  # checked before any write
+        atomic_mod.atomic_write_files({tmp_path / "new.txt": b"x", tmp_path / "a.txt": b"y"})
+    assert not (tmp_path / "new.txt").exists() and (tmp_path / "a.txt").read_bytes() == b"a" * 10

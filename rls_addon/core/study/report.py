@@ -139,7 +139,7 @@ def candidate_rows(result):
 def write_report(result, out_dir, overwrite=False, notices=None):
     """Write the report files into ``out_dir``; returns a summary dict. Notices (e.g.
     matplotlib missing) are appended to ``notices`` when given."""
-    from ..output.io import atomic_write_bytes
+    from ..output.io.atomic import atomic_write_files
 
     rows = candidate_rows(result)
     files = {}
@@ -159,11 +159,10 @@ def write_report(result, out_dir, overwrite=False, notices=None):
         if notices is not None:
             notices.append(notice)
     files["study.json"] = (json.dumps(report, indent=2, allow_nan=False) + "\n").encode("utf-8")
-    written = []
-    for name in sorted(files):
-        path = os.path.join(out_dir, name)
-        atomic_write_bytes(path, files[name], overwrite=overwrite)
-        written.append(os.path.abspath(path))
+    # the report is one set: a failure leaves none of its files, not a part
+    written = [os.path.abspath(p) for p in atomic_write_files(
+        {os.path.join(out_dir, name): files[name] for name in sorted(files)},
+        overwrite=overwrite)]
     names = [c.name for c in result.candidates]
     return {
         "scene": result.scene, "device": result.device["id"],

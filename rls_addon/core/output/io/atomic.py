@@ -132,6 +132,62 @@ def atomic_write_bytes(path, data, overwrite=False):
     return path
 
 
+def atomic_write_files(files, overwrite=False):
+    """Write several files as one: ``files`` maps paths to bytes. Every file is first
+    written to its temporary; only when all are complete do they take their names, so
+    a failure (a full disk, an interrupt) leaves none of them, not a part of the set.
+    Returns the paths in the order given."""
+    paths = [pathlib.Path(p) for p in files]
+    for path in paths:
+        if path.is_dir():
+            raise OutputError(f"cannot write {path}: it is a directory")
+        if path.exists() and not overwrite:
+            raise _exists_error(path)
+    temporaries, placed = [], []
+    try:
+        for path, data in zip(paths, files.values()):
+            ensure_directory(path.parent)
+            try:
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TEMPORARY_MARK}",
+                                           suffix=TEMPORARY_SUFFIX, dir=path.parent)
+            except OSError as exc:
+                raise _oserror(path, exc) from None
+            temporaries.append(tmp)
+            try:
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(data)
+                    fh.flush()
+                    os.fsync(fh.fileno())
+                os.chmod(tmp, 0o644)
+            except OSError as exc:
+                raise _oserror(path, exc) from None
+        for path, tmp in zip(paths, temporaries):
+            try:
+                if overwrite:
+                    os.replace(tmp, path)
+                else:
+                    _link_no_clobber(tmp, path)
+            except FileExistsError:
+                raise _exists_error(path) from None
+            except OSError as exc:
+                raise _oserror(path, exc) from None
+            placed.append(path)
+    except BaseException:
+        for tmp in temporaries:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+        if not overwrite:  # what this call placed did not exist before it
+            for path in placed:
+                try:
+                    os.unlink(path)
+                except FileNotFoundError:
+                    pass
+        raise
+    return paths
+
+
 def _link_no_clobber(tmp, path):
     try:
         os.link(tmp, path)
