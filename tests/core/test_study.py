@@ -253,6 +253,31 @@ def test_study_errors_say_what_to_do():
         run_study(FakeStudyScene(), StudyConfig(lob="elsewhere"), factory=factory)
 
 
+def test_a_grid_too_big_for_memory_is_refused_before_it_is_made(monkeypatch):
+    """Issue 31: --grid 0.01 allocated 258 GiB after 128 s of silence. The candidates
+    are counted before they are made, and the study refused with the estimate."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.errors import SceneError
+    from rls_addon.core.study import candidates as cmod, scanner
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
+
+    poly = np.array([[-20.0, -15], [20, -15], [20, 15], [-20, 15]])
+    for step in (0.5, 1.0, 2.5, 7.0):  # the count agrees with the grid it stands for
+        assert cmod.grid_count(poly, step, (5.0, 7.0), 1.0) == \
+            len(cmod.grid_positions(poly, step, (5.0, 7.0), 1.0))
+    made = []
+    monkeypatch.setattr(cmod, "grid_positions", lambda *a: made.append(a) or [])
+    monkeypatch.setattr(scanner, "available_memory", lambda: 8 * 2**30)
+    cfg = StudyConfig(grid_step=0.01, disks=1000, lob="LOB")
+    with pytest.raises(SceneError, match=r"2,803,401 candidates \(--grid 0.01\) and needs "
+                                         r"about 23\.6 GiB .* 8\.0 GiB are free"):
+        run_study(FakeStudyScene(), cfg, factory=lambda name: (NumpyCaster, None))
+    assert made == []  # refused before a single position was made
+    cmod.check_study_size(10_000, 1000, 8 * 2**30)  # 86 MB: fine
+    cmod.check_study_size(10**9, 1000, None)  # memory unknown: not checked
+
+
 class TrafficStudyScene(FakeStudyScene):
     """FakeStudyScene with traffic: cars crossing the region over frames 1-4, and a
     parked truck (a vehicle too) right in front of the low pole A."""

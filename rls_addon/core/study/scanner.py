@@ -18,6 +18,7 @@ from ..errors import SceneError
 from ..labels import label_id
 from ..metrics.infra import resolve_labels
 from ..metrics.polygon import in_arc, points_in_polygon, polygon_arc
+from ..scan.cluster import available_memory
 from ..scan.frame import scan_frame, sensor_axes
 from ..scan.session import ScanSession
 from ..scan.device_values import device_values
@@ -200,7 +201,8 @@ def study_inputs(scene, cfg):
     preset = get_preset(cfg.device)
     polygon = scene.region(cfg.lob)
     layout = DiskLayout.make(polygon, cfg.disks, cfg.radius, cfg.disk_seed, cfg.disk_placement)
-    cands = make_candidates(candidate_spots(scene, cfg, polygon), cfg, polygon)
+    cands = make_candidates(candidate_spots(scene, cfg, polygon, available_memory()), cfg,
+                            polygon)
     spots = len({c.mount for c in cands}) if cfg.one_per_mount else len(cands)
     for k in cfg.k:
         if k < 1:
