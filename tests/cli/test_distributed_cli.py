@@ -50,6 +50,10 @@ def clouds(folder):
     return {p.name: p.read_bytes() for p in sorted(Path(folder).glob("*.pcd"))}
 
 
+def sidecars(folder):
+    return {p.name: p.read_bytes() for p in sorted(Path(folder).glob("*.json"))}
+
+
 def no_leftovers(folder):
     names = [p.name for p in Path(folder).rglob("*")]
     assert not [n for n in names if n.startswith(".") or n.endswith(".tmp")], names
@@ -66,6 +70,8 @@ def test_sharded_scan_writes_the_bytes_of_a_serial_run(scene, serial, tmp_path):
     got = json.loads(proc.stdout)
     want = clouds(out)
     assert len(want) == 32 and clouds(tmp_path) == want  # byte for byte, moving LiDAR too
+    # the sidecars too (issue 31: they said whether a worker had reused a static cast)
+    assert len(sidecars(out)) == 33 and sidecars(tmp_path) == sidecars(out)
     assert [(o["sensor"], o["frame"], o["points"]) for o in got["outputs"]] == \
         [(o["sensor"], o["frame"], o["points"]) for o in summary["outputs"]]
     assert json.loads((tmp_path / "intersection_instances.json").read_text())["instances"] == \

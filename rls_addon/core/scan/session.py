@@ -227,7 +227,6 @@ class ScanSession:
             "footprint": {k: result.stats.get(k, 0) for k in (
                 "footprint_rays", "footprint_changed_rays", "multi_echo_rays",
                 "second_returns", "mixed_points")},
-            "static_cast_reused": bool(result.stats.get("static_cast_reused", False)),
             "warnings": result.warnings,
         }
 
