@@ -175,3 +175,41 @@ def test_opv2v_layout_reads_as_opencood_reads_it(junction, tmp_path):
                 np.testing.assert_allclose(v["extent"], [2.25, 0.9, 0.75], atol=0.005)
                 checked += 1
     assert checked >= 6
+
+
+ROOF = SCENE_SCRIPT_HEAD + r"""
+from rls_addon.blender.scenes import build_scene
+build_scene("intersection", bpy.context.scene)
+car = bpy.data.objects["Car west"]
+lidar = bpy.data.objects.new("Roof", None)
+bpy.context.scene.collection.objects.link(lidar)
+lidar.parent = car
+lidar.location = (0.0, 0.0, 1.9)
+s = lidar.rls_lidar
+s.is_lidar, s.preset_id = True, "velodyne_vlp16"
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
+"""
+
+
+def test_opv2v_ego_pose_and_lidar_pose_are_taken_at_one_time(tmp_path):
+    """Issue 31: on a car at 17 m/s, true_ego_pos was the car where the sweep passed over
+    it (up to 0.1 s in) and lidar_pose where the sweep began: 0.29 m apart. Both are now
+    the sweep start, as CARLA's tick gives them."""
+    import yaml
+
+    from rls_addon.core.output.datasets.carla import carla_matrix
+
+    blend = build_blend(tmp_path, "roof.blend", ROOF)
+    out = tmp_path / "opv2v"
+    proc = rls("dataset", blend, "--layout", "opv2v", "--frames", "27", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    agent, = (out / "intersection").iterdir()
+    params = yaml.safe_load((agent / "000027.yaml").read_text())
+    assert params["rls"]["carrier"] == "Car west"
+    mirror = np.diag([1.0, -1.0, 1.0, 1.0])  # CARLA's y is Blender's -y
+    ego = mirror @ carla_matrix(params["true_ego_pos"]) @ mirror
+    lidar = mirror @ carla_matrix(params["lidar_pose"]) @ mirror
+    xy, heading = car_at("Car west", (27 - 1) / FPS)  # the car at the sweep's start
+    np.testing.assert_allclose(ego[:2, 3], xy, atol=1e-3)
+    np.testing.assert_allclose(lidar[:3, 3], [*xy, ego[2, 3] + 1.9], atol=1e-3)
+    assert params["predicted_ego_pos"] == params["true_ego_pos"]

@@ -50,6 +50,7 @@ class ObjectBox:
     visible_share: float = math.nan
     rays_on_box: int = 0
     seam: bool = False  # its points came from both ends of the sweep (see split_at_seam)
+    start_matrix: np.ndarray = None  # (4, 4) the object's matrix at the sweep start
 
     @property
     def category(self):
@@ -76,6 +77,14 @@ class ObjectBox:
         """The box pose in the sensor frame at the reference time."""
         return self.in_frame(np.linalg.inv(self.sensor_pose))
 
+    def _at_start(self):
+        """Where the box was at the sweep start (the time of the sidecar's
+        ``sensor_pose_start``): what a simulator's per-tick poses give, e.g. OPV2V's
+        ``true_ego_pos`` beside its ``lidar_pose``."""
+        centre, rot, origin = _box_at(self, self.start_matrix)
+        return {"centre": centre.tolist(), "origin": origin.tolist(), "rotation": rot.tolist(),
+                "heading_rad": float(math.atan2(rot[1, 0], rot[0, 0]))}
+
     def to_dict(self):
         sensor = self.in_sensor()
         return {
@@ -90,12 +99,22 @@ class ObjectBox:
                       "origin": self.origin.tolist(),
                       "rotation": self.pose[:3, :3].tolist(),
                       "velocity_mps": self.velocity.tolist()},
+            **({} if self.start_matrix is None else {"world_at_sweep_start": self._at_start()}),
             "sensor": {"centre": sensor[:3, 3].tolist(),
                        "heading_rad": float(math.atan2(sensor[1, 0], sensor[0, 0])),
                        "rotation": sensor[:3, :3].tolist(),
                        "velocity_mps": (np.linalg.inv(self.sensor_pose)[:3, :3]
                                         @ self.velocity).tolist()},
         }
+
+
+def _box_at(box, matrix):
+    """The box of ``box``'s object placed by another matrix of the object (the same
+    local box: the size and the offset of its centre from the origin are the object's)."""
+    rot, _ = polar(np.asarray(matrix, np.float64)[None, :3, :3])
+    local = box.pose[:3, :3].T @ (box.pose[:3, 3] - box.origin)  # centre from origin
+    origin = np.asarray(matrix, np.float64)[:3, 3]
+    return origin + rot[0] @ local, rot[0], origin
 
 
 def box_frame(matrix, lo, hi):
@@ -149,6 +168,7 @@ def object_boxes(instances, objects, tracks, classes, result, sensor_pose_at, rm
                         _velocity(track, (lo + hi) / 2, t_ref),
                         sensor_pose_at(np.array([t_ref]))[0], matrix[:3, 3].copy())
         box.points, box.seam = int(np.count_nonzero(own)), seam
+        box.start_matrix = matrix if t_ref == 0.0 else track.at([0.0])[0]
         box.points_in_box = int(np.count_nonzero(real & _inside(world, pose, size, margin)))
         box.visible_share, box.rays_on_box = _visibility(rays, names.get(inst.key, -2), pose,
                                                           size, rmax)

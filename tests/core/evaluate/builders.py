@@ -41,9 +41,12 @@ def object_boxes(sensor_pose, shift=(0.0, 0.0, 0.0), objects=OBJECTS):
     for k, (name, label, centre, size, yaw, points) in enumerate(objects):
         p = pose(*(np.asarray(centre) + shift), yaw=yaw)
         origin = p[:3, 3] - np.array([0.0, 0.0, size[2] / 2])
+        still = p.copy()  # the object's matrix: standing still over the sweep
+        still[:3, 3] = origin
         box = ObjectBox(100 + k, name, label, np.array(size, float), p, 0.05, np.zeros(3),
                         np.asarray(sensor_pose, float), origin, points=points,
-                        points_in_box=points, visible_share=0.5 if points else math.nan)
+                        points_in_box=points, visible_share=0.5 if points else math.nan,
+                        start_matrix=still)
         out.append(box.to_dict())
     return out
 

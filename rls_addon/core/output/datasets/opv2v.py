@@ -146,10 +146,13 @@ class Opv2vWriter:
         carrier = self.carriers.get(sensor)
         ego = next((b for b in boxes if b["object"] == carrier), None)
         lidar_pose = carla_pose(start)
+        # the ego's pose at the sweep start, the time of lidar_pose (as CARLA's tick
+        # gives both), not at the time the sweep passed over the car
+        ego_pose = carla_pose(_box_origin_pose(ego["world_at_sweep_start"])) if ego else lidar_pose
         body = {
             "lidar_pose": lidar_pose,
-            "true_ego_pos": carla_pose(_box_origin_pose(ego)) if ego else lidar_pose,
-            "predicted_ego_pos": carla_pose(_box_origin_pose(ego)) if ego else lidar_pose,
+            "true_ego_pos": ego_pose,
+            "predicted_ego_pos": ego_pose,
             "ego_speed": float(np.linalg.norm(ego["world"]["velocity_mps"]) * KMH) if ego else 0.0,
             "vehicles": {int(b["instance"]): vehicle_entry(b) for b in boxes
                          if b["object"] != carrier},
@@ -210,10 +213,12 @@ def agents_for(sensors, carriers):
     return out
 
 
-def _box_origin_pose(box):
+def _box_origin_pose(where):
+    """4x4 of a box's ``origin`` and ``rotation`` (a box dict's ``world`` or
+    ``world_at_sweep_start``)."""
     m = np.eye(4)
-    m[:3, :3] = np.asarray(box["world"]["rotation"])
-    m[:3, 3] = box["world"]["origin"]
+    m[:3, :3] = np.asarray(where["rotation"])
+    m[:3, 3] = where["origin"]
     return m
 
 
