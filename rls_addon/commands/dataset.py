@@ -9,7 +9,7 @@ from ..core.choices import BACKENDS, MOTION
 from ..core.output.datasets import LAYOUTS
 from ..core.errors import SceneError
 from .distribute import add_arguments as add_cluster_arguments
-from .scan import _print_step, open_scene, parse_frames
+from .scan import _print_step, interrupted_at, open_scene, parse_frames
 
 
 def add_parser(sub):
@@ -128,9 +128,8 @@ def run(args):
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
-        where = f" after {job.index} of {job.total} scans" if job is not None else ""
-        print(f"rls: interrupted{where}; finished files are complete, nothing partial was "
-              "left; rerun with --resume to continue", file=sys.stderr)
+        print(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
+              "partial was left; rerun with --resume to continue", file=sys.stderr)
         return interrupt_exit_code(exc)
     for notice in writer.notices:
         print(f"rls: notice: {notice}", file=sys.stderr)

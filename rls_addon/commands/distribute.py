@@ -19,13 +19,12 @@ from ..core.scan.cluster import (
     choose_workers,
     cluster_client,
     parse_workers,
+    piece_count,
     run_tasks,
     shards,
     worker_memory,
 )
 from ..core.errors import SceneError
-
-PIECES_PER_WORKER = 4  # more pieces than workers: balance, and finer progress
 
 
 def add_arguments(p):
@@ -110,7 +109,7 @@ def run_scan(args, run, blend, by_sensor=True):
     try:
         with cluster_client(workers, args.scheduler) as client:
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
-            pieces = run.pieces(size * PIECES_PER_WORKER, by_sensor)
+            pieces = run.pieces(piece_count(size, run.total, rays), by_sensor)
             print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
                   + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
                   file=sys.stderr, flush=True)
@@ -166,7 +165,8 @@ def study_scan_all(args, blend):
             return
         with cluster_client(workers, args.scheduler) as client:
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
-            blocks = shards([c.index for c in cands], size * PIECES_PER_WORKER)
+            blocks = shards([c.index for c in cands],
+                            piece_count(size, len(cands) * (1 + len(scanner.traffic)), rays))
             print(f"rls: {len(blocks)} candidate blocks on {size} Dask worker(s)",
                   file=sys.stderr, flush=True)
             run_tasks(client, [(study_piece, (blend, scanner.cfg, b, args.prepare_blender)) for b in blocks],

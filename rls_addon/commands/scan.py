@@ -225,6 +225,20 @@ def scan_run(args):
     return ScanRun(source, jobs, frames, writer=writer, progress=_print_step)
 
 
+def interrupted_at(job):
+    """' after N of M scans' for the message of a stopped run: the scans whose files are
+    complete (on workers, more than the pieces this process heard back from)."""
+    if job is None:
+        return ""
+    done = job.index
+    if job.writer is not None and not job.finished:
+        try:
+            done = max(done, job.complete_on_disk())
+        except OSError:
+            pass
+    return f" after {done} of {job.total} scans"
+
+
 def run(args):
     from ..core.errors import interrupt_exit_code
     from .distribute import run_scan, scene_file
@@ -236,9 +250,8 @@ def run(args):
             print(f"rls: notice: {notice}", file=sys.stderr)
         run_scan(args, job, scene_file(args))
     except KeyboardInterrupt as exc:
-        where = f" after {job.index} of {job.total} scans" if job is not None else ""
-        print(f"rls: interrupted{where}; finished files are complete, nothing partial was "
-              "left; rerun with --resume to continue", file=sys.stderr)
+        print(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
+              "partial was left; rerun with --resume to continue", file=sys.stderr)
         return interrupt_exit_code(exc)
     print(json.dumps(job.summary(), indent=2))
     return 0

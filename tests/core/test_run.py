@@ -250,3 +250,21 @@ def test_overrides_change_only_the_fields_given():
     assert got.output.fields == ("x", "y", "z", "range") and got.preset == "velodyne_vlp16"
     assert OutputSettings(fields=("ring", "x", "y", "z", "range")).fields == \
         ("x", "y", "z", "range", "ring")  # always the files' own order
+
+
+def test_a_stopped_run_counts_the_scans_its_workers_wrote(tmp_path):
+    """Issue 31: Ctrl-C of a Dask run said 'after 0 of 2000 scans' with 382 frames on
+    disk: the coordinator counts only the pieces it heard back from. It now counts the
+    scans whose files are complete."""
+    scene = street()
+    jobs = [job("pole", tmp_path), job("mast", tmp_path)]
+    run_of(scene, jobs, [1, 2, 3], tmp_path).run()  # what the workers finished
+    whole = run_of(scene, jobs, [1, 2, 3, 4, 5, 6], tmp_path, writer_kw={"resume": True})
+    assert whole.index == 0 and whole.complete_on_disk() == 6
+    (tmp_path / "fake_mast_000002.json").unlink()  # a cloud whose sidecar never came
+    assert whole.complete_on_disk() == 5
+
+    from rls_addon.commands.scan import interrupted_at
+
+    assert interrupted_at(whole) == " after 5 of 12 scans"
+    assert interrupted_at(None) == ""

@@ -35,3 +35,25 @@ def test_a_scheduler_decides_its_own_workers(monkeypatch):
     notices = []
     assert cluster.choose_workers(64, 10, 10, scheduler="tcp://h:8786", notices=notices) == 0
     assert notices == []
+
+
+def test_pieces_are_short_enough_for_progress_every_few_seconds():
+    """Issue 31: --frames 1-1000000 on 2 workers went in 8 pieces of 125,000 frames, with
+    no progress line for 10 minutes."""
+    from rls_addon.core.scan.cluster import (
+        MAX_PIECES,
+        PIECE_SECONDS,
+        SECONDS_PER_RAY,
+        SECONDS_PER_SCAN,
+        piece_count,
+    )
+
+    rays_per_scan = 115_200  # a Pandar64 frame
+    for scans in (40, 300, 2_000, 60_000, 1_000_000):
+        n = piece_count(2, scans, scans * rays_per_scan)
+        assert 1 <= n <= scans and n >= min(scans, 8)  # a few pieces a worker at least
+        per_piece = scans / n * (SECONDS_PER_SCAN + rays_per_scan * SECONDS_PER_RAY)
+        if n < MAX_PIECES:
+            assert per_piece <= PIECE_SECONDS * 1.01
+    assert piece_count(2, 10**7, 10**7 * rays_per_scan) == MAX_PIECES  # a bound on tasks
+    assert piece_count(4, 3, 3 * rays_per_scan) == 3  # never more pieces than scans

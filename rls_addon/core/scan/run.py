@@ -323,6 +323,20 @@ class ScanRun:
         for tmp in stale_temporaries(planned):
             _unlink(tmp)
 
+    def complete_on_disk(self):
+        """How many scans of the plan have all their files, complete, now: what a run
+        spread over workers has written when it stops between the pieces it has heard
+        back from (``index`` counts those only)."""
+        if self.writer is None:
+            return self.index
+        incomplete = getattr(self.writer, "incomplete", None)
+        done = 0
+        for frame, job, files in self._planned():
+            if all(os.path.isfile(p) for p in files) and not (
+                    incomplete is not None and incomplete(job.name, job.settings.output, frame)):
+                done += 1
+        return done
+
     def _planned(self):
         """(frame, job, files) of every step: the files a writer says a scan writes."""
         planned = getattr(self.writer, "planned_files", None)
