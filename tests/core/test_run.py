@@ -268,3 +268,31 @@ def test_a_stopped_run_counts_the_scans_its_workers_wrote(tmp_path):
 
     assert interrupted_at(whole) == " after 5 of 12 scans"
     assert interrupted_at(None) == ""
+
+
+def test_a_run_whose_files_will_not_fit_stops_after_its_first_scan(tmp_path, monkeypatch):
+    """Issue 31: a run of 1,000,000 frames wrote 42 GB before anything said it needed
+    about 2.5 TB. Each sensor's first scan gives its bytes per scan; what is still to
+    come must fit in the free space."""
+    from rls_addon.core.scan import disk_budget
+
+    scene = street()
+    first = run_of(scene, [job("pole", tmp_path)], [1], tmp_path).run()
+    per_scan = sum(p.stat().st_size for p in tmp_path.glob("fake_pole_000001.*"))
+    for p in tmp_path.iterdir():
+        p.unlink()
+    free = {"bytes": int(per_scan * 5.5)}  # room for 5 more scans, not 9
+    real = disk_budget.DiskBudget.__init__
+    monkeypatch.setattr(disk_budget.DiskBudget, "__init__", lambda self, remaining, free_=None:
+                        real(self, remaining, lambda folder: free["bytes"]))
+    with pytest.raises(OutputError, match=r"pole's first scan wrote .* its 9 scans still "
+                                          r"to come need about .* are free in"):
+        run_of(scene, [job("pole", tmp_path)], list(range(1, 11)), tmp_path).run()
+    assert sorted(p.name for p in tmp_path.glob("fake_pole_*")) == [
+        "fake_pole_000001.json", "fake_pole_000001.pcd"]  # the one scan, complete
+    # resumed, only the scans still missing count: after the first of the 9, 8 to come fit
+    free["bytes"] = int(per_scan * 9.5)
+    run_of(scene, [job("pole", tmp_path)], list(range(1, 11)), tmp_path,
+           writer_kw={"resume": True}).run()
+    assert len(list(tmp_path.glob("fake_pole_*.pcd"))) == 10
+    assert first.scanned == 1

@@ -142,6 +142,7 @@ class ScanRun:
         self.id_map = {}  # instance id -> {object name: label id}, over the whole run
         self._frame_set = None
         self._scan_time = 0.0
+        self._budget = self._disk_budget() if writer is not None and not piece else None
         self.t0 = time.perf_counter()
 
     @property
@@ -204,6 +205,8 @@ class ScanRun:
         if self.writer is not None:
             path = str(self.writer.write(job.name, out, frame, result.points, info))
             self.paths.append(path)
+            if self._budget is not None:
+                self._budget.written(job.name, self._files(job, frame))
         if self.on_result is not None:
             self.on_result(job, frame, result, info)
         self.scanned += 1
@@ -215,6 +218,23 @@ class ScanRun:
                                     len(result.points), result.seconds, path, False,
                                     warnings=warnings))
         return not self.finished
+
+    def _disk_budget(self):
+        """The run's ``DiskBudget``: per sensor, the scans whose files are not there yet
+        (a --resume keeps the others)."""
+        from .disk_budget import DiskBudget
+
+        remaining = {}
+        for frame, job, files in self._planned():
+            if not all(os.path.isfile(p) for p in files):
+                remaining[job.name] = remaining.get(job.name, 0) + 1
+        return DiskBudget(remaining)
+
+    def _files(self, job, frame):
+        planned = getattr(self.writer, "planned_files", None)
+        out = job.settings.output
+        return planned(job.name, out, frame) if planned is not None \
+            else [self.writer.path(job.name, out, frame)]
 
     def _stale_notice(self, job, frame):
         """Once per sensor, when resuming: its earlier files written with other settings
@@ -281,6 +301,7 @@ class ScanRun:
     def absorb(self, steps, id_map, warnings=()):
         """Take a piece's steps (run elsewhere) into this run, then, once every step of
         the plan is in, order them as a whole run would and complete the run."""
+        jobs = {j.name: j for j in self.sensors}
         for step in steps:
             self.outputs.append(step)
             self.points += step.points
@@ -291,6 +312,9 @@ class ScanRun:
                 self._scan_time += step.seconds
                 if step.path:
                     self.paths.append(step.path)
+                    if self._budget is not None:
+                        self._budget.written(step.sensor, self._files(jobs[step.sensor],
+                                                                      step.frame))
         for iid, names in id_map.items():
             self.id_map.setdefault(int(iid), {}).update(names)
         self.warnings += [w for w in warnings if w not in self.warnings]
