@@ -278,18 +278,19 @@ def pose_knots(track, tolerance_m=KNOT_TOLERANCE_M, reach_m=1.0):
     probe = np.array([[0, 0, 0, 1], [reach_m, 0, 0, 1], [0, reach_m, 0, 1], [0, 0, reach_m, 1]],
                      float).T
     times = np.array([lo, hi]) if hi > lo else np.array([lo])
-    while len(times) < 4097:
-        mats = rigid(track.at(times))
-        if len(times) == 1:
-            return times, mats
+    mats = rigid(track.at(times))
+    while len(times) > 1:
+        # each pose is evaluated once: the midpoints that fail become knots as they are
         mids = (times[1:] + times[:-1]) / 2
-        err = np.linalg.norm((poses_at(times, mats, mids) - rigid(track.at(mids))) @ probe,
-                             axis=1)
+        at_mids = rigid(track.at(mids))
+        err = np.linalg.norm((poses_at(times, mats, mids) - at_mids) @ probe, axis=1)
         bad = err.max(axis=1) > tolerance_m
-        if not bad.any():
-            return times, mats
-        times = np.sort(np.concatenate([times, mids[bad]]))
-    return times, rigid(track.at(times))
+        if not bad.any() or len(times) >= 4097:
+            break
+        order = np.argsort(np.concatenate([times, mids[bad]]), kind="stable")
+        times = np.concatenate([times, mids[bad]])[order]
+        mats = np.concatenate([mats, at_mids[bad]])[order]
+    return times, mats
 
 
 def poses_at(times, matrices, t):
