@@ -65,3 +65,25 @@ def test_resume_over_workers_says_so_too(demo_run, tmp_path):
     assert (summary(again)["resumed"], summary(again)["scanned"]) == (0, 4)
     told = [ln for ln in again.stderr.splitlines() if "other settings" in ln]
     assert told and all("seed" in ln for ln in told), again.stderr
+
+
+@pytest.mark.parametrize("layout,extra", [("kitti", []), ("kitti", ["--level"]),
+                                          ("opv2v", [])])
+def test_dataset_resume_keeps_only_frames_of_the_same_settings(demo_run, tmp_path, layout,
+                                                               extra):
+    """Issue 31: rls dataset --resume kept frames made with another seed or layout
+    option. Each frame now records its settings (KITTI's meta, OPV2V's YAML)."""
+    blend = demo_run[0] / "intersection.blend"
+    out = tmp_path / "data"
+    args = ["dataset", blend, "--layout", layout, "--frames", "1-2", "--out", out,
+            "--workers", "1"]
+    assert rls(*args).returncode == 0
+    changed = ["--seed", "7"] if not extra else extra
+    again = rls(*args, "--resume", *changed)
+    assert again.returncode == 0, again.stderr
+    assert (summary(again)["resumed"], summary(again)["scanned"]) == (0, 2)
+    told = [ln for ln in again.stderr.splitlines() if "other settings" in ln]
+    name = "seed" if not extra else "label_frame"
+    assert len(told) == 1 and name in told[0], again.stderr
+    third = rls(*args, "--resume", *changed)
+    assert (summary(third)["resumed"], summary(third)["scanned"]) == (2, 0), third.stderr

@@ -14,6 +14,36 @@ from ...points import xyz
 from ..io.sidecar import points_to_world
 
 
+def scan_settings(info, **layout):
+    """What a dataset frame records of how it was made, to resume only frames of the
+    same settings: the scan's settings as its sidecar would state them
+    (``io.sidecar.recorded_settings``: device, seed, frame space, every effect), and the
+    layout's own options (``layout``), as JSON holds them."""
+    from ..io.sidecar import recorded_settings
+
+    rec = {k: v for k, v in recorded_settings(info).items()
+           if k not in ("format", "fields", "point_type")}
+    return json.loads(json.dumps(dict(rec, **layout), allow_nan=False, default=_plain_value))
+
+
+def settings_differences(stored, settings, **layout):
+    """The names of the settings (``scan.session.settings_record``) and layout options
+    that a frame's ``stored`` record (``scan_settings``) states otherwise; a frame
+    written before records existed differs in all of them."""
+    want = json.loads(json.dumps(dict(settings, **layout), allow_nan=False,
+                                 default=_plain_value))
+    stored = stored if isinstance(stored, dict) else {}
+    return [k for k in want if stored.get(k) != want[k]]
+
+
+def _plain_value(v):
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    raise TypeError(f"not JSON: {type(v).__name__}")
+
+
 def frame_id(frame):
     """The six-digit id of a frame, as KITTI-style datasets name their files."""
     if frame < 0:

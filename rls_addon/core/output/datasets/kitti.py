@@ -33,7 +33,9 @@ from .common import (
     heading_in,
     level_frame,
     points_world,
+    scan_settings,
     seam_notice,
+    settings_differences,
     tilt_deg,
     write_json,
     write_text,
@@ -103,11 +105,30 @@ class KittiWriter:
         if not (meta.is_file() and pts.is_file() and labels.is_file()):
             return None
         try:
-            n = json.loads(meta.read_text())["points"]
+            body = json.loads(meta.read_text())
+            n = body["points"]
             rows = len(self._load(pts))
-        except (OSError, ValueError, KeyError):
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        if settings is not None and self._differences(body, settings):
             return None
         return n if rows == n else None
+
+    def _layout(self):
+        return {"label_frame": "level" if self.level else "sensor",
+                "intensity_scale": self.scale, "points_format": self.points_format}
+
+    def _differences(self, body, settings):
+        return settings_differences(body.get("settings"), settings, **self._layout())
+
+    def stale_settings(self, sensor, output, frame, settings):
+        """The settings an earlier frame of ``sensor`` was written with otherwise than
+        ``settings`` say (empty: the same, or no such frame)."""
+        try:
+            body = json.loads(self._meta(sensor, frame).read_text())
+        except (OSError, ValueError):
+            return []
+        return self._differences(body, settings) if isinstance(body, dict) else []
 
     def _load(self, path):
         if self.points_format == "npy":
@@ -164,7 +185,8 @@ class KittiWriter:
             "label_frame": "level" if self.level else "sensor",
             "intensity_scale": self.scale, "objects": boxes,
             "sensor_pose_start": info["sensor_pose_start"],
-            "sensor_poses": info.get("sensor_poses"), "device": info.get("device")}, ow)
+            "sensor_poses": info.get("sensor_poses"), "device": info.get("device"),
+            "settings": scan_settings(info, **self._layout())}, ow)
         return path
 
     def _box(self, b, frame_to_world):

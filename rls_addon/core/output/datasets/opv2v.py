@@ -35,7 +35,15 @@ from ...scene.instances import instance_id
 from ..io import pcd
 from ..io.atomic import atomic_write_bytes
 from ..io.paths import sanitize_name
-from .common import check_root, ensure_dir, frame_id, seam_notice, write_text
+from .common import (
+    check_root,
+    ensure_dir,
+    frame_id,
+    scan_settings,
+    seam_notice,
+    settings_differences,
+    write_text,
+)
 
 KMH = 3.6
 
@@ -129,9 +137,22 @@ class Opv2vWriter:
             return None
         if n != body.get("rls", {}).get("points"):
             return None
+        if settings is not None and settings_differences(body["rls"].get("settings"), settings):
+            return None
         self._pending.setdefault(frame, {})[sensor] = body  # its pose, for the others
         self._flush(frame, written=set())
         return n
+
+    def stale_settings(self, sensor, output, frame, settings):
+        """The settings an earlier frame of ``sensor`` was written with otherwise than
+        ``settings`` say (empty: the same, or no such frame)."""
+        try:
+            body = _yaml_module().safe_load(self._yaml(sensor, frame).read_text())
+        except Exception:  # noqa: BLE001 - no readable frame: nothing to report
+            return []
+        rls = body.get("rls") if isinstance(body, dict) else None
+        return settings_differences(rls.get("settings"), settings) \
+            if isinstance(rls, dict) else []
 
     def write(self, sensor, output, frame, points, info):
         if info.get("frame_space") != "sensor":
@@ -160,7 +181,8 @@ class Opv2vWriter:
                     "points": int(len(points)), "timestamp_s": info.get("timestamp_s"),
                     "agent": self.agents[sensor], "carrier": carrier,
                     "device": info.get("device", {}).get("id"),
-                    "sensor_moves": bool(info.get("sensor_moves"))},
+                    "sensor_moves": bool(info.get("sensor_moves")),
+                    "settings": scan_settings(info)},
         }
         self._pending.setdefault(frame, {})[sensor] = body
         self._flush(frame, written={sensor})
