@@ -16,12 +16,16 @@ class ScanPattern:
     times       (N,)   float64 seconds since the start of the frame, non-decreasing
     channels    (N,)   uint16 vendor channel / ring index
     period      float  frame period in seconds (times lie in [0, period))
+    origins     (N, 3) float64 where each ray leaves from, in the sensor frame (metres), for
+                devices whose beams leave from points off the sensor origin (Ouster's
+                beam-origin ring, Velodyne's per-laser offsets); None: all from the origin
     """
 
     directions: np.ndarray
     times: np.ndarray
     channels: np.ndarray
     period: float
+    origins: np.ndarray = None
 
     def __post_init__(self):
         d = self.directions
@@ -30,6 +34,9 @@ class ScanPattern:
         n = d.shape[0]
         if self.times.shape != (n,) or self.channels.shape != (n,):
             raise PatternError("pattern times and channels must have one entry per direction")
+        if self.origins is not None and self.origins.shape != (n, 3):
+            raise PatternError(f"pattern origins must have shape ({n}, 3), got "
+                               f"{self.origins.shape}")
         if not (self.period > 0):
             raise PatternError(f"pattern period must be positive, got {self.period}")
 
@@ -62,9 +69,14 @@ class ScanPattern:
         if got is None:
             a = np.radians(angle)
             c, s = np.cos(a), np.sin(a)
-            d = self.directions @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            turn = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            d = self.directions @ turn
             d.flags.writeable = False
-            got = cache[angle] = ScanPattern(d, self.times, self.channels, self.period)
+            o = None
+            if self.origins is not None:
+                o = self.origins @ turn
+                o.flags.writeable = False
+            got = cache[angle] = ScanPattern(d, self.times, self.channels, self.period, o)
         return got
 
     @cached_property
