@@ -279,3 +279,19 @@ def test_bad_files_are_refused_with_one_clear_error(tmp_path, name, text, base, 
 def test_a_bad_id_is_refused(tmp_path):
     with pytest.raises(PresetError, match="--id must be lower-case"):
         import_calibration(FIX / "nebula_pandar64.csv", "hesai_pandar64", "Bad Id", tmp_path)
+
+
+@pytest.mark.parametrize("name,base", [("nebula_hdl64e_s3.yaml", "velodyne_hdl64e"),
+                                       ("ouster_3_0_1_os-122246000293-128.json", "ouster_os1_128")])
+def test_export_keeps_the_beam_origins(tmp_path, name, base):
+    from rls_addon.core.device.presets import load_preset
+    from rls_addon.core.device.user_presets import export_preset
+
+    p = import_calibration(FIX / name, base, "unit_x", tmp_path / "user")
+    assert p.table.origins_m is not None
+    dest = export_preset(p, tmp_path / "share" / "unit_x.toml")
+    q = load_preset(dest)
+    assert q.table is None and len(q.scan["beam_origins_m"]) == len(p.table.origins_m)
+    a, b = p.pattern(), q.pattern()
+    np.testing.assert_array_equal(a.origins, b.origins)
+    np.testing.assert_array_equal(a.directions, b.directions)
