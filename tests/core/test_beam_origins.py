@@ -173,3 +173,21 @@ def test_beam_origins_key_is_validated(value, msg):
                                              "beam_origins_m": value}}
     with pytest.raises(PresetError, match=msg):
         preset_from_dict(data)
+
+
+def test_a_still_sensor_with_beam_origins_reuses_its_static_cast():
+    preset = get_preset("ouster_os1_64")
+    room = box_geometry((-HALF, -HALF, -HALF), (HALF, HALF, HALF), name="room")
+    pose = np.eye(4)
+    pose[:3, 3] = (0.3, 0.1, -0.2)
+    scene = PreparedScene(room, pose[:3, 3], preset.range.max_m, NumpyCaster)
+    settings = ScanSettings(seed=1, noise=False, dropout=False, detection="carla")
+    a = scan_frame(scene, preset.pattern(), pose, preset, settings, frame=0)
+    b = scan_frame(scene, preset.pattern(), pose, preset, settings, frame=1)
+    assert not a.stats["static_cast_reused"] and b.stats["static_cast_reused"]
+    np.testing.assert_array_equal(a.points, b.points)
+    turned = pose.copy()
+    turned[:3, :3] = [[0, -1, 0], [1, 0, 0], [0, 0, 1]]
+    c = scan_frame(scene, preset.pattern(), turned, preset, settings, frame=2)
+    assert not c.stats["static_cast_reused"]
+    assert not np.array_equal(c.points["range"], a.points["range"])

@@ -358,7 +358,7 @@ class _Aim:
             dirs = pattern.rotated(rot)
             poses = origins
             if beam is not None:
-                origins = origins + beam @ rot.T
+                origins = pattern.placed_origins(rot, origin)
         elif sensor_track.linear_is_constant:
             # Driving without turning: one rotation for the sweep (the pattern turned
             # once, and kept while it does not turn), an origin per distinct firing time.

@@ -55,6 +55,22 @@ class ScanPattern:
         self.__dict__["_rotated"] = (rotation.copy(), out)
         return out
 
+    def placed_origins(self, rotation, position):
+        """The rays' origins (``origins``) in the world for a sensor at ``position``
+        turned by ``rotation``, (N, 3); the last result is kept and read-only, so a
+        sensor that does not move gets the same array every frame (and its static
+        cast can be reused, see ``StaticScene.reusable``)."""
+        rotation = np.asarray(rotation, np.float64)
+        position = np.asarray(position, np.float64).reshape(3)
+        last = self.__dict__.get("_placed")
+        if last is not None and np.array_equal(last[0], rotation) \
+                and np.array_equal(last[1], position):
+            return last[2]
+        out = self.origins @ rotation.T + position
+        out.flags.writeable = False
+        self.__dict__["_placed"] = (rotation.copy(), position.copy(), out)
+        return out
+
     def started_at(self, azimuth_deg):
         """A spinning pattern whose sweep starts at ``azimuth_deg`` (sensor frame,
         counter-clockwise from +X) instead of its head's forward direction: every
