@@ -96,6 +96,7 @@ class RLS_PT_device_presets(bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("rls.preset_save", text="Save", icon="ADD")
         row.operator("rls.preset_import", text="Import", icon="IMPORT")
+        row.operator("rls.preset_import_calibration", text="Calibration", icon="IMPORT")
         row.operator("rls.preset_export", text="Export", icon="EXPORT")
         row.operator("rls.preset_refresh", text="", icon="FILE_REFRESH")
 

@@ -24,6 +24,18 @@ def add_parser(sub):
     im.add_argument("file")
     im.add_argument("--user-dir", required=True)
     im.add_argument("--overwrite", action="store_true")
+    ic = act.add_parser(
+        "import-calibration", help="a unit's calibration file as a user preset",
+        description="Read a unit's calibration file (Hesai angle-correction CSV, Velodyne "
+                    "calibration YAML or db.xml, Ouster sensor metadata JSON, RoboSense "
+                    "angle.csv) into a user preset that keeps everything else of --base "
+                    "(timing, range, noise, beam, detection). See docs/presets.md.")
+    ic.add_argument("file", help="the calibration file")
+    ic.add_argument("--base", required=True, help="the preset of the same model to build on")
+    ic.add_argument("--id", required=True, dest="new_id", help="the new preset's id")
+    ic.add_argument("--name", default=None, help="display name (default: base name + file)")
+    ic.add_argument("--user-dir", required=True)
+    ic.add_argument("--overwrite", action="store_true")
     ex = act.add_parser("export", help="write a self-contained preset file to share")
     ex.add_argument("name")
     ex.add_argument("file")
@@ -87,6 +99,14 @@ def run(args):
     if args.action == "import":
         p = up.import_preset(args.file, args.user_dir, overwrite=args.overwrite)
         print(f"imported '{p.id}' to {p.path}")
+        return 0
+    if args.action == "import-calibration":
+        from ..core.device.calibration_import import import_calibration
+
+        p = import_calibration(args.file, args.base, args.new_id, args.user_dir,
+                               name=args.name, overwrite=args.overwrite)
+        print(f"imported '{p.id}' ({len(p.table.elevations_deg)} channels from "
+              f"{Path(args.file).name}) to {p.path}")
         return 0
     if args.action == "export":
         p = pr.get_preset(args.name, args.user_dir)

@@ -4,6 +4,7 @@ code."""
 
 import dataclasses
 import re
+from pathlib import PurePath
 
 import bpy
 from bpy.props import BoolProperty, StringProperty
@@ -144,6 +145,64 @@ class RLS_OT_preset_import(bpy.types.Operator):
         return {"FINISHED"}
 
 
+class RLS_OT_preset_import_calibration(bpy.types.Operator):
+    """Import a unit's calibration file (Hesai angle-correction CSV, Velodyne YAML or
+    db.xml, Ouster metadata JSON, RoboSense angle.csv) as a user preset built on a preset
+    of the same model: the unit's angles and beam origins, everything else the base's"""
+
+    bl_idname = "rls.preset_import_calibration"
+    bl_label = "Import Calibration"
+    bl_options = {"REGISTER"}
+
+    filepath: StringProperty(subtype="FILE_PATH", description="The unit's calibration file")
+    filter_glob: StringProperty(default="*.csv;*.yaml;*.yml;*.xml;*.json", options={"HIDDEN"},
+                                description="Calibration files")
+    base: StringProperty(name="Base Preset",
+                         description="Preset of the same model to build on (default: the "
+                                     "active LiDAR's)")
+    preset_id: StringProperty(name="Id", description="Id of the new preset (default: from "
+                                                     "the base and the file name)")
+    name: StringProperty(name="Name", description="Display name (default: the base's name "
+                                                  "and the file name)")
+    overwrite: BoolProperty(name="Overwrite", default=False,
+                            description="Replace a user preset with the same id")
+
+    def invoke(self, context, event):
+        if not self.base:
+            obj = _active_lidar(context)
+            if obj is not None:
+                self.base = lidar_props(obj).preset_id
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
+
+    def execute(self, context):
+        from ..core.device.calibration_import import import_calibration
+
+        if not self.filepath:
+            return cancelled(self, "Choose a calibration file to import")
+        base = self.base.strip()
+        if not base:
+            obj = _active_lidar(context)
+            base = lidar_props(obj).preset_id if obj is not None else ""
+        if not base:
+            return cancelled(self, "Choose the base preset (a preset of the same model)")
+        path = bpy.path.abspath(self.filepath)
+        stem = PurePath(path.replace("\\", "/")).stem
+        pid = self.preset_id.strip() or _slug(f"{base}_{stem}")
+        try:
+            p = import_calibration(path, preset_catalog.resolve(base), pid,
+                                   preset_catalog.user_dir(), name=self.name.strip() or None,
+                                   overwrite=self.overwrite)
+        except RLSError as exc:
+            return cancelled(self, exc)
+        properties.refresh_preset_items()
+        obj = _active_lidar(context)
+        if obj is not None:
+            lidar_props(obj).preset_id = p.id
+        self.report({"INFO"}, f"Imported calibration as preset '{p.id}' ({p.name})")
+        return {"FINISHED"}
+
+
 class RLS_OT_preset_export(bpy.types.Operator):
     """Export a device preset to a self-contained .toml file to share"""
 
@@ -228,6 +287,7 @@ CLASSES = (
     RLS_OT_preset_apply,
     RLS_OT_preset_save,
     RLS_OT_preset_import,
+    RLS_OT_preset_import_calibration,
     RLS_OT_preset_export,
     RLS_OT_preset_delete,
     RLS_OT_preset_refresh,

@@ -130,6 +130,29 @@ def test_import_of_non_toml_and_python_is_refused_and_never_run(scene, user_dir,
         bpy.ops.rls.preset_import(filepath="")
 
 
+def test_import_calibration_builds_on_the_active_lidars_preset(scene, user_dir, tmp_path):
+    from pathlib import Path
+
+    from rls_addon.core.device.presets import load_preset
+
+    fix = Path(__file__).resolve().parents[1] / "fixtures" / "calibration"
+    obj = add_lidar_op("hesai_pandar64")
+    assert bpy.ops.rls.preset_import_calibration(
+        filepath=str(fix / "nebula_pandar64.csv")) == {"FINISHED"}
+    pid = "hesai_pandar64_nebula_pandar64"
+    p = load_preset(user_dir / f"{pid}.toml")
+    assert (user_dir / "tables" / f"{pid}.csv").is_file()
+    assert p.table.elevations_deg[0] == 14.9 and "nebula_pandar64.csv (sha256" in p.source
+    assert pid in _enum_ids() and obj.rls_lidar.preset == pid
+    # a file of another vendor for this base: refused, named, nothing written
+    with pytest.raises(RuntimeError, match="nebula_vlp16.yaml: the file is a Velodyne"):
+        bpy.ops.rls.preset_import_calibration(filepath=str(fix / "nebula_vlp16.yaml"),
+                                              base="hesai_pandar64", preset_id="wrong")
+    assert not (user_dir / "wrong.toml").exists()
+    with pytest.raises(RuntimeError, match="Choose a calibration file"):
+        bpy.ops.rls.preset_import_calibration(filepath="")
+
+
 def test_delete_builtin_is_refused_user_preset_is_deleted(scene, user_dir):
     from rls_addon.core.device.presets import builtin_presets_dir
 

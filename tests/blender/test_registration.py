@@ -5,6 +5,7 @@ import bpy
 NAMES = ("OBJECT_OT_rls_add_lidar", "OBJECT_OT_rls_add_infralob", "RLS_OT_scan_frame",
          "RLS_OT_scan_all", "RLS_OT_scan_range", "RLS_OT_batch_command", "RLS_OT_preview_color", "RLS_OT_compute_metrics",
          "RLS_OT_preset_apply", "RLS_OT_preset_save", "RLS_OT_preset_import",
+         "RLS_OT_preset_import_calibration",
          "RLS_OT_preset_export", "RLS_OT_preset_delete", "RLS_OT_preset_refresh",
          "OBJECT_PT_rls_lidar", "OBJECT_PT_rls_lidar_range", "OBJECT_PT_rls_lidar_motion",
          "OBJECT_PT_rls_lidar_output", "OBJECT_PT_rls_lidar_preview", "OBJECT_PT_rls_lidar_metrics",

@@ -107,7 +107,8 @@ def test_lidar_panels_draw_without_heavy_work(scene, user_dir, no_heavy_work):
     ops = [a[0] for log in logs.values() for name, a, _ in log if name == "operator"]
     for op in ("rls.scan_frame", "rls.scan_all", "rls.scan_range", "rls.preview_color",
                "rls.compute_metrics", "rls.preset_apply", "rls.preset_save",
-               "rls.preset_import", "rls.preset_export", "rls.preset_refresh"):
+               "rls.preset_import", "rls.preset_import_calibration", "rls.preset_export",
+               "rls.preset_refresh"):
         assert op in ops, op
     metrics_labels = [kw.get("text", "") for name, _, kw in logs["OBJECT_PT_rls_lidar_metrics"]
                       if name == "label"]

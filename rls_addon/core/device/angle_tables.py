@@ -1,9 +1,12 @@
 """Per-channel angle tables (vendor calibration files copied into ``presets/tables``).
 
 A table is a small CSV: ``#`` comment lines (``# source:`` and ``# note:`` say where the
-numbers come from), a header ``channel,elevation_deg[,azimuth_offset_deg]``, then one row
-per channel in the vendor's order. Offsets are stored exactly as the vendor gives them;
-``AZIMUTH_CONVENTIONS`` converts them to our frame (azimuth counter-clockwise from +X).
+numbers come from), a header ``channel,elevation_deg[,azimuth_offset_deg[,origin_x_m,
+origin_y_m,origin_z_m]]``, then one row per channel in the vendor's order. Offsets are
+stored exactly as the vendor gives them; ``AZIMUTH_CONVENTIONS`` converts them to our frame
+(azimuth counter-clockwise from +X). The optional origin columns are where each beam
+leaves from, in metres, in the head frame (the frame that turns with the head: +X the
+head's forward direction, +Y left, +Z up); absent, every beam leaves from the sensor origin.
 """
 
 from dataclasses import dataclass
@@ -16,6 +19,8 @@ from ..errors import PresetError
 
 MAX_TABLE_BYTES = 1_000_000
 MAX_TABLE_ROWS = 1024
+MAX_ORIGIN_M = 1.0  # a beam origin further than this from the sensor origin is an error
+ORIGIN_COLUMNS = ["origin_x_m", "origin_y_m", "origin_z_m"]
 
 # Sign that turns a vendor azimuth offset into our counter-clockwise offset (degrees).
 #   hesai:     azimuth = block_azimuth + offset, measured clockwise (x = d cos(el) sin(az),
@@ -37,6 +42,7 @@ class AngleTable:
     source: str = ""
     note: str = ""
     name: str = ""
+    origins_m: tuple = None  # ((x, y, z) per row, head frame, metres) or None
 
 
 def resolve_table_path(rel, base_dir, where):
@@ -81,7 +87,7 @@ def read_angle_table(path, where=None):
         raise PresetError(f"{where}: cannot read angle table ({exc})") from None
     source = note = ""
     header = None
-    ids, els, azs = [], [], []
+    ids, els, azs, origins = [], [], [], []
     for lineno, raw in enumerate(text.splitlines(), start=1):
         line = raw.strip()
         if not line:
@@ -96,9 +102,12 @@ def read_angle_table(path, where=None):
         cells = [c.strip() for c in line.split(",")]
         if header is None:
             header = cells
-            if header[:2] != ["channel", "elevation_deg"] or header[2:] not in ([], ["azimuth_offset_deg"]):
+            if header[:2] != ["channel", "elevation_deg"] or \
+                    header[2:] not in ([], ["azimuth_offset_deg"],
+                                       ["azimuth_offset_deg"] + ORIGIN_COLUMNS):
                 raise PresetError(f"{where} line {lineno}: header must be 'channel,elevation_deg"
-                                  f"[,azimuth_offset_deg]', got '{line}'")
+                                  f"[,azimuth_offset_deg[,{','.join(ORIGIN_COLUMNS)}]]', "
+                                  f"got '{line}'")
             continue
         if len(cells) != len(header):
             raise PresetError(f"{where} line {lineno}: expected {len(header)} columns, got {len(cells)}")
@@ -112,6 +121,13 @@ def read_angle_table(path, where=None):
         if not -360.0 <= az <= 360.0:
             raise PresetError(f"{where} line {lineno}: column 'azimuth_offset_deg' must be in "
                               f"-360..360, got {az}")
+        if len(cells) > 3:
+            xyz = tuple(_fnum(c, where, lineno, name) for c, name in zip(cells[3:], ORIGIN_COLUMNS))
+            for v, name in zip(xyz, ORIGIN_COLUMNS):
+                if abs(v) > MAX_ORIGIN_M:
+                    raise PresetError(f"{where} line {lineno}: column '{name}' must be in "
+                                      f"-{MAX_ORIGIN_M:g}..{MAX_ORIGIN_M:g} m, got {v}")
+            origins.append(xyz)
         ids.append(int(cid))
         els.append(el)
         azs.append(az)
@@ -119,7 +135,8 @@ def read_angle_table(path, where=None):
             raise PresetError(f"{where}: angle table has more than {MAX_TABLE_ROWS} rows")
     if not ids:
         raise PresetError(f"{where}: angle table has no rows")
-    return AngleTable(tuple(ids), tuple(els), tuple(azs), source, note, path.name)
+    return AngleTable(tuple(ids), tuple(els), tuple(azs), source, note, path.name,
+                      tuple(origins) if origins else None)
 
 
 def ccw_offsets_deg(table_offsets_deg, convention):

@@ -93,8 +93,9 @@ class DevicePreset:
             cache.move_to_end(key)
             return cache[key]
         pat = _build_pattern(self, key)
-        for a in (pat.directions, pat.times, pat.channels):
-            a.setflags(write=False)
+        for a in (pat.directions, pat.times, pat.channels, pat.origins):
+            if a is not None:
+                a.setflags(write=False)
         cache[key] = pat
         while len(cache) > PATTERN_CACHE_FRAMES:
             cache.popitem(last=False)
@@ -119,6 +120,22 @@ def spinning_elevations_offsets(preset):
     return el, off
 
 
+def _channel_count(s, table):
+    if table is not None:
+        return len(table.elevations_deg)
+    return len(s["elevations_deg"]) if "elevations_deg" in s else int(s["channels"])
+
+
+def spinning_beam_origins(preset):
+    """Where each beam of a spinning preset leaves from, (C or 1, 3) metres in the head
+    frame (table origin columns or ``beam_origins_m``), or None: all from the origin."""
+    if preset.table is not None and preset.table.origins_m is not None:
+        return np.asarray(preset.table.origins_m, np.float64)
+    if "beam_origins_m" in preset.scan:
+        return np.asarray(preset.scan["beam_origins_m"], np.float64).reshape(-1, 3)
+    return None
+
+
 def _firing_offsets_s(s, c):
     if "firing_offsets_us" in s:
         return np.asarray(s["firing_offsets_us"], dtype=np.float64) * 1e-6
@@ -140,7 +157,8 @@ def _build_pattern(p, frame):
             el, p.frequency_hz, s.get("points_per_second"), off,
             horizontal_resolution_deg=s.get("horizontal_resolution_deg"),
             firing_cycle_s=None if cycle is None else cycle * 1e-6,
-            firing_offsets_s=_firing_offsets_s(s, len(el)))
+            firing_offsets_s=_firing_offsets_s(s, len(el)),
+            origins_head_m=spinning_beam_origins(p))
     if p.family == "mems":
         if s["model"] == "blickfeld":
             return blickfeld_pattern(p.frequency_hz, s["points_per_second"], s["mirror_hz"],
@@ -232,6 +250,8 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
             tpath = resolve_table_path(scan["table"], base_dir, sw)
             table = read_angle_table(tpath, f"{sw} table '{scan['table']}'")
         rays = sch.check_spinning(scan, sw, freq, None if table is None else len(table.elevations_deg))
+        sch.check_beam_origins(scan, sw, _channel_count(scan, table),
+                               table is not None and table.origins_m is not None)
     elif family == "mems":
         rays = sch.check_mems(scan, sw, freq)
     elif family == "risley":
@@ -377,6 +397,7 @@ def pattern_span(preset, duration_s):
 
 __all__ = [
     "FAMILIES", "RangeModel", "DropoutModel", "DevicePreset", "ScanPattern", "preset_from_dict",
-    "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "readable_presets_in", "get_preset",
-    "pattern_span", "spinning_elevations_offsets", "custom_pattern_path",
+    "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "readable_presets_in",
+    "get_preset", "pattern_span", "spinning_elevations_offsets", "spinning_beam_origins",
+    "custom_pattern_path",
 ]

@@ -96,6 +96,7 @@ SPINNING_KEYS = {
     "azimuth_convention", "channels", "upper_fov_deg", "lower_fov_deg",
     "points_per_second", "horizontal_resolution_deg", "firing_cycle_us",
     "firing_offsets_us", "firing_step_us", "firing_group_size", "firing_groups",
+    "beam_origins_m",
 }
 MEMS_KEYS = {
     "model", "points_per_second", "h_mirror_hz", "v_mirror_hz", "h_amplitude_deg",
@@ -183,6 +184,26 @@ def check_spinning(s, where, frequency_hz, table_rows=None):
     elif any(k in s for k in ("firing_group_size", "firing_groups")):
         raise PresetError(f"{where}: firing groups need 'firing_step_us'")
     return int(rays)
+
+
+def check_beam_origins(s, where, channels, table_origins=False):
+    """Validate ``beam_origins_m`` of a spinning [scan]: where the beams leave from, in
+    metres in the head frame (+X the head's direction, +Y left, +Z up), as one [x, y, z]
+    for every beam (Ouster's beam-origin ring: [lidar_origin_to_beam_origin, 0, 0]) or one
+    per channel. Returns an (1 or C, 3) list of lists, or None when absent; a table with
+    origin columns gives them there instead."""
+    if "beam_origins_m" not in s:
+        return None
+    if table_origins:
+        raise PresetError(f"{where}: key 'beam_origins_m' cannot be combined with a table "
+                          f"that has origin columns")
+    v = s["beam_origins_m"]
+    if not isinstance(v, list) or len(v) not in (1, channels) \
+            or not all(isinstance(x, list) for x in v):
+        raise PresetError(f"{where}: key 'beam_origins_m' must be a list of [x, y, z] (metres): "
+                          f"one for every beam or one per channel ({channels})")
+    return [numlist({"beam_origins_m": x}, "beam_origins_m", where, -1.0, 1.0, length=3)
+            for x in v]
 
 
 def check_mems(s, where, frequency_hz):

@@ -25,6 +25,8 @@ def preset_to_dict(preset):
         del scan["table"]
         scan["elevations_deg"] = list(preset.table.elevations_deg)
         scan["azimuth_offsets_deg"] = list(preset.table.azimuth_offsets_deg)
+        if preset.table.origins_m is not None:
+            scan["beam_origins_m"] = [list(o) for o in preset.table.origins_m]
         scan["table_source"] = preset.table.source or preset.table.name
         if preset.table.note:
             scan["table_note"] = preset.table.note
@@ -170,4 +172,8 @@ def delete_user_preset(preset_id, user_dir):
         csv = d / "patterns" / f"{preset_id}.csv"
         if csv.is_file():
             csv.unlink()
+    if p.scan.get("table") == f"tables/{preset_id}.csv":  # an imported calibration's table
+        table = d / "tables" / f"{preset_id}.csv"
+        if table.is_file():
+            table.unlink()
     Path(p.path).unlink()

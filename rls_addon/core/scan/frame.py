@@ -278,7 +278,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     aim = _Aim.of(pattern, sensor_to_world, sensor_track, tscene)
     pick = _Subset(n, ray_rows, pattern.trace_order)
     if pick.rows is not None:
-        if dv.beam is not None or aim.origins.shape[0] != 1:
+        if dv.beam is not None or aim.poses.shape[0] != 1:
             raise ValueError("scan_frame(rays=...) is for a still sensor without beam "
                              "footprints (a footprint needs its neighbours' rays)")
         aim = aim.subset(pick)
@@ -316,6 +316,8 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                 medium_rows, medium_dist)
     rays = Rays(aim.dirs, aim.origins, aim.columns, aim.channels, aim.ray_times)
     pts, idx, back = _points(hits, rays, draws, _effects(preset, dv), s, fields, beam_echoes)
+    if aim.beam_origins is not None and s.frame_space != "world":
+        _from_beam_origins(pts, aim.beam_origins, idx)
     in_air = _air_stats(dv.weather, medium_rows, len(aim.dirs), idx, stats)
     warnings += _inside_warnings(world, ret.surface[:, 0], idx, back, in_air)
     stats["moving_bodies"] = len(moving)
@@ -343,23 +345,30 @@ class _Aim:
     channels: np.ndarray
     ray_times: np.ndarray
     poses: np.ndarray
+    beam_origins: np.ndarray = None  # (N, 3) sensor frame, or None: all from the origin
 
     @classmethod
     def of(cls, pattern, sensor_to_world, sensor_track, tscene):
         dirs_sensor = pattern.directions
+        beam = pattern.origins  # (N, 3) sensor frame or None: the rays leave the origin
         if sensor_track is None or sensor_track.is_static:
             origin, rot = sensor_axes(sensor_to_world if sensor_track is None
                                       else sensor_track.matrices[0])
             origins = origin.reshape(1, 3)
             dirs = pattern.rotated(rot)
             poses = origins
+            if beam is not None:
+                origins = pattern.placed_origins(rot, origin)
         elif sensor_track.linear_is_constant:
             # Driving without turning: one rotation for the sweep (the pattern turned
             # once, and kept while it does not turn), an origin per distinct firing time.
             times, at = distinct_times(tscene)
             poses = sensor_track.positions_at(times)
             origins = poses[at]
-            dirs = pattern.rotated(sensor_axes(sensor_track.matrices[0])[1])
+            rot = sensor_axes(sensor_track.matrices[0])[1]
+            dirs = pattern.rotated(rot)
+            if beam is not None:
+                origins = origins + beam @ rot.T
         else:
             # One pose per distinct firing time (the channels of a firing share it): a
             # spinning lidar has 64 to 128 times fewer poses to take apart than rays.
@@ -367,14 +376,26 @@ class _Aim:
             poses, rots = sensor_axes(sensor_track.at(times))
             origins = poses[at]
             dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
+            if beam is not None:
+                origins = origins + np.einsum("nij,nj->ni", rots[at], beam)
         return cls(origins, dirs, tscene, pattern.trace_order, pattern.columns,
-                   pattern.channels, pattern.times, poses)
+                   pattern.channels, pattern.times, poses, beam)
 
     def subset(self, pick):
         """The rays ``pick`` (a ``_Subset``) chooses, in the pattern's trace order."""
-        return _Aim(self.origins, pick(self.dirs), pick(self.times), pick.order,
+        return _Aim(self.origins if self.origins.shape[0] == 1 else pick(self.origins),
+                    pick(self.dirs), pick(self.times), pick.order,
                     tuple(pick(c) for c in self.columns), pick(self.channels),
-                    pick(self.ray_times), self.poses)
+                    pick(self.ray_times), self.poses, pick(self.beam_origins))
+
+
+def _from_beam_origins(pts, beam_origins, idx):
+    """Sensor-frame points moved from the sensor origin to their beams' own origins
+    (``beam_origins``: (rays, 3) in the sensor frame; ``idx``: each point's ray): the
+    assembled points are range x sensor-frame direction."""
+    for k, f in enumerate("xyz"):
+        if f in pts.dtype.names:
+            pts[f] += beam_origins[idx, k]
 
 
 def _prepared(scene, poses, rmax, caster_factory):

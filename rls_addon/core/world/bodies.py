@@ -16,6 +16,11 @@ from ..casting import WatertightCaster, cast_exact, triangle_planes
 from ..scene.geometry import clean_for_casting, concatenate
 
 
+def _frozen(a):
+    """A read-only array that owns its data: its contents cannot change."""
+    return isinstance(a, np.ndarray) and a.base is None and not a.flags.writeable
+
+
 class PreparedScene:
     """Triangles ready for casting around ``centre``: shifted to centre-relative float64
     coordinates (so scenes far from the origin keep their precision in float32
@@ -60,12 +65,13 @@ class PreparedScene:
 
     def reusable(self, origins, directions):
         """True when ``cast(..., reuse=True)`` may keep or reuse a cast of these rays:
-        one origin, and directions in a read-only array that owns its data (what
+        one origin (or one per ray in a read-only array that owns its data: what
+        ``ScanPattern.placed_origins`` gives beams with their own origins), and
+        directions in a read-only array that owns its data (what
         ``ScanPattern.rotated`` gives: the same array for every frame of a sensor that
         does not move, whose contents cannot change)."""
-        return (self.reuse_casts and np.size(origins) == 3
-                and isinstance(directions, np.ndarray) and directions.base is None
-                and not directions.flags.writeable)
+        return (self.reuse_casts and (np.size(origins) == 3 or _frozen(origins))
+                and _frozen(directions))
 
     def cast(self, origins, directions, max_range, watertight=True, order=None, reuse=False):
         """Per ray: (dist, index into ``geometry``'s triangles or -1, unit normals).
@@ -85,11 +91,14 @@ class PreparedScene:
         (a frame's random draws) overlaps the cast; other backends cast right here."""
         key = None
         if reuse and watertight and self.reusable(origins, directions):
-            key = (np.asarray(origins, np.float64).tobytes(), directions,
+            one = np.size(origins) == 3
+            key = (np.asarray(origins, np.float64).tobytes() if one else origins, directions,
                    float(max_range), order)
             kept = self._kept_cast
-            if kept is not None and kept[0][0] == key[0] and kept[0][1] is directions \
-                    and kept[0][2] == key[2] and kept[0][3] is order:
+            if kept is not None and (isinstance(kept[0][0], bytes) and kept[0][0] == key[0] if one
+                                      else kept[0][0] is origins) \
+                    and kept[0][1] is directions and kept[0][2] == key[2] \
+                    and kept[0][3] is order:
                 self.reused += 1
                 got = tuple(a.copy() for a in kept[1])
                 return lambda: got

@@ -16,12 +16,16 @@ class ScanPattern:
     times       (N,)   float64 seconds since the start of the frame, non-decreasing
     channels    (N,)   uint16 vendor channel / ring index
     period      float  frame period in seconds (times lie in [0, period))
+    origins     (N, 3) float64 where each ray leaves from, in the sensor frame (metres), for
+                devices whose beams leave from points off the sensor origin (Ouster's
+                beam-origin ring, Velodyne's per-laser offsets); None: all from the origin
     """
 
     directions: np.ndarray
     times: np.ndarray
     channels: np.ndarray
     period: float
+    origins: np.ndarray = None
 
     def __post_init__(self):
         d = self.directions
@@ -30,6 +34,9 @@ class ScanPattern:
         n = d.shape[0]
         if self.times.shape != (n,) or self.channels.shape != (n,):
             raise PatternError("pattern times and channels must have one entry per direction")
+        if self.origins is not None and self.origins.shape != (n, 3):
+            raise PatternError(f"pattern origins must have shape ({n}, 3), got "
+                               f"{self.origins.shape}")
         if not (self.period > 0):
             raise PatternError(f"pattern period must be positive, got {self.period}")
 
@@ -48,6 +55,22 @@ class ScanPattern:
         self.__dict__["_rotated"] = (rotation.copy(), out)
         return out
 
+    def placed_origins(self, rotation, position):
+        """The rays' origins (``origins``) in the world for a sensor at ``position``
+        turned by ``rotation``, (N, 3); the last result is kept and read-only, so a
+        sensor that does not move gets the same array every frame (and its static
+        cast can be reused, see ``StaticScene.reusable``)."""
+        rotation = np.asarray(rotation, np.float64)
+        position = np.asarray(position, np.float64).reshape(3)
+        last = self.__dict__.get("_placed")
+        if last is not None and np.array_equal(last[0], rotation) \
+                and np.array_equal(last[1], position):
+            return last[2]
+        out = self.origins @ rotation.T + position
+        out.flags.writeable = False
+        self.__dict__["_placed"] = (rotation.copy(), position.copy(), out)
+        return out
+
     def started_at(self, azimuth_deg):
         """A spinning pattern whose sweep starts at ``azimuth_deg`` (sensor frame,
         counter-clockwise from +X) instead of its head's forward direction: every
@@ -62,9 +85,14 @@ class ScanPattern:
         if got is None:
             a = np.radians(angle)
             c, s = np.cos(a), np.sin(a)
-            d = self.directions @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            turn = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            d = self.directions @ turn
             d.flags.writeable = False
-            got = cache[angle] = ScanPattern(d, self.times, self.channels, self.period)
+            o = None
+            if self.origins is not None:
+                o = self.origins @ turn
+                o.flags.writeable = False
+            got = cache[angle] = ScanPattern(d, self.times, self.channels, self.period, o)
         return got
 
     @cached_property

@@ -61,7 +61,8 @@ def firing_cycles(frequency_hz, channels, points_per_second=None, horizontal_res
 
 
 def spinning_pattern(elevations_deg, frequency_hz, points_per_second=None, azimuth_offsets_deg=None,
-                     *, horizontal_resolution_deg=None, firing_cycle_s=None, firing_offsets_s=None):
+                     *, horizontal_resolution_deg=None, firing_cycle_s=None, firing_offsets_s=None,
+                     origins_head_m=None):
     """One revolution of a spinning multi-beam sensor.
 
     elevations_deg       (C,) per-channel elevation, table (firing) order
@@ -70,6 +71,10 @@ def spinning_pattern(elevations_deg, frequency_hz, points_per_second=None, azimu
                          ``angle_tables.ccw_offsets_deg`` first
     firing_offsets_s     (C,) per-channel firing time within the cycle (default: all channels
                          fire together at the start of the cycle); each must be < cycle time
+    origins_head_m       (C, 3) or (1, 3) where each channel's beam leaves from, in metres, in
+                         the head frame (turning with the head: +X the head's direction at
+                         the firing, +Y left, +Z up); None: every beam from the sensor origin.
+                         A ray's origin is this point turned by the head angle at its firing.
 
     Returns a ``ScanPattern`` in firing order; channels are 0-based table rows.
     """
@@ -96,4 +101,15 @@ def spinning_pattern(elevations_deg, frequency_hz, points_per_second=None, azimu
     az = -2.0 * np.pi * frequency_hz * t + np.tile(np.deg2rad(off), steps)
     elev = np.tile(np.deg2rad(el), steps)
     ch = np.tile(order.astype(np.uint16), steps)
-    return ScanPattern(directions_from_angles(az, elev), t, ch, period)
+    origins = None
+    if origins_head_m is not None:
+        oh = np.asarray(origins_head_m, np.float64).reshape(-1, 3)
+        if oh.shape[0] not in (1, c):
+            raise PatternError(f"beam origins need one (x, y, z) or one per channel ({c})")
+        oh = np.broadcast_to(oh, (c, 3))[order]
+        head = -2.0 * np.pi * frequency_hz * t  # the head's azimuth at each firing
+        ch_, sh_ = np.cos(head), np.sin(head)
+        o = np.tile(oh, (steps, 1))
+        origins = np.stack([ch_ * o[:, 0] - sh_ * o[:, 1], sh_ * o[:, 0] + ch_ * o[:, 1],
+                            o[:, 2]], axis=-1)
+    return ScanPattern(directions_from_angles(az, elev), t, ch, period, origins)
