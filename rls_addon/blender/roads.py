@@ -4,10 +4,10 @@ crossing and sidewalk surfaces, kerbs, corner mount poles and the InfraLOB, with
 
 The surfaces are one constrained Delaunay triangulation of every piece at once
 (Blender's ``mathutils.geometry.delaunay_2d_cdt``, the one its exact Boolean uses):
-pieces' edges are split where they cross, and each triangle is kept when it lies in a
-piece (the CDT's record of which input faces hold it, or the even-odd inside of an
-outline that crosses itself), with the kind that wins there (sidewalk over crossing
-over road). So overlapping lanes and junction shapes make one surface without
+pieces' edges are split where they cross, so each triangle lies wholly inside or
+outside each piece; it is kept when its centroid lies in a piece (the even-odd inside
+of the piece's outline, which for an outline that crosses itself is the documented
+rule), with the kind that wins there (sidewalk over crossing over road). So overlapping lanes and junction shapes make one surface without
 doubled faces, and the meshes' union is the pieces' union.
 
 Objects (labels from their collections, see ``core/labels.py``):
@@ -35,8 +35,9 @@ from .quiet import blender_output_silenced
 from .scenes.build import collection, infralob, material, mount_pole, standard_materials
 
 POLE_HEIGHT_M = 6.0
+MIN_KERB_M = 1e-3  # shorter sidewalk edges (slivers of the triangulation) get no kerb face
 CDT_EPSILON_M = 1e-4
-OUTPUT_CONVEX_HULL = 0  # delaunay_2d_cdt's output_type: all triangles, with ids
+OUTPUT_CONVEX_HULL = 0  # delaunay_2d_cdt's output_type: every triangle of the hull
 
 
 def triangulate(pieces):
@@ -46,35 +47,43 @@ def triangulate(pieces):
         return np.zeros((0, 2)), np.zeros((0, 3), np.int64), np.zeros(0, np.int64)
     allpts = np.concatenate([p.ring for p in pieces])
     centre = 0.5 * (allpts.min(axis=0) + allpts.max(axis=0))  # float32 Vectors: stay small
-    verts, faces, edges, loose = [], [], [], []
-    for k, p in enumerate(pieces):
+    verts, edges = [], []
+    for p in pieces:
         start = len(verts)
         verts += [Vector(v) for v in (p.ring - centre)]
-        idx = list(range(start, len(verts)))
-        if p.simple:
-            faces.append(idx)
-        else:
-            edges += [(idx[i], idx[(i + 1) % len(idx)]) for i in range(len(idx))]
-            loose.append(k)
-    face_piece = [k for k, p in enumerate(pieces) if p.simple]
-    out_v, _, out_f, _, _, out_orig = delaunay_2d_cdt(verts, edges, faces, OUTPUT_CONVEX_HULL,
-                                                      CDT_EPSILON_M, True)
-    v = np.array([tuple(c) for c in out_v], dtype=np.float64).reshape(-1, 2)
+        n = len(p.ring)
+        edges += [(start + i, start + (i + 1) % n) for i in range(n)]
+    out_v, _, out_f, _, _, _ = delaunay_2d_cdt(verts, edges, [], OUTPUT_CONVEX_HULL,
+                                               CDT_EPSILON_M, False)
+    v = np.array([tuple(c) for c in out_v], dtype=np.float64).reshape(-1, 2) + centre
     tris = np.array(out_f, dtype=np.int64).reshape(-1, 3)
-    rank = {kind: i for i, kind in enumerate(KINDS)}
-    kind = np.array([max((rank[pieces[face_piece[f]].kind] for f in orig), default=-1)
-                     for orig in out_orig], dtype=np.int64)
-    if loose and len(tris):
-        mid = v[tris].mean(axis=1)
-        for k in loose:
-            inside = points_in_polygon(mid, pieces[k].ring - centre)
-            kind[inside] = np.maximum(kind[inside], rank[pieces[k].kind])
+    kind = classify(v[tris].mean(axis=1), pieces)
     keep = kind >= 0
     tris, kind = tris[keep], kind[keep]
     a, b, c = (v[tris[:, i]] for i in range(3))
     cw = ((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])) < 0
     tris[cw] = tris[cw][:, ::-1]
-    return v + centre, tris, kind
+    return v, tris, kind
+
+
+def classify(points, pieces):
+    """Per point (a triangle's centroid), the index in ``KINDS`` of the highest kind of
+    piece it lies in (even-odd inside of the piece's outline), -1 for none. Every
+    piece's edges are edges of the triangulation, so a triangle lies wholly inside or
+    wholly outside each piece and its centroid decides."""
+    rank = {kind: i for i, kind in enumerate(KINDS)}
+    kind = np.full(len(points), -1, dtype=np.int64)
+    order = np.argsort(points[:, 0], kind="stable")
+    xs = points[order, 0]
+    for p in pieces:
+        lo, hi = p.ring.min(axis=0), p.ring.max(axis=0)
+        cand = order[np.searchsorted(xs, lo[0]):np.searchsorted(xs, hi[0], side="right")]
+        cand = cand[(points[cand, 1] >= lo[1]) & (points[cand, 1] <= hi[1])]
+        if not len(cand):
+            continue
+        inside = cand[points_in_polygon(points[cand], p.ring)]
+        kind[inside] = np.maximum(kind[inside], rank[p.kind])
+    return kind
 
 
 def boundary_edges(tris):
@@ -135,6 +144,7 @@ def build_roads(scene, layout, progress=None):
             made[name] = mesh_object(colls[coll], name, verts, faces, mat)
     walk = tris[kind == KINDS.index("sidewalk")]
     edges = boundary_edges(walk)
+    edges = edges[np.linalg.norm(v2[edges[:, 1]] - v2[edges[:, 0]], axis=1) >= MIN_KERB_M]
     if len(edges):
         a, b = v2[edges[:, 0]], v2[edges[:, 1]]
         n = len(edges)

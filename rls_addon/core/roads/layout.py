@@ -103,9 +103,9 @@ def surface_pieces(net, origin=(0.0, 0.0)):
 def build_layout(net, junction_id=None, origin="net"):
     if origin not in ORIGINS:
         raise InputError(f"--origin must be one of {', '.join(ORIGINS)}, got {origin!r}")
+    j = choose_junction(net, junction_id)
     if not net.lanes:
         raise InputError(f"{net.path} has no lanes: there are no roads to build")
-    j = choose_junction(net, junction_id)
     o = j.centre.copy() if origin == "junction" else np.zeros(2)
     pieces = surface_pieces(net, o)
     shape = (j.shape if len(j.shape) >= 3 else j.centre[None, :]) - o
