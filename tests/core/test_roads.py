@@ -183,6 +183,10 @@ def test_bad_networks(tmp_path, grid):
     bad.write_text("this is not XML")
     with pytest.raises(InputError, match="not a well-formed SUMO network"):
         read_network(bad)
+    other = tmp_path / "routes.xml"
+    other.write_text("<routes><vehicle id='v' depart='0'/></routes>")
+    with pytest.raises(InputError, match="root element is <routes>, not <net>"):
+        read_network(other)
     cut = tmp_path / "cut.net.xml"
     text = grid.read_text()
     cut.write_text(text[:len(text) // 2])

@@ -20,6 +20,7 @@ refused: the scene's roads are flat at z = 0 (``netconvert --flatten`` removes z
 
 import os
 import xml.sax
+import xml.sax.handler
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -100,6 +101,35 @@ def lane_kind(function, permissions):
     return "road"
 
 
+class _Root(xml.sax.ContentHandler):
+    def __init__(self):
+        super().__init__()
+        self.root = None
+
+    def startElement(self, name, attrs):
+        if self.root is None:
+            self.root = name
+
+
+def check_xml(path):
+    """``InputError`` unless ``path`` is well-formed XML whose root element is <net>
+    (one pass of Python's expat parser; external entities are not loaded)."""
+    handler = _Root()
+    parser = xml.sax.make_parser()
+    parser.setFeature(xml.sax.handler.feature_external_ges, False)
+    parser.setContentHandler(handler)
+    try:
+        parser.parse(path)
+    except xml.sax.SAXParseException as exc:
+        raise InputError(f"{path} is not a well-formed SUMO network (XML error at line "
+                         f"{exc.getLineNumber()}: {exc.getMessage()}); is it truncated?") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if handler.root != "net":
+        raise InputError(f"{path} is not a SUMO network: its root element is <{handler.root}>, "
+                         "not <net>")
+
+
 def read_network(path):
     """The network at ``path`` as a ``RoadNetwork``; ``InputError`` when it is missing,
     not well-formed XML (truncated, say), not a SUMO network, or has elevation. The file
@@ -108,11 +138,9 @@ def read_network(path):
     if not os.path.isfile(path):
         raise InputError(f"network file not found: {path}")
     sumolib = import_sumolib()
+    check_xml(path)
     try:
         net = sumolib.net.readNet(path, withInternal=True, withPedestrianConnections=True)
-    except xml.sax.SAXParseException as exc:
-        raise InputError(f"{path} is not a well-formed SUMO network (XML error at line "
-                         f"{exc.getLineNumber()}: {exc.getMessage()}); is it truncated?") from None
     except (xml.sax.SAXException, KeyError, ValueError, TypeError, AttributeError,
             IndexError) as exc:
         raise InputError(f"{path} is not a SUMO network sumolib can read "
