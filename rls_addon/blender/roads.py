@@ -2,13 +2,13 @@
 crossing and sidewalk surfaces, kerbs, corner mount poles and the InfraLOB, with
 ``bpy.data`` only (no operators).
 
-The surfaces are one constrained Delaunay triangulation of every piece at once
-(Blender's ``mathutils.geometry.delaunay_2d_cdt``, the one its exact Boolean uses):
-pieces' edges are split where they cross, so each triangle lies wholly inside or
-outside each piece; it is kept when its centroid lies in a piece (the even-odd inside
-of the piece's outline, which for an outline that crosses itself is the documented
-rule), with the kind that wins there (sidewalk over crossing over road). So overlapping lanes and junction shapes make one surface without
-doubled faces, and the meshes' union is the pieces' union.
+The surfaces are one constrained Delaunay triangulation of every piece's edges at once
+(Blender's ``mathutils.geometry.delaunay_2d_cdt``): edges are split where they cross,
+so each triangle lies wholly inside or outside each piece; it is kept when its
+centroid lies in a piece (the even-odd inside of the piece's outline, which for an
+outline that crosses itself is the documented rule), with the kind that wins there
+(sidewalk over crossing over road). So overlapping lanes and junction shapes make one
+surface without doubled faces, and the meshes' union is the pieces' union.
 
 Objects (labels from their collections, see ``core/labels.py``):
 
@@ -196,7 +196,8 @@ def save_blend(path, overwrite=False):
             try:
                 os.link(tmp, path)
             except FileExistsError:
-                raise OutputError(f"{path} already exists; pass --overwrite to replace it") from None
+                raise OutputError(f"{path} already exists; pass --overwrite to "
+                                  "replace it") from None
             os.unlink(tmp)
     except RuntimeError as exc:
         raise OutputError(f"cannot write {path}: {str(exc).strip()}") from None

@@ -84,7 +84,8 @@ def _xy(points, what):
 
 def _check_flat(points3d, what, path):
     arr = np.asarray(points3d, dtype=np.float64)
-    if arr.ndim == 2 and arr.shape[1] >= 3 and arr.size and np.abs(arr[:, 2]).max() > FLAT_TOLERANCE_M:
+    if (arr.ndim == 2 and arr.shape[1] >= 3 and arr.size
+            and np.abs(arr[:, 2]).max() > FLAT_TOLERANCE_M):
         z = float(np.abs(arr[:, 2]).max())
         raise InputError(f"{path}: {what} has elevation (|z| up to {z:.2f} m); rls scene from-net "
                          "builds flat roads at z = 0: rebuild the network with "
