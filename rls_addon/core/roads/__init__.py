@@ -1,0 +1,1 @@
+"""Road scenes from SUMO networks: the network read with sumolib (network), lanes and junctions as 2-D pieces (pieces), and the scene's plan: surfaces, the junction, its corner mounts and InfraLOB (layout)."""

@@ -1,0 +1,194 @@
+"""A SUMO road network (``.net.xml``) read with sumolib into plain arrays.
+
+sumolib is imported lazily (``pip install sumolib``; the command line's requirements
+carry it). The network is read with its internal lanes, walking areas and crossings
+(``readNet(withInternal=True, withPedestrianConnections=True)``). Coordinates are the
+network's own: SUMO has already shifted them by ``<location netOffset=...>`` (the
+offset is kept in ``RoadNetwork.net_offset`` so a scene can say where it came from).
+
+What a lane is here (the ``kind`` of ``Lane``):
+
+* ``walkingarea``: a lane of an edge with ``function="walkingarea"``; its shape is the
+  walking area's outline (a polygon), not a centre line;
+* ``crossing``: a lane of an edge with ``function="crossing"`` (centre line + width);
+* ``sidewalk``: any other lane that allows pedestrians only (``allow="pedestrian"``);
+* ``road``: every other lane, internal lanes (``function="internal"``) included.
+
+A network with elevation (a lane or junction with z beyond ``FLAT_TOLERANCE_M``) is
+refused: the scene's roads are flat at z = 0 (``netconvert --flatten`` removes z).
+"""
+
+import os
+import xml.sax
+import xml.sax.handler
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+FLAT_TOLERANCE_M = 0.01
+PEDESTRIAN = "pedestrian"
+
+
+@dataclass(frozen=True)
+class Lane:
+    id: str
+    edge: str
+    kind: str            # road, sidewalk, crossing, walkingarea
+    shape: np.ndarray    # (n, 2) centre line (walkingarea: the outline)
+    width: float
+    internal: bool       # a lane inside a junction (internal, crossing, walking area)
+
+
+@dataclass(frozen=True)
+class Junction:
+    id: str
+    type: str
+    centre: np.ndarray   # (2,) the node's position
+    shape: np.ndarray    # (n, 2) outline, possibly empty
+    roads: tuple = ()    # unit vectors from the centre along each road that meets here
+
+
+@dataclass
+class RoadNetwork:
+    path: str
+    lanes: list
+    junctions: list
+    net_offset: tuple = (0.0, 0.0)
+    by_id: dict = field(default_factory=dict)
+
+    def junction(self, jid):
+        return self.by_id.get(jid)
+
+
+def import_sumolib():
+    """sumolib, or an InputError saying how to install it."""
+    try:
+        import sumolib  # noqa: F401
+        import sumolib.net
+    except ImportError:
+        raise InputError("SUMO's Python library is missing: pip install sumolib "
+                         "(and eclipse-sumo for netconvert and netgenerate)") from None
+    return sumolib
+
+
+def _xy(points, what):
+    arr = np.asarray(points, dtype=np.float64)
+    if arr.size == 0:
+        return np.zeros((0, 2))
+    if arr.ndim != 2 or arr.shape[1] < 2 or not np.isfinite(arr).all():
+        raise InputError(f"{what} has a malformed shape")
+    return arr
+
+
+def _check_flat(points3d, what, path):
+    arr = np.asarray(points3d, dtype=np.float64)
+    if (arr.ndim == 2 and arr.shape[1] >= 3 and arr.size
+            and np.abs(arr[:, 2]).max() > FLAT_TOLERANCE_M):
+        z = float(np.abs(arr[:, 2]).max())
+        raise InputError(f"{path}: {what} has elevation (|z| up to {z:.2f} m); rls scene from-net "
+                         "builds flat roads at z = 0: rebuild the network with "
+                         "'netconvert --sumo-net-file NET --flatten -o FLAT.net.xml'")
+
+
+def lane_kind(function, permissions):
+    if function == "walkingarea":
+        return "walkingarea"
+    if function == "crossing":
+        return "crossing"
+    if set(permissions) == {PEDESTRIAN}:
+        return "sidewalk"
+    return "road"
+
+
+class _Root(xml.sax.ContentHandler):
+    def __init__(self):
+        super().__init__()
+        self.root = None
+
+    def startElement(self, name, attrs):
+        if self.root is None:
+            self.root = name
+
+
+def check_xml(path):
+    """``InputError`` unless ``path`` is well-formed XML whose root element is <net>
+    (one pass of Python's expat parser; external entities are not loaded)."""
+    handler = _Root()
+    parser = xml.sax.make_parser()
+    parser.setFeature(xml.sax.handler.feature_external_ges, False)
+    parser.setContentHandler(handler)
+    try:
+        parser.parse(path)
+    except xml.sax.SAXParseException as exc:
+        raise InputError(f"{path} is not a well-formed SUMO network (XML error at line "
+                         f"{exc.getLineNumber()}: {exc.getMessage()}); is it truncated?") from None
+    except OSError as exc:
+        raise InputError(f"cannot read {path}: {exc.strerror or exc}") from None
+    if handler.root != "net":
+        raise InputError(f"{path} is not a SUMO network: its root element is <{handler.root}>, "
+                         "not <net>")
+
+
+def read_network(path):
+    """The network at ``path`` as a ``RoadNetwork``; ``InputError`` when it is missing,
+    not well-formed XML (truncated, say), not a SUMO network, or has elevation. The file
+    is only read."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(f"network file not found: {path}")
+    sumolib = import_sumolib()
+    check_xml(path)
+    try:
+        net = sumolib.net.readNet(path, withInternal=True, withPedestrianConnections=True)
+    except (xml.sax.SAXException, KeyError, ValueError, TypeError, AttributeError,
+            IndexError) as exc:
+        raise InputError(f"{path} is not a SUMO network sumolib can read "
+                         f"({type(exc).__name__}: {exc})") from None
+    lanes = []
+    for edge in net.getEdges(withInternal=True):
+        function = edge.getFunction() or ""
+        for lane in edge.getLanes():
+            _check_flat(lane.getShape3D(), f"lane {lane.getID()}", path)
+            kind = lane_kind(function, lane.getPermissions())
+            lanes.append(Lane(id=lane.getID(), edge=edge.getID(), kind=kind,
+                              shape=_xy(lane.getShape(), f"lane {lane.getID()}"),
+                              width=float(lane.getWidth()), internal=bool(function)))
+    junctions = []
+    for node in net.getNodes():
+        if node.getType() == "internal":
+            continue
+        _check_flat(node.getShape3D(), f"junction {node.getID()}", path)
+        _check_flat([node.getCoord3D()], f"junction {node.getID()}", path)
+        centre = np.asarray(node.getCoord()[:2], dtype=np.float64)
+        roads = [_road_direction(e, centre, incoming)
+                 for incoming, edges in ((True, node.getIncoming()), (False, node.getOutgoing()))
+                 for e in edges if not e.getFunction()]
+        junctions.append(Junction(id=node.getID(), type=node.getType(), centre=centre,
+                                  shape=_xy(node.getShape(), f"junction {node.getID()}"),
+                                  roads=tuple(r for r in roads if r is not None)))
+    offset = tuple(float(v) for v in net.getLocationOffset()[:2])
+    return RoadNetwork(path=path, lanes=lanes, junctions=junctions, net_offset=offset,
+                       by_id={j.id: j for j in junctions})
+
+
+ROAD_PROBE_M = 30.0
+
+
+def _road_direction(edge, centre, incoming):
+    """Unit vector from the junction's centre towards the point ``ROAD_PROBE_M`` metres
+    along the edge from the junction (its end for an incoming edge, its start for an
+    outgoing one), or None for an edge of no length."""
+    shape = np.asarray(edge.getShape(), dtype=np.float64)[:, :2]
+    if incoming:
+        shape = shape[::-1]
+    seg = np.linalg.norm(np.diff(shape, axis=0), axis=1)
+    s = np.r_[0.0, np.cumsum(seg)]
+    if s[-1] <= 0:
+        return None
+    t = min(ROAD_PROBE_M, s[-1])
+    p = np.array([np.interp(t, s, shape[:, 0]), np.interp(t, s, shape[:, 1])])
+    d = p - centre
+    n = np.linalg.norm(d)
+    return d / n if n > 1e-9 else None
