@@ -317,6 +317,25 @@ class TrafficStudyScene(FakeStudyScene):
         return out
 
 
+def test_traffic_with_no_vehicle_in_the_region_is_one_clear_error():
+    """Found with a scene from a SUMO network: --traffic over frames with no vehicle in
+    the region ended in a traceback (NaN shares refused by the JSON writer)."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.errors import SceneError
+    from rls_addon.core.scene.source import SceneRead
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
+
+    class Empty(TrafficStudyScene):
+        def traffic(self, frames, labels):
+            return {f: SceneRead([], self.materials) for f in frames}
+
+    with pytest.raises(SceneError, match=r"--traffic 1-4: no object labelled vehicle has its "
+                                         r"centre in the region"):
+        run_study(Empty(), StudyConfig(traffic_frames=(1, 2, 3, 4)),
+                  factory=lambda name: (NumpyCaster, None))
+
+
 @pytest.mark.slow  # two whole studies with their traffic
 def test_traffic_scores_see_the_occlusion_the_traffic_free_metrics_cannot():
     """A candidate a parked truck occludes ranks lower on visibility than on InfraD."""

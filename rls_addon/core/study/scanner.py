@@ -119,6 +119,13 @@ class StudyScanner:
             self.traffic.append((int(f), group, scored))
             if int(f) in self.cfg.evaluate_frames:
                 self.truths[int(f)] = frame_truth(f, insts, objects)
+        if not self.vehicle_frames:  # nothing to score: say so before any scan
+            frames = self.cfg.traffic_frames
+            span = f"{frames[0]}" if len(frames) == 1 else f"{min(frames)}-{max(frames)}"
+            raise SceneError(
+                f"--traffic {span}: no object labelled {'/'.join(self.cfg.visibility_labels)} "
+                f"has its centre in the region in these frames, so visibility has nothing "
+                f"to score: choose frames with traffic in the region, or leave out --traffic")
 
     def _static(self, cand):
         """(xy of the kept points, the frame's ``ScanResult``) of candidate ``cand``
