@@ -8,7 +8,8 @@ import sys
 import threading
 
 from .commands import load_commands
-from .core.errors import Interrupted, RLSError, interrupt_exit_code
+from .core.errors import RLSError, interrupt_exit_code
+from .core.signals import deliver
 from .version import VERSION
 
 
@@ -80,7 +81,7 @@ def _stop_on_signals():
     def stop(signum, frame):
         for s in STOP_SIGNALS:
             signal.signal(s, signal.SIG_IGN)
-        raise Interrupted(signum)
+        deliver(signum)  # now, or where a step that must not be cut ends
 
     return {s: signal.signal(s, stop) for s in STOP_SIGNALS}
 

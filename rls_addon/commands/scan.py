@@ -161,14 +161,18 @@ def parse_frames(text, current):
 
 def open_scene(path, prepare_blender):
     """Load a .blend (or keep the loaded one when path is None) and make sure the
-    extension is registered (``prepare_blender``, from the entry point)."""
-    import bpy
+    extension is registered (``prepare_blender``, from the entry point). A stop signal
+    waits for Blender to be loaded (``core.signals.held``)."""
+    from ..core.signals import held
 
-    if path is not None:
-        from ..blender.files import open_blend
+    with held():
+        import bpy
 
-        open_blend(path)
-    prepare_blender()
+        if path is not None:
+            from ..blender.files import open_blend
+
+            open_blend(path)
+        prepare_blender()
     return bpy.context.scene
 
 

@@ -188,17 +188,27 @@ def cluster_client(workers, scheduler=None, threads=None):
     # in this process's environment still reaches them).
     import dask
 
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
-        cluster = distributed.LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-            dashboard_address=None, silence_logs=50, worker_class=distributed.Nanny,
-            env=env)
-    client = distributed.Client(cluster)
+    from ..signals import held
+
+    cluster = client = None
     try:
+        # a stop signal waits for the cluster to be up (cut mid-start, its nannies
+        # were left half-started), then the cluster is closed as at any other stop
+        with held():
+            with dask.config.set({"distributed.nanny.pre-spawn-environ"
+                                  ".MALLOC_TRIM_THRESHOLD_": None}):
+                cluster = distributed.LocalCluster(
+                    n_workers=workers, threads_per_worker=1, processes=True,
+                    host="127.0.0.1", dashboard_address=None, silence_logs=50,
+                    worker_class=distributed.Nanny, env=env)
+            client = distributed.Client(cluster)
         yield client
     finally:
-        client.close()
-        cluster.close()
+        with held():
+            if client is not None:
+                client.close()
+            if cluster is not None:
+                cluster.close()
 
 
 def run_tasks(client, calls, on_result, key_prefix="rls"):

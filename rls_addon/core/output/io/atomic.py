@@ -16,6 +16,7 @@ import re
 import tempfile
 
 from ...errors import OutputError
+from ...signals import held
 
 
 TEMPORARY_MARK = ".rls-"
@@ -93,8 +94,15 @@ def atomic_write_bytes(path, data, overwrite=False):
     """Write ``data`` (bytes-like, or a callable taking a binary file) to ``path``.
 
     Returns the path. Raises ``OutputError`` if the file exists and
-    ``overwrite`` is false, or the directory cannot be created or written.
+    ``overwrite`` is false, or the directory cannot be created or written. A stop
+    signal (SIGTERM, SIGHUP) waits for the write to end (``core.signals.held``): one
+    between creating the temporary and the line that cleans it up left it behind.
     """
+    with held():
+        return _atomic_write_bytes(path, data, overwrite)
+
+
+def _atomic_write_bytes(path, data, overwrite):
     path = pathlib.Path(path)
     if path.is_dir():
         raise OutputError(f"cannot write {path}: it is a directory")
@@ -137,6 +145,11 @@ def atomic_write_files(files, overwrite=False):
     written to its temporary; only when all are complete do they take their names, so
     a failure (a full disk, an interrupt) leaves none of them, not a part of the set.
     Returns the paths in the order given."""
+    with held():
+        return _atomic_write_files(files, overwrite)
+
+
+def _atomic_write_files(files, overwrite):
     paths = [pathlib.Path(p) for p in files]
     for path in paths:
         if path.is_dir():
