@@ -28,6 +28,11 @@ def preset_to_dict(preset):
         scan["table_source"] = preset.table.source or preset.table.name
         if preset.table.note:
             scan["table_note"] = preset.table.note
+    if "firing_times" in scan and getattr(preset, "firing_times", None) is not None:
+        # inlined as offsets within the cycle, in the table's order
+        zero = float(scan.pop("firing_time_zero_us", 0.0))
+        del scan["firing_times"]
+        scan["firing_offsets_us"] = preset.firing_times.offsets_us(preset.table.channel_ids, zero)
     out = {
         "schema": 1, "id": preset.id, "name": preset.name, "family": preset.family,
         "source": preset.source, "fitted": preset.fitted, "frequency_hz": preset.frequency_hz,
