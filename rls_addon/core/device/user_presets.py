@@ -54,6 +54,9 @@ def preset_to_dict(preset):
         out["beam"] = {"divergence_rad": h if h == v else [h, v],
                        "return_mode": beam.return_mode,
                        "echo_separation_m": beam.echo_separation_m}
+    modes = getattr(preset, "modes", None)
+    if modes is not None:
+        out["modes"] = {k: v for k, v in modes.to_dict().items() if not k.startswith("default_")}
     out["scan"] = scan
     return out
 
