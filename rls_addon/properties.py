@@ -67,15 +67,13 @@ def lidar_mode_items(self, context):
     pid = self.preset_id or DEFAULT_PRESET
     got = _MODE_ITEMS.get(pid)
     if got is None:
-        try:
-            modes = preset_catalog.resolve(pid).modes
-        except Exception:  # noqa: BLE001 - a broken preset shows in the panel, not here
-            modes = None
-        default = getattr(modes, "default_lidar_mode", None)
+        e = preset_catalog.entry(pid)  # the cached catalog: no file is read here
+        default = e.default_lidar_mode if e else None
         got = [("DEFAULT", f"Preset ({default})" if default else "Preset",
                 "The preset's default mode", 0)]
-        for i, m in enumerate(getattr(modes, "lidar_modes", ()) or (), start=1):
-            got.append((m, m, f"{m.split('x')[0]} columns at {m.split('x')[1]} Hz", i))
+        for i, m in enumerate(e.lidar_modes if e else (), start=1):
+            cols, _, rate = m.partition("x")
+            got.append((m, m, f"{cols} columns at {rate} Hz", i))
         _MODE_ITEMS[pid] = got
     return got
 
