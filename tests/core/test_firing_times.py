@@ -7,8 +7,11 @@ files (tolerance 0.1 us):
 - tier4/nebula@606ac41f src/nebula_hesai/nebula_hesai_decoders/include/nebula_hesai_decoders/
   decoders/pandar_64.hpp, pandar_qt64.hpp and pandar_xt32.hpp (firing_time_offset_ns
   tables and formulas, written from Hesai's manuals independently of the SDK files).
+- RoboSense-LiDAR/rs_driver@4eeadace src/rs_driver/driver/decoder/decoder_RS16.hpp,
+  decoder_RS32.hpp, decoder_RSBP.hpp (firing_tss, typed here from the source).
 Azimuths are checked against the SDK's point equation, typed here: a point's clockwise
-azimuth = block azimuth + firetime x motor speed + the channel's azimuth correction.
+azimuth = block azimuth + firetime x motor speed + the channel's azimuth correction
+(rs_driver's block azimuth + azimuth step x firetime / block time is the same turn).
 """
 
 import numpy as np
@@ -34,6 +37,10 @@ INDEPENDENT = {
     "hesai_pandarqt": {1: 2.31, 2: 4.37, 9: 19.16, 17: 36.61, 33: 70.90, 64: 136.45},
     # nebula pandar_xt32.hpp: 5632 + 368 + 1512 x (channel - 1) ns
     "hesai_pandarxt32": {c: (5632 + 368 + 1512 * (c - 1)) / 1000 for c in (1, 2, 16, 31, 32)},
+    # rs_driver firing_tss[channel - 1]
+    "robosense_rs16": {1: 0.0, 2: 2.8, 9: 22.4, 16: 42.0},
+    "robosense_rs32": {1: 0.0, 15: 40.32, 16: 44.64, 17: 1.44, 32: 46.08},
+    "robosense_bpearl": {1: 0.0, 8: 17.92, 9: 25.68, 17: 1.28, 32: 44.88},
 }
 
 
@@ -85,9 +92,11 @@ def test_point_azimuth_follows_the_rotation_during_its_firing(pid, rotation_hz):
 
 
 def test_firing_spread_as_the_issue_measured():
-    """Spread of a block's firings: ~51 us (Pandar64, 40P), 134 us (QT), 47 us (XT-32)."""
+    """Spread of a block's firings: ~51 us (Pandar64, 40P), 134 us (QT), 47 us (XT-32),
+    as the issue measured; RS-16 42 us, RS-32 46 us (rs_driver)."""
     for pid, spread in (("hesai_pandar64", 51.05), ("hesai_pandar40p", 51.05),
-                        ("hesai_pandarqt", 134.14), ("hesai_pandarxt32", 46.87)):
+                        ("hesai_pandarqt", 134.14), ("hesai_pandarxt32", 46.87),
+                        ("robosense_rs16", 42.0), ("robosense_rs32", 46.08)):
         t, _, _, _ = _block(get_preset(pid), 0)
         assert (t.max() - t.min()) * 1e6 == pytest.approx(spread, abs=0.01)
 
@@ -262,10 +271,9 @@ def test_exported_preset_keeps_the_firing(tmp_path):
 
 
 def test_presets_without_published_firing_times_say_so():
-    """Pandar40M, Pandar128 and the RoboSense presets model no per-channel offsets, and
-    their source says so; Ouster fires a column at once (also said)."""
-    for pid in ("hesai_pandar40m", "hesai_pandar128", "robosense_rs16", "robosense_rs32",
-                "robosense_bpearl", "robosense_ruby128"):
+    """Pandar40M, Pandar128 and RS-Ruby 128 model no per-channel offsets, and their
+    source says so; Ouster fires a column at once (also said)."""
+    for pid in ("hesai_pandar40m", "hesai_pandar128", "robosense_ruby128"):
         p = get_preset(pid)
         assert "firing_times" not in p.scan and "firing_step_us" not in p.scan
         assert "not modelled" in p.source, pid
