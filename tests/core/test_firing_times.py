@@ -280,3 +280,22 @@ def test_presets_without_published_firing_times_say_so():
     for pid in ("ouster_os1_64", "ouster_os1_128"):
         assert "share its timestamp" in get_preset(pid).source
 
+
+
+def test_return_modes_as_the_device_offers_them():
+    """OS1-64 (first-generation datasheet: one return, the strongest) refuses dual;
+    OS1-128 (firmware 2.x) offers it; presets without a [modes] return list keep the
+    existing setting's behaviour."""
+    import math
+
+    p64, p128 = get_preset("ouster_os1_64"), get_preset("ouster_os1_128")
+    # 0.13 and 0.18 deg FWHM as full 1/e^2 angles
+    assert p64.beam.divergence_rad[0] == pytest.approx(
+        math.radians(0.13) * 2 / math.sqrt(2 * math.log(2)), rel=1e-4)
+    assert p128.beam.divergence_rad[0] == pytest.approx(
+        math.radians(0.18) * 2 / math.sqrt(2 * math.log(2)), rel=1e-4)
+    with pytest.raises(SettingsError, match="return mode 'dual' is not one of"):
+        with_modes(p64, return_mode="dual")
+    assert with_modes(p64, return_mode="strongest") is p64
+    assert with_modes(p128, return_mode="dual") is p128
+    assert with_modes(get_preset("velodyne_hdl64e"), return_mode="last") is not None
