@@ -58,9 +58,30 @@ def preset_items(self, context):
     return _ITEMS["presets"]
 
 
+_MODE_ITEMS = {}  # preset id -> enum items (kept alive: Blender holds the strings)
+
+
+def lidar_mode_items(self, context):
+    """Enum items of the lidar modes of this LiDAR's preset ([modes] lidar_mode), the
+    preset's default first as 'DEFAULT'."""
+    pid = self.preset_id or DEFAULT_PRESET
+    got = _MODE_ITEMS.get(pid)
+    if got is None:
+        e = preset_catalog.entry(pid)  # the cached catalog: no file is read here
+        default = e.default_lidar_mode if e else None
+        got = [("DEFAULT", f"Preset ({default})" if default else "Preset",
+                "The preset's default mode", 0)]
+        for i, m in enumerate(e.lidar_modes if e else (), start=1):
+            cols, _, rate = m.partition("x")
+            got.append((m, m, f"{cols} columns at {rate} Hz", i))
+        _MODE_ITEMS[pid] = got
+    return got
+
+
 def refresh_preset_items():
     """Rebuild the preset list after user presets changed."""
     preset_catalog.refresh()
+    _MODE_ITEMS.clear()
     if _ITEMS["presets"]:
         _ITEMS["old"].append(_ITEMS["presets"])  # keep the strings alive for open menus
         del _ITEMS["old"][:-4]
@@ -173,6 +194,15 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
     return_mode: EnumProperty(name="Return Mode", items=RETURN_MODES.items(),
                               default="preset",
                               description="Which echoes of a pulse the device reports")
+    use_rotation_hz: BoolProperty(name="Set Rotation Rate", default=False,
+                                  description="Spin at your own rate (a mode of the device or "
+                                              "a unit's measured rate) instead of the preset's")
+    rotation_hz: FloatProperty(name="Rotation (Hz)", default=10.0, min=0.1, soft_max=30.0,
+                               precision=3, description="Rotation rate of a spinning device, "
+                                                        "e.g. 10.017 measured on a unit; "
+                                                        "checked against the device's modes")
+    lidar_mode: EnumProperty(name="Lidar Mode", items=lidar_mode_items,
+                             description="Columns x rate of devices with lidar modes (Ouster)")
     weather: EnumProperty(name="Weather", items=WEATHER.items(), default="clear",
                           description="Fog, rain or snow: returns are dimmed by the air's "
                                       "two-way transmission (and lost where the device's "

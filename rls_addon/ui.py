@@ -12,6 +12,7 @@ from .blender.region import is_lob
 from .blender.sensor import is_lidar, lidar_objects
 from .core.casting import backend_status
 from .core.device.presets import FAMILIES
+from .properties import lidar_mode_items
 
 FAMILY_ICONS = {"spinning": "LIGHTPROBE_SPHERE", "mems": "LIGHTPROBE_PLANE",
                 "risley": "LIGHTPROBE_VOLUME", "custom": "FILE_TEXT"}
@@ -191,6 +192,13 @@ class OBJECT_PT_rls_lidar_range(_LidarPanel, bpy.types.Panel):
         row = layout.row()
         row.active = s.footprint != "off"
         row.prop(s, "return_mode")
+        row = layout.row(heading="Rotation")
+        row.prop(s, "use_rotation_hz", text="")
+        sub = row.row()
+        sub.active = s.use_rotation_hz
+        sub.prop(s, "rotation_hz", text="")
+        if len(lidar_mode_items(s, context)) > 1:
+            layout.prop(s, "lidar_mode")
         layout.prop(s, "weather")
         if s.weather == "fog":
             layout.prop(s, "fog_visibility")

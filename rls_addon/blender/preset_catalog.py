@@ -68,6 +68,9 @@ class Entry:
     source: str
     builtin: bool
     path: str
+    # the device's lidar modes and its default ([modes] lidar_mode), for the panel's enum
+    lidar_modes: tuple = ()
+    default_lidar_mode: str = None
 
 
 def refresh():
@@ -75,7 +78,7 @@ def refresh():
     A broken user preset file does not hide the others: its error is kept in ``errors()``."""
     entries, errors = [], []
     for p in builtin_presets().values():
-        entries.append(Entry(p.id, p.name, p.family, p.source, True, str(p.path)))
+        entries.append(Entry(p.id, p.name, p.family, p.source, True, str(p.path), *_modes(p)))
     taken = {e.id for e in entries}
     d = user_dir(create=False)
     if os.path.isdir(d):
@@ -85,10 +88,15 @@ def refresh():
             if pid in taken:
                 errors.append(f"{p.path}: user preset id '{pid}' is shadowed by a built-in preset")
                 continue
-            entries.append(Entry(p.id, p.name, p.family, p.source, False, str(p.path)))
+            entries.append(Entry(p.id, p.name, p.family, p.source, False, str(p.path), *_modes(p)))
     _state["catalog"] = entries
     _state["errors"] = errors
     return entries
+
+
+def _modes(preset):
+    m = getattr(preset, "modes", None)
+    return (tuple(m.lidar_modes), m.default_lidar_mode) if m else ((), None)
 
 
 def catalog():

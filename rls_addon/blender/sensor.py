@@ -59,6 +59,8 @@ def read_settings(obj):
         detection=s.detection,
         footprint=s.footprint,
         return_mode=s.return_mode,
+        rotation_hz=float(s.rotation_hz) if s.use_rotation_hz else None,
+        lidar_mode=None if s.lidar_mode in ("", "DEFAULT") else s.lidar_mode,
     )
     output = OutputSettings(directory=s.output_dir, format=s.file_format,
                             fields=("x", "y", "z") + tuple(sorted(s.fields)),
@@ -83,10 +85,11 @@ def weather_spec_of(s):
 def sensor_job(obj, settings=None):
     """A run's ``SensorJob`` for LiDAR ``obj``: its settings (``read_settings``, or
     ``settings`` already read and overridden) with the device preset resolved."""
+    from ..core.scan.settings import preset_in_modes
     from .preset_catalog import resolve
 
     settings = settings or read_settings(obj)
-    return SensorJob(obj.name, settings, resolve(settings.preset))
+    return SensorJob(obj.name, settings, preset_in_modes(resolve(settings.preset), settings.scan))
 
 
 def absolute_output(settings):

@@ -35,6 +35,11 @@ def add_parser(sub):
     p.add_argument("--sweep-start", type=float, default=None, metavar="DEG",
                    help="spinning devices: azimuth where each sweep starts (degrees, "
                         "counter-clockwise from the LiDAR's +X; 180 = behind it)")
+    p.add_argument("--rotation-hz", type=float, default=None, metavar="HZ",
+                   help="spinning devices: the rotation rate a unit runs at (a mode of the "
+                        "preset or a measured rate such as 10.017; default: each LiDAR's)")
+    p.add_argument("--lidar-mode", default=None, metavar="MODE",
+                   help="devices with lidar modes (Ouster): e.g. 1024x10 (default: each LiDAR's)")
     kitti = p.add_argument_group("kitti layout")
     kitti.add_argument("--intensity", choices=("0-1", "0-255"), default="0-1",
                        help="intensity scale of the points (default 0-1)")
@@ -109,7 +114,8 @@ def dataset_run(args):
                "backend": args.backend, "frame_space": "sensor", "ground_truth": True,
                "object_classes": tuple(label_name(c) for c in classes),
                "ghosting": None if args.ghosting is None else args.ghosting == "on",
-               "sweep_start_deg": args.sweep_start}
+               "sweep_start_deg": args.sweep_start, "rotation_hz": args.rotation_hz,
+               "lidar_mode": args.lidar_mode}
     jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
     writer = dataset_writer(args, scene, sensors, set(classes))
     frames = parse_frames(args.frames, scene.frame_current)

@@ -19,6 +19,10 @@ def add_parser(sub):
                    help="seconds to write (default: one frame)")
     p.add_argument("--out", required=True, help="output CSV file")
     p.add_argument("--user-dir", default=None, help="also look for the preset in this folder")
+    p.add_argument("--rotation-hz", type=float, default=None, metavar="HZ",
+                   help="spinning devices: the rotation rate (a mode or a measured rate)")
+    p.add_argument("--lidar-mode", default=None, metavar="MODE",
+                   help="devices with lidar modes (Ouster): e.g. 2048x10")
     p.add_argument("--overwrite", action="store_true", help="replace an existing file")
     p.set_defaults(func=run)
 
@@ -26,9 +30,10 @@ def add_parser(sub):
 def run(args):
     from ..core.device.patterns.base import angles_from_directions
     from ..core.device.patterns.custom import write_pattern_csv
+    from ..core.device.modes import with_modes
     from ..core.device.presets import get_preset, pattern_span
 
-    preset = get_preset(args.name, args.user_dir)
+    preset = with_modes(get_preset(args.name, args.user_dir), args.rotation_hz, args.lidar_mode)
     out = Path(args.out)
     if out.exists() and not args.overwrite:
         raise OutputError(f"{out}: already exists (use --overwrite to replace it)")

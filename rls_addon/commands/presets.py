@@ -47,7 +47,8 @@ def add_parser(sub):
 def _summary(p):
     return {"id": p.id, "name": p.name, "family": p.family, "frequency_hz": p.frequency_hz,
             "rays_per_frame": p.rays_per_frame, "fitted": p.fitted,
-            "range_m": [p.range.min_m, p.range.max_m], "source": p.source, "path": p.path}
+            "range_m": [p.range.min_m, p.range.max_m], "source": p.source, "path": p.path,
+            "modes": p.modes.to_dict() if getattr(p, "modes", None) else {}}
 
 
 def run(args):

@@ -90,6 +90,13 @@ def add_parser(sub):
     p.add_argument("--return-mode", choices=RETURN_MODES.ids, default=None,
                    help="which echoes of a pulse are reported: the device's (preset), the "
                         "strongest, the last, or both (dual) (default: each LiDAR's)")
+    p.add_argument("--rotation-hz", type=float, default=None, metavar="HZ",
+                   help="spinning devices: the rotation rate a unit runs at, a mode of the "
+                        "preset or a measured rate such as 10.017 (checked against the "
+                        "device's modes; default: each LiDAR's)")
+    p.add_argument("--lidar-mode", default=None, metavar="MODE",
+                   help="devices with lidar modes (Ouster): e.g. 1024x10, 2048x10 (rls presets "
+                        "show NAME lists them; default: each LiDAR's)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="skip scans whose cloud and sidecar already exist and agree "
@@ -114,6 +121,8 @@ def overrides(args):
             "las_offset": _offset(args.las_offset), "weather": _weather(args.weather),
             "detection": args.detection, "footprint": args.footprint,
             "return_mode": args.return_mode,
+            "rotation_hz": getattr(args, "rotation_hz", None),
+            "lidar_mode": getattr(args, "lidar_mode", None),
             "ghosting": None if args.ghosting is None else args.ghosting == "on"}
 
 

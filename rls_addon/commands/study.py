@@ -80,6 +80,11 @@ def add_parser(sub):
                    help="device preset id or name placed at every candidate (default "
                         "generic_uniform32, the paper's uniform 32-channel LiDAR); the "
                         "scene's own LiDAR objects are not used")
+    p.add_argument("--rotation-hz", type=float, default=None, metavar="HZ",
+                   help="spinning devices: the rotation rate (a mode of the preset or a "
+                        "measured rate such as 10.017; default: the preset's)")
+    p.add_argument("--lidar-mode", default=None, metavar="MODE",
+                   help="devices with lidar modes (Ouster): e.g. 1024x10 (default: the preset's)")
     p.add_argument("--k", default="1", help="sensors per placement: 2, 1,2,3 or 1:3:1 (default 1)")
     p.add_argument("--lob", help="InfraLOB object (default: the object marked rls_infralob)")
     p.add_argument("--mount", action="append", default=[],
@@ -149,7 +154,8 @@ def config_from_args(args):
         exhaustive_limit=args.exhaustive_limit,
         traffic_frames=tuple(parse_frames(args.traffic, 0)) if args.traffic else (),
         evaluate_frames=tuple(parse_frames(args.evaluate, 0)) if args.evaluate else (),
-        evaluate_min_points=args.min_points,
+        evaluate_min_points=args.min_points, rotation_hz=args.rotation_hz,
+        lidar_mode=args.lidar_mode,
         visibility_labels=tuple(label_name(i) for i in label_ids(args.visibility_labels)))
 
 

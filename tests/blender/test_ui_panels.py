@@ -102,7 +102,8 @@ def test_lidar_panels_draw_without_heavy_work(scene, user_dir, no_heavy_work):
     props = {a[1] for log in logs.values() for name, a, _ in log if name == "prop"}
     for p in ("preset", "min_range", "max_range", "noise_sigma", "noise", "dropout", "seed",
               "motion", "substeps", "ghosting", "output_dir", "file_format", "fields",
-              "frame_space", "name_template", "preview_color", "show_fov"):
+              "frame_space", "name_template", "preview_color", "show_fov",
+              "use_rotation_hz", "rotation_hz"):
         assert p in props, p
     ops = [a[0] for log in logs.values() for name, a, _ in log if name == "operator"]
     for op in ("rls.scan_frame", "rls.scan_all", "rls.scan_range", "rls.preview_color",

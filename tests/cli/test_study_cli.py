@@ -77,6 +77,8 @@ def test_study_pitch_and_grid_candidates(sample_blends, tmp_path):
     (["--mount", "Nope"], "no mount object named 'Nope'"),
     (["--mount", "TL NE", "--k", "2"], "distinct mounts"),
     (["--device", "no_such_device"], "no_such_device"),
+    (["--device", "hesai_pandarqt", "--rotation-hz", "20"], "rotation_hz 20 Hz"),
+    (["--device", "ouster_os1_64", "--lidar-mode", "4096x5"], "lidar mode '4096x5'"),
 ])
 def test_study_errors_are_one_line(sample_blends, tmp_path, args, message):
     proc = rls("study", sample_blends["t_junction"], "--out", tmp_path / "o", *args)
@@ -166,3 +168,14 @@ def test_study_evaluate_scores_placements_by_detection(sample_blends, tmp_path):
     line = one_line_error(rls("study", sample_blends["t_junction"], "--traffic", "1-5",
                               "--evaluate", "10", "--out", tmp_path / "bad"))
     assert "not among the traffic frames" in line
+
+
+def test_study_rotation_hz_is_recorded(sample_blends, tmp_path):
+    """A unit measured at 10.017 Hz: the study scans with it and says so."""
+    out = tmp_path / "rate"
+    proc = rls("study", sample_blends["four_lane"], "--mount", "SL N +0", "--k", "1",
+               "--device", "hesai_pandarqt", "--rotation-hz", "10.017", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads((out / "study.json").read_text())
+    assert report["settings"]["rotation_hz"] == 10.017
+    assert report["settings"]["lidar_mode"] is None

@@ -17,6 +17,8 @@ import numpy as np
 
 from . import schema as sch
 from .angle_tables import AngleTable, ccw_offsets_deg, read_angle_table, resolve_table_path
+from .firing_times import read_firing_times
+from .modes import check_modes
 from ..physics.detection import DetectionModel
 from ..errors import PatternError, PresetError
 from .patterns.base import ScanPattern
@@ -29,7 +31,7 @@ FAMILIES = ("spinning", "mems", "risley", "custom")
 SCHEMA_VERSION = 1
 MAX_PRESET_BYTES = 2_000_000
 TOP_KEYS = {"schema", "id", "name", "family", "source", "fitted", "frequency_hz", "range",
-            "dropout", "attenuation_per_m", "detection", "beam", "scan"}
+            "dropout", "attenuation_per_m", "detection", "beam", "scan", "modes"}
 PATTERN_CACHE_FRAMES = 4
 
 
@@ -71,6 +73,11 @@ class DevicePreset:
     # The beam's divergence, return mode and echo separation ([beam], footprint.Beam);
     # None: a thin ray with one return
     beam: object = None
+    # Per-channel vendor firing times of a spinning preset ([scan] firing_times,
+    # firing_times.FiringTimes), or None
+    firing_times: object = None
+    # The modes the device offers ([modes], modes.Modes), or None: only this one
+    modes: object = None
 
     @property
     def period(self):
@@ -136,7 +143,11 @@ def spinning_beam_origins(preset):
     return None
 
 
-def _firing_offsets_s(s, c):
+def _firing_offsets_s(s, c, preset=None):
+    times = getattr(preset, "firing_times", None)
+    if times is not None:
+        zero = float(s.get("firing_time_zero_us", 0.0))
+        return np.asarray(times.offsets_us(preset.table.channel_ids, zero)) * 1e-6
     if "firing_offsets_us" in s:
         return np.asarray(s["firing_offsets_us"], dtype=np.float64) * 1e-6
     if "firing_step_us" in s:
@@ -157,7 +168,8 @@ def _build_pattern(p, frame):
             el, p.frequency_hz, s.get("points_per_second"), off,
             horizontal_resolution_deg=s.get("horizontal_resolution_deg"),
             firing_cycle_s=None if cycle is None else cycle * 1e-6,
-            firing_offsets_s=_firing_offsets_s(s, len(el)),
+            firings_per_rotation=s.get("firings_per_rotation"),
+            firing_offsets_s=_firing_offsets_s(s, len(el), p),
             origins_head_m=spinning_beam_origins(p))
     if p.family == "mems":
         if s["model"] == "blickfeld":
@@ -249,7 +261,15 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
                 raise PresetError(f"{sw}: key 'table' needs a preset file to resolve it against")
             tpath = resolve_table_path(scan["table"], base_dir, sw)
             table = read_angle_table(tpath, f"{sw} table '{scan['table']}'")
-        rays = sch.check_spinning(scan, sw, freq, None if table is None else len(table.elevations_deg))
+        firing, offsets = None, None
+        if "firing_times" in scan and table is not None:
+            fpath = resolve_table_path(scan["firing_times"], base_dir, sw)
+            firing = read_firing_times(fpath, table.channel_ids,
+                                       f"{sw} firing_times '{scan['firing_times']}'")
+            zero = sch.num(scan, "firing_time_zero_us", sw, -1e6, 1e6, default=0.0)
+            offsets = firing.offsets_us(table.channel_ids, zero)
+        rays = sch.check_spinning(scan, sw, freq, None if table is None else len(table.elevations_deg),
+                                  offsets)
         sch.check_beam_origins(scan, sw, _channel_count(scan, table),
                                table is not None and table.origins_m is not None)
     elif family == "mems":
@@ -264,12 +284,15 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
             resolve_table_path(scan["file"], base_dir, sw)
         except PresetError as exc:
             raise PresetError(str(exc).replace("key 'table'", "key 'file'")) from None
+    modes = check_modes(data["modes"], f"{where} [modes]", family, freq, scan, beam) \
+        if "modes" in data else None
     return DevicePreset(
         id=pid, name=name, family=family, source=source, frequency_hz=freq, range=rm, dropout=dm,
         attenuation_per_m=sch.num(data, "attenuation_per_m", where, 0.0, 1.0, default=0.0),
         scan=dict(scan), path=where, fitted=fitted, table=table,
         base_dir="" if base_dir is None else str(base_dir), rays_per_frame=rays,
-        detection=detection, beam=beam,
+        detection=detection, beam=beam, firing_times=firing if family == "spinning" else None,
+        modes=modes,
     )
 
 

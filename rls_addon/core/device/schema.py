@@ -97,7 +97,10 @@ SPINNING_KEYS = {
     "points_per_second", "horizontal_resolution_deg", "firing_cycle_us",
     "firing_offsets_us", "firing_step_us", "firing_group_size", "firing_groups",
     "beam_origins_m",
+    "firings_per_rotation", "firing_times", "firing_time_zero_us",
 }
+RATE_KEYS = ("points_per_second", "horizontal_resolution_deg", "firing_cycle_us",
+             "firings_per_rotation")
 MEMS_KEYS = {
     "model", "points_per_second", "h_mirror_hz", "v_mirror_hz", "h_amplitude_deg",
     "upper_amplitude_deg", "lower_amplitude_deg", "v_phase_deg", "zones",
@@ -108,8 +111,10 @@ CUSTOM_KEYS = {"file"}
 MEMS_MODELS = ("lissajous_zones", "blickfeld")
 
 
-def check_spinning(s, where, frequency_hz, table_rows=None):
-    """Validate a spinning [scan]; ``table_rows`` is the row count of a resolved table."""
+def check_spinning(s, where, frequency_hz, table_rows=None, firing_times_us=None):
+    """Validate a spinning [scan]; ``table_rows`` is the row count of a resolved table,
+    ``firing_times_us`` the per-channel offsets read from its ``firing_times`` file
+    (``firing_times.read_firing_times``) plus ``firing_time_zero_us``."""
     no_unknown(s, SPINNING_KEYS, where)
     sources = [k for k in ("table", "elevations_deg", "channels") if k in s]
     if len(sources) != 1:
@@ -139,10 +144,10 @@ def check_spinning(s, where, frequency_hz, table_rows=None):
     for k in ("table_source", "table_note"):
         if k in s:
             string(s, k, where)
-    rates = [k for k in ("points_per_second", "horizontal_resolution_deg", "firing_cycle_us") if k in s]
+    rates = [k for k in RATE_KEYS if k in s]
     if len(rates) != 1:
-        raise PresetError(f"{where}: give exactly one of 'points_per_second', "
-                          f"'horizontal_resolution_deg' or 'firing_cycle_us', got {rates or 'none'}")
+        raise PresetError(f"{where}: give exactly one of {', '.join(repr(k) for k in RATE_KEYS)}"
+                          f", got {rates or 'none'}")
     period = 1.0 / frequency_hz
     if "points_per_second" in s:
         pps = num(s, "points_per_second", where, 1.0, 1e9)
@@ -152,6 +157,10 @@ def check_spinning(s, where, frequency_hz, table_rows=None):
         res = num(s, "horizontal_resolution_deg", where, 1e-4, 360.0)
         rays = round(360.0 / res) * c
         cycle_us = period / round(360.0 / res) * 1e6
+    elif "firings_per_rotation" in s:
+        n = integer(s, "firings_per_rotation", where, 1, MAX_RAYS_PER_FRAME)
+        rays = n * c
+        cycle_us = period / n * 1e6
     else:
         cycle_us = num(s, "firing_cycle_us", where, 0.01, period * 1e6)
         rays = math.floor(period / (cycle_us * 1e-6)) * c
@@ -159,7 +168,22 @@ def check_spinning(s, where, frequency_hz, table_rows=None):
         raise PresetError(f"{where}: {rays:.0f} rays per frame exceeds the limit of {MAX_RAYS_PER_FRAME}")
     if rays < c:
         raise PresetError(f"{where}: rate too low for one firing per revolution")
-    if "firing_offsets_us" in s:
+    if "firing_time_zero_us" in s and "firing_times" not in s:
+        raise PresetError(f"{where}: key 'firing_time_zero_us' needs 'firing_times'")
+    if "firing_times" in s:
+        others = [k for k in ("firing_offsets_us", "firing_step_us", "firing_group_size",
+                              "firing_groups") if k in s]
+        if others:
+            raise PresetError(f"{where}: key 'firing_times' excludes '{others[0]}'")
+        if "table" not in s:
+            raise PresetError(f"{where}: key 'firing_times' needs a 'table' (its channel ids)")
+        string(s, "firing_times", where)
+        num(s, "firing_time_zero_us", where, -1e6, 1e6, default=0.0)
+        if firing_times_us is None:
+            raise PresetError(f"{where}: key 'firing_times' needs a preset file to resolve it against")
+        check_firing_offsets(firing_times_us, cycle_us, f"{where} key 'firing_times' "
+                             f"(+ 'firing_time_zero_us')")
+    elif "firing_offsets_us" in s:
         if any(k in s for k in ("firing_step_us", "firing_group_size", "firing_groups")):
             raise PresetError(f"{where}: key 'firing_offsets_us' excludes 'firing_step_us' and groups")
         offs = numlist(s, "firing_offsets_us", where, 0.0, 1e6, length=c)
@@ -204,6 +228,15 @@ def check_beam_origins(s, where, channels, table_origins=False):
                           f"one for every beam or one per channel ({channels})")
     return [numlist({"beam_origins_m": x}, "beam_origins_m", where, -1.0, 1.0, length=3)
             for x in v]
+
+
+def check_firing_offsets(offsets_us, cycle_us, what):
+    """Every channel's firing offset must lie in [0, cycle): a channel fires within its
+    own firing cycle, or the next cycle's firing would come first."""
+    lo, hi = min(offsets_us), max(offsets_us)
+    if lo < 0.0 or hi >= cycle_us:
+        raise PresetError(f"{what}: the channels fire {lo:.3f}..{hi:.3f} us into the cycle, "
+                          f"which must lie within 0..{cycle_us:.3f} us (the firing cycle)")
 
 
 def check_mems(s, where, frequency_hz):

@@ -30,6 +30,11 @@ def preset_to_dict(preset):
         scan["table_source"] = preset.table.source or preset.table.name
         if preset.table.note:
             scan["table_note"] = preset.table.note
+    if "firing_times" in scan and getattr(preset, "firing_times", None) is not None:
+        # inlined as offsets within the cycle, in the table's order
+        zero = float(scan.pop("firing_time_zero_us", 0.0))
+        del scan["firing_times"]
+        scan["firing_offsets_us"] = preset.firing_times.offsets_us(preset.table.channel_ids, zero)
     out = {
         "schema": 1, "id": preset.id, "name": preset.name, "family": preset.family,
         "source": preset.source, "fitted": preset.fitted, "frequency_hz": preset.frequency_hz,
@@ -51,6 +56,9 @@ def preset_to_dict(preset):
         out["beam"] = {"divergence_rad": h if h == v else [h, v],
                        "return_mode": beam.return_mode,
                        "echo_separation_m": beam.echo_separation_m}
+    modes = getattr(preset, "modes", None)
+    if modes is not None:
+        out["modes"] = {k: v for k, v in modes.to_dict().items() if not k.startswith("default_")}
     out["scan"] = scan
     return out
 

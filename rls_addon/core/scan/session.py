@@ -240,7 +240,15 @@ def effects_info(preset, settings):
             "motion": settings.motion, "substeps": settings.substeps,
             "sweep_start_deg": settings.sweep_start_deg, "ghosting": settings.ghosting,
             "detection": settings.detection, "weather": _weather_info(values),
-            "footprint": settings.footprint, "return_mode": settings.return_mode}
+            "footprint": settings.footprint, "return_mode": settings.return_mode,
+            "rotation_hz": preset.frequency_hz if preset.family == "spinning" else None,
+            "lidar_mode": _lidar_mode(preset, settings)}
+
+
+def _lidar_mode(preset, settings):
+    """The lidar mode a scan ran in (None: the device has none)."""
+    modes = getattr(preset, "modes", None)
+    return settings.lidar_mode or (modes.default_lidar_mode if modes else None)
 
 
 def settings_record(preset, settings):

@@ -70,6 +70,11 @@ class ScanSettings:
     footprint: str = "auto"
     # choices.RETURN_MODES: "preset" (the device's), "strongest", "last" or "dual"
     return_mode: str = "preset"
+    # Spinning devices: the rotation rate (Hz) a unit runs at, a nominal mode or a
+    # measured rate (e.g. 10.017), checked against the preset's [modes]; None: the preset's
+    rotation_hz: float | None = None
+    # Spinning devices with lidar modes (Ouster '1024x10'); None: the preset's default
+    lidar_mode: str | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "seed", _seed(self.seed))
@@ -94,7 +99,8 @@ _NUMBERS = {"min_range_m": ("the minimum range (min_range_m, m)", ">= 0"),
             "noise_sigma_m": ("the noise sigma (noise_sigma_m, m)", ">= 0"),
             "attenuation_per_m": ("the attenuation (attenuation_per_m, 1/m)", ">= 0"),
             "motion_tolerance_m": ("the motion tolerance (motion_tolerance_m, m)", ">= 0"),
-            "sweep_start_deg": ("the sweep start (sweep_start_deg, degrees)", None)}
+            "sweep_start_deg": ("the sweep start (sweep_start_deg, degrees)", None),
+            "rotation_hz": ("the rotation rate (rotation_hz, Hz)", "> 0")}
 
 
 def _number(value, what, lowest):
@@ -184,6 +190,14 @@ class LidarSettings:
                                                      if k in out_names})
         return dataclasses.replace(self, scan=scan, output=output,
                                    **{k: v for k, v in changes.items() if k in own})
+
+
+def preset_in_modes(preset, settings):
+    """``preset`` as the unit runs with ``settings`` (a ``ScanSettings``): its rotation
+    rate and lidar mode (``modes.with_modes``; the same preset when both are None)."""
+    from ..device.modes import with_modes
+
+    return with_modes(preset, settings.rotation_hz, settings.lidar_mode, settings.return_mode)
 
 
 def scan_pattern(preset, settings, frame):

@@ -56,6 +56,10 @@ class StudyConfig:
     # on a box for it to count
     evaluate_frames: tuple = ()
     evaluate_min_points: int = 5
+    # The device's rotation rate (a mode or a unit's measured rate) and lidar mode
+    # (``device.modes.with_modes``); None: the preset's
+    rotation_hz: float = None
+    lidar_mode: str = None
 
     def __post_init__(self):
         if self.evaluate_frames and not self.traffic_frames:

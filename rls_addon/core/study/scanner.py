@@ -205,7 +205,10 @@ class StudyInputs:
 def study_inputs(scene, cfg):
     """The device, the region, its disks and the candidates of a study (the same
     wherever they are made from the same scene and settings), with the k checked."""
-    preset = get_preset(cfg.device)
+    from ..device.modes import with_modes
+
+    preset = with_modes(get_preset(cfg.device), getattr(cfg, "rotation_hz", None),
+                        getattr(cfg, "lidar_mode", None))
     polygon = scene.region(cfg.lob)
     layout = DiskLayout.make(polygon, cfg.disks, cfg.radius, cfg.disk_seed, cfg.disk_placement)
     cands = make_candidates(candidate_spots(scene, cfg, polygon, available_memory()), cfg,

@@ -25,20 +25,24 @@ def uniform_elevations_deg(channels, upper_fov_deg, lower_fov_deg):
 
 
 def firing_cycles(frequency_hz, channels, points_per_second=None, horizontal_resolution_deg=None,
-                  firing_cycle_s=None):
+                  firing_cycle_s=None, firings_per_rotation=None):
     """(cycles per revolution, cycle time in s) from exactly one rate parameter.
 
     points_per_second          cycles = round(pps / f / channels), spread evenly
     horizontal_resolution_deg  cycles = round(360 / resolution)
+    firings_per_rotation       cycles = that number: firing locked to the motor (one
+                               firing per azimuth step, PandarQT, XT-32), so the cycle is
+                               1 / (f * cycles) at any rotation rate
     firing_cycle_s             the device's fixed cycle (e.g. VLP-16 55.296 us);
                                cycles = floor(period / cycle) so the last one ends in the frame
     """
     if not frequency_hz > 0:
         raise PatternError(f"frequency_hz must be positive, got {frequency_hz}")
-    given = [v is not None for v in (points_per_second, horizontal_resolution_deg, firing_cycle_s)]
+    given = [v is not None for v in (points_per_second, horizontal_resolution_deg, firing_cycle_s,
+                                     firings_per_rotation)]
     if sum(given) != 1:
         raise PatternError("give exactly one of points_per_second, horizontal_resolution_deg, "
-                           "firing_cycle_s")
+                           "firing_cycle_s, firings_per_rotation")
     period = 1.0 / frequency_hz
     if points_per_second is not None:
         if not points_per_second > 0:
@@ -49,6 +53,11 @@ def firing_cycles(frequency_hz, channels, points_per_second=None, horizontal_res
             raise PatternError(f"horizontal_resolution_deg must be in (0, 360], got "
                                f"{horizontal_resolution_deg}")
         n = int(round(360.0 / horizontal_resolution_deg))
+    elif firings_per_rotation is not None:
+        if int(firings_per_rotation) != firings_per_rotation:
+            raise PatternError(f"firings_per_rotation must be a whole number, got "
+                               f"{firings_per_rotation}")
+        n = int(firings_per_rotation)
     else:
         if not 0 < firing_cycle_s <= period:
             raise PatternError(f"firing cycle {firing_cycle_s} s must be positive and within "
@@ -62,7 +71,7 @@ def firing_cycles(frequency_hz, channels, points_per_second=None, horizontal_res
 
 def spinning_pattern(elevations_deg, frequency_hz, points_per_second=None, azimuth_offsets_deg=None,
                      *, horizontal_resolution_deg=None, firing_cycle_s=None, firing_offsets_s=None,
-                     origins_head_m=None):
+                     origins_head_m=None, firings_per_rotation=None):
     """One revolution of a spinning multi-beam sensor.
 
     elevations_deg       (C,) per-channel elevation, table (firing) order
@@ -82,10 +91,12 @@ def spinning_pattern(elevations_deg, frequency_hz, points_per_second=None, azimu
     c = el.shape[0]
     if c < 1:
         raise PatternError("a spinning pattern needs at least one channel")
-    if points_per_second is None and horizontal_resolution_deg is None and firing_cycle_s is None:
-        raise PatternError("give one of points_per_second, horizontal_resolution_deg, firing_cycle_s")
+    if points_per_second is None and horizontal_resolution_deg is None and firing_cycle_s is None \
+            and firings_per_rotation is None:
+        raise PatternError("give one of points_per_second, horizontal_resolution_deg, firing_cycle_s, "
+                           "firings_per_rotation")
     steps, cycle = firing_cycles(frequency_hz, c, points_per_second, horizontal_resolution_deg,
-                                 firing_cycle_s)
+                                 firing_cycle_s, firings_per_rotation)
     if steps * c > MAX_RAYS:
         raise PatternError(f"{steps * c} rays per frame exceeds the limit of {MAX_RAYS}")
     period = 1.0 / frequency_hz
