@@ -103,9 +103,9 @@ def test_a_subset_of_rays_gets_its_own_origins():
     preset = get_preset("ouster_os1_64")
     room = box_geometry((-HALF, -HALF, -HALF), (HALF, HALF, HALF), name="room")
     scene = PreparedScene(room, np.zeros(3), preset.range.max_m, NumpyCaster)
-    settings = ScanSettings(seed=1, noise=False, dropout=False, detection="carla")
+    settings = ScanSettings(seed=1, noise=False, dropout=False, detection="carla", footprint="off")
     full = scan_frame(scene, preset.pattern(), np.eye(4), preset, settings).points
-    rows = np.arange(5, 131072, 997)
+    rows = np.arange(5, len(preset.pattern()), 997)
     part = scan_frame(scene, preset.pattern(), np.eye(4), preset, settings, rays=rows).points
     for f in "xyz":
         np.testing.assert_array_equal(part[f], full[f][rows])

@@ -118,8 +118,12 @@ def test_every_angle_of_the_fixture_comes_back(name, tmp_path):
     b = get_preset(base)
     assert (p.frequency_hz, p.range, p.dropout, p.rays_per_frame) == \
         (b.frequency_hz, b.range, b.dropout, b.rays_per_frame)
-    assert {k: v for k, v in p.scan.items() if k != "table"} == \
-        {k: v for k, v in b.scan.items() if k not in ("table", "beam_origins_m")}
+    kept = {k: v for k, v in b.scan.items()
+            if k not in ("table", "beam_origins_m", "firing_times", "firing_time_zero_us")}
+    if b.firing_times is not None:  # the base's firing times, by channel, inlined
+        kept["firing_offsets_us"] = b.firing_times.offsets_us(
+            list(p.table.channel_ids), b.scan.get("firing_time_zero_us", 0.0))
+    assert {k: v for k, v in p.scan.items() if k != "table"} == kept
     assert (p.detection is None) == (b.detection is None)
     assert len(p.pattern()) == len(b.pattern())
     np.testing.assert_array_equal(p.pattern().times, b.pattern().times)

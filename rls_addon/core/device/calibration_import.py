@@ -90,6 +90,15 @@ def import_calibration(file, base, new_id, user_dir, name=None, overwrite=False)
         scan.pop("beam_origins_m", None)  # the file's origins replace the base's
     elif "beam_origins_m" in scan and len(scan["beam_origins_m"]) != 1:
         scan.pop("beam_origins_m")  # per-channel origins of another unit
+    times = getattr(base_p, "firing_times", None)
+    if times is not None:  # the base's firing times, by channel id, in the file's row order
+        missing = [c for c in cal.channel_ids if c not in times.by_channel]
+        if missing:
+            raise PresetError(f"{where}: channel {missing[0]} has no firing time in base "
+                              f"preset '{base_p.id}' (its channels: "
+                              f"{min(times.by_channel)}..{max(times.by_channel)})")
+        zero = float(base_p.scan.get("firing_time_zero_us", 0.0))
+        scan["firing_offsets_us"] = times.offsets_us(list(cal.channel_ids), zero)
     data["scan"] = {"table": f"tables/{new_id}.csv", "azimuth_convention": cal.vendor, **scan}
     data["id"] = new_id
     data["name"] = name or f"{base_p.name} ({Path(cal.file_name).stem})"
