@@ -1,0 +1,244 @@
+"""SUMO floating-car data (``sumo --fcd-output``) read and turned into box poses at a
+scene's frame rate.
+
+What FCD holds (SUMO documentation "Simulation/Output/FCDOutput",
+sumo.dlr.de/docs/Simulation/Output/FCDOutput.html, checked against SUMO 1.28's output):
+one ``<timestep time=...>`` per step with a ``<vehicle>`` or ``<person>`` per object in
+the network; ``x``, ``y`` (and ``z`` where the network has elevation) are in the
+network's coordinates (the net file's ``<location netOffset>`` is already applied) and
+are the centre of the object's *front bumper*; ``angle`` is in degrees "in navigational
+standard (0-360 degrees, going clockwise with 0 at the 12'o clock position)", 12
+o'clock being the network's +y. Persons follow the same rule: SUMO's pedestrian model
+places a person by the front of its walking extent (MSPModel_Striping, ``getPosition``
+at ``myRelX``, with the body reaching ``length`` behind it). Output written with
+``--fcd-output.geo`` (longitude, latitude) is not in metres and is refused.
+
+Conversion to Blender (world +x east, +y north, +z up; heading counter-clockwise from
++x): ``yaw = radians(90 - angle)``; the box's centre is the front minus half the
+type's length along the heading: ``(x, y) - L/2 (cos yaw, sin yaw)``, minus the
+``origin`` (the net coordinates that land on the scene's origin); the bottom of the box
+is at ``z`` (0 where FCD has none).
+
+Resampling: frame ``f`` is at simulation time ``begin + (f - first frame) / fps``. An
+object is present at a frame time that is one of its FCD steps or lies between two of
+its consecutive steps; there its pose is the linear interpolation of the two (headings
+along the shorter arc). It is never extrapolated: before it appears and after it
+leaves it is absent, and its pose is held at its nearest present frame.
+"""
+
+import math
+import os
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+# A step of an object counts as consecutive with the next when they are at most this
+# many FCD periods apart (SUMO writes every step, or every --device.fcd.period).
+GAP_STEPS = 1.5
+TIME_EPS = 1e-6
+READ_MARGIN_S = 5.0
+
+
+@dataclass
+class Track:
+    """One vehicle or person in the FCD: its samples in time order."""
+    id: str
+    kind: str            # "vehicle" or "person"
+    type: str
+    times: list = field(default_factory=list)
+    x: list = field(default_factory=list)
+    y: list = field(default_factory=list)
+    z: list = field(default_factory=list)
+    angle: list = field(default_factory=list)
+
+
+@dataclass
+class Fcd:
+    tracks: dict         # id -> Track (ids prefixed "person:" for persons)
+    step: float          # the FCD period (s)
+    first: float         # the first and last timestep (s)
+    last: float
+
+    @property
+    def types(self):
+        return {t.type for t in self.tracks.values()}
+
+
+def _line_of(exc):
+    pos = getattr(exc, "position", None)
+    return pos[0] if pos else "?"
+
+
+def read_fcd(path, begin=None, end=None):
+    """Read an FCD file, streamed (``iterparse``, elements cleared as read). Keeps the
+    steps within [begin, end] seconds when given. A file that is not XML, is cut short,
+    or is not FCD raises ``InputError`` naming the line."""
+    if not os.path.isfile(path):
+        raise InputError(f"FCD file not found: {path}")
+    tracks, steps = {}, []
+    t = None
+    root_seen = False
+    try:
+        for event, el in ET.iterparse(path, events=("start", "end")):
+            if event == "start":
+                if not root_seen:
+                    root_seen = True
+                    if el.tag != "fcd-export":
+                        raise InputError(f"{path} is not SUMO FCD output: its root element "
+                                         f"is <{el.tag}>, not <fcd-export> (write it with "
+                                         f"sumo --fcd-output)")
+                elif el.tag == "timestep":
+                    t = _num(el.get("time"), "time", path, "timestep")
+                    steps.append(t)
+                continue
+            if el.tag in ("vehicle", "person"):
+                if t is None:
+                    raise InputError(f"{path}: a <{el.tag}> outside any <timestep>")
+                if (begin is None or t >= begin - TIME_EPS) and \
+                        (end is None or t <= end + TIME_EPS):
+                    _add(tracks, el, t, path)
+                el.clear()
+            elif el.tag == "timestep":
+                el.clear()
+                t = None
+    except ET.ParseError as exc:
+        raise InputError(f"{path} is not complete, well-formed XML (cut short or not "
+                         f"FCD): {str(exc).split(':')[0]} at line {_line_of(exc)}") from None
+    except OSError as exc:
+        raise InputError(f"cannot read FCD file {path}: {exc.strerror or exc}") from None
+    if not root_seen:
+        raise InputError(f"{path} is empty")
+    times = np.unique(np.asarray(steps, float))
+    if len(times) == 0:
+        raise InputError(f"{path} has no <timestep>: is it SUMO FCD output?")
+    step = float(np.min(np.diff(times))) if len(times) > 1 else 1.0
+    for tr in tracks.values():
+        order = np.argsort(tr.times, kind="stable")
+        for name in ("times", "x", "y", "z", "angle"):
+            setattr(tr, name, np.asarray(getattr(tr, name), float)[order])
+    return Fcd(tracks, step, float(times[0]), float(times[-1]))
+
+
+def _num(value, name, path, tag):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not math.isfinite(v):
+        raise InputError(f"{path}: a <{tag}> with {name}={value!r}, not a number")
+    return v
+
+
+def _add(tracks, el, t, path):
+    oid = el.get("id")
+    if oid is None:
+        raise InputError(f"{path}: a <{el.tag}> without an id at time {t:g}")
+    if el.get("x") is None and el.get("lon") is not None:
+        raise InputError(f"{path} holds geo-coordinates (--fcd-output.geo): write the "
+                         f"FCD in network coordinates (without --fcd-output.geo)")
+    key = oid if el.tag == "vehicle" else f"person:{oid}"
+    tr = tracks.get(key)
+    typ = el.get("type") or ("DEFAULT_PEDTYPE" if el.tag == "person" else "DEFAULT_VEHTYPE")
+    if tr is None:
+        tr = tracks[key] = Track(oid, el.tag, typ)
+    tr.times.append(t)
+    tr.x.append(_num(el.get("x"), "x", path, el.tag))
+    tr.y.append(_num(el.get("y"), "y", path, el.tag))
+    tr.z.append(_num(el.get("z", "0"), "z", path, el.tag))
+    tr.angle.append(_num(el.get("angle"), "angle", path, el.tag))
+
+
+def yaw_of_angle(angle_deg):
+    """Blender yaw (radians, counter-clockwise from +x) of SUMO angles (degrees,
+    clockwise from +y)."""
+    return np.radians(90.0 - np.asarray(angle_deg, float))
+
+
+def box_centre(x, y, angle_deg, length, origin=(0.0, 0.0)):
+    """(cx, cy, yaw): the box centre of objects whose front bumper centre is (x, y)
+    heading SUMO ``angle_deg``, in the scene (net coordinates minus ``origin``)."""
+    yaw = yaw_of_angle(angle_deg)
+    half = 0.5 * np.asarray(length, float)
+    cx = np.asarray(x, float) - half * np.cos(yaw) - float(origin[0])
+    cy = np.asarray(y, float) - half * np.sin(yaw) - float(origin[1])
+    return cx, cy, yaw
+
+
+@dataclass
+class Motion:
+    """One object at a scene's frames: ``present`` (F,) bool, ``xyz`` (F, 3) the
+    bottom centre of its box, ``yaw`` (F,) radians, continuous (unwrapped)."""
+    present: np.ndarray
+    xyz: np.ndarray
+    yaw: np.ndarray
+
+
+def frame_times(n_frames, fps, begin):
+    """Simulation time (s) of each of ``n_frames`` frames from ``begin``."""
+    return float(begin) + np.arange(int(n_frames)) / float(fps)
+
+
+def resample(track, length, times, step, origin=(0.0, 0.0)):
+    """``Motion`` of ``track`` (box length ``length``) at simulation ``times``: linear
+    interpolation between consecutive FCD steps, headings by the shorter arc, no
+    extrapolation (see the module doc). None when it is present at none of them."""
+    ts = np.asarray(track.times, float)
+    times = np.asarray(times, float)
+    cx, cy, yaw = box_centre(track.x, track.y, track.angle, length, origin)
+    z = np.asarray(track.z, float)
+    k = np.searchsorted(ts, times - TIME_EPS)          # first sample at or after t
+    exact = (k < len(ts)) & (np.abs(ts[np.minimum(k, len(ts) - 1)] - times) <= TIME_EPS)
+    inner = (k > 0) & (k < len(ts))
+    k0, k1 = np.clip(k - 1, 0, len(ts) - 1), np.clip(k, 0, len(ts) - 1)
+    gap = ts[k1] - ts[k0]
+    between = inner & ~exact & (gap <= GAP_STEPS * step + TIME_EPS)
+    present = exact | between
+    if not present.any():
+        return None
+    a = np.where(between, (times - ts[k0]) / np.where(gap > 0, gap, 1.0), 0.0)
+    i0 = np.where(exact, k1, k0)
+    i1 = np.where(exact, k1, k1)
+    dyaw = (yaw[i1] - yaw[i0] + math.pi) % (2 * math.pi) - math.pi   # shorter arc
+    out_yaw = yaw[i0] + a * dyaw
+    xyz = np.column_stack([cx[i0] + a * (cx[i1] - cx[i0]), cy[i0] + a * (cy[i1] - cy[i0]),
+                           z[i0] + a * (z[i1] - z[i0])])
+    # hold the nearest present frame where absent (no extrapolation, no jumps)
+    idx = np.arange(len(times))
+    last = np.maximum.accumulate(np.where(present, idx, -1))
+    nxt = np.minimum.accumulate(np.where(present, idx, len(times))[::-1])[::-1]
+    src = np.where(present, idx, np.where(last >= 0, last, nxt))
+    xyz, out_yaw = xyz[src], out_yaw[src]
+    out_yaw = np.unwrap(out_yaw)
+    return Motion(present, xyz, out_yaw)
+
+
+def default_vtypes_path(fcd_path):
+    """``OUT.vtypes.xml`` beside ``OUT.xml``, where ``rls traffic generate`` writes the
+    types; None when there is none."""
+    base = fcd_path[:-4] if fcd_path.lower().endswith(".xml") else fcd_path
+    path = base + ".vtypes.xml"
+    return path if os.path.isfile(path) else None
+
+
+def load(fcd_path, vtypes_paths=(), begin=None, end=None):
+    """(Fcd, {type id: VType}) of an FCD file with the vTypes of ``vtypes_paths`` (or
+    of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError."""
+    from .vtypes import read_vtypes, resolve
+
+    # steps a little outside [begin, end] are kept for the interpolation at its ends
+    fcd = read_fcd(fcd_path, None if begin is None else begin - READ_MARGIN_S,
+                   None if end is None else end + READ_MARGIN_S)
+    if not fcd.tracks:
+        raise InputError(f"{fcd_path} has no vehicle or person"
+                         + (" between --begin and --end" if begin is not None
+                            or end is not None else ""))
+    paths = list(vtypes_paths) or [p for p in [default_vtypes_path(fcd_path)] if p]
+    known = {}
+    for p in paths:
+        if not os.path.isfile(p):
+            raise InputError(f"vType file not found: {p}")
+        known.update(read_vtypes(p))
+    return fcd, resolve(fcd.types, known, fcd_path)
