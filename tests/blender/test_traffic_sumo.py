@@ -16,7 +16,7 @@ pytest.importorskip("sumo")
 
 from rls_addon.blender.sensor import read_settings, sensor_job  # noqa: E402
 from rls_addon.blender.source import BlenderScene  # noqa: E402
-from rls_addon.blender.traffic import import_traffic  # noqa: E402
+from rls_addon.blender.traffic import COLLECTION, import_traffic  # noqa: E402
 from rls_addon.core.casting import caster_factory  # noqa: E402
 from rls_addon.core.labels import label_id  # noqa: E402
 from rls_addon.core.scan.session import ScanSession  # noqa: E402
@@ -125,3 +125,25 @@ def test_vehicle_that_left_casts_no_ray(run, scene):
     assert n_before > 0 and named_before      # present at its last frame: seen
     n_after, named_after = hits(last + 5)      # half a second after it left
     assert n_after == 0 and not named_after
+
+
+def test_operator_imports_and_refuses_bad_files(run, scene, tmp_path):
+    scene.render.fps = FPS
+    before = len(bpy.data.objects)
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<fcd-export><timestep time='0'>")
+    with pytest.raises(RuntimeError, match="not complete"):
+        bpy.ops.rls.import_sumo_traffic(filepath=str(bad))
+    assert len(bpy.data.objects) == before and COLLECTION not in bpy.data.collections
+    assert bpy.ops.rls.import_sumo_traffic(filepath=run, origin=ORIGIN) == {"FINISHED"}
+    objs = bpy.data.collections[COLLECTION].objects
+    assert len(objs) > 20
+    labels = {o["rls_label"] for o in objs}
+    assert {"vehicle", "pedestrian"} <= labels
+    # bulk keys: LINEAR motion, CONSTANT presence
+    ob = next(o for o in objs if o["rls_label"] == "vehicle")
+    curves = {(fc.data_path, fc.array_index): fc for fc in ob.animation_data.action.fcurves} \
+        if hasattr(ob.animation_data.action, "fcurves") else None
+    if curves is not None:
+        assert curves[("location", 0)].keyframe_points[0].interpolation == "LINEAR"
+        assert curves[("hide_render", 0)].keyframe_points[0].interpolation == "CONSTANT"
