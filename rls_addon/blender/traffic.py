@@ -120,13 +120,14 @@ def key_object(obj, frames, motion):
 
 
 def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
-                   progress=None):
+                   progress=None, ground=None):
     """Animated objects for every track of ``fcd`` (``core.traffic.fcd.Fcd``) with
     sizes ``types`` ({type id: VType}) in ``scene``, in a new collection. Frame
     ``scene.frame_start`` is simulation time ``begin`` (default: the FCD's first step);
     frames are keyed up to ``end`` (default its last step), and the scene's last frame
     is set to the last keyed one. ``progress(done, total)`` is called as objects are
-    made. Returns a summary dict."""
+    made. ``ground(xy (N, 2)) -> (N,)`` heights added to FCD's z (a scene's kerbs, which
+    SUMO's flat network does not have). Returns a summary dict."""
     fps = scene.render.fps / scene.render.fps_base
     begin = fcd.first if begin is None else float(begin)
     end = fcd.last if end is None else float(end)
@@ -151,6 +152,8 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
             progress(j, len(keys))
         if motion is None:
             continue
+        if ground is not None:
+            motion.xyz[:, 2] += ground(motion.xyz[:, :2])
         mesh = meshes.get(vt.id)
         if mesh is None:
             mesh = meshes[vt.id] = profile_mesh(f"SUMO {vt.id}", vt.shape, vt.size)

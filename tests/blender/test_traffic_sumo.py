@@ -147,3 +147,29 @@ def test_operator_imports_and_refuses_bad_files(run, scene, tmp_path):
     if curves is not None:
         assert curves[("location", 0)].keyframe_points[0].interpolation == "LINEAR"
         assert curves[("hide_render", 0)].keyframe_points[0].interpolation == "CONSTANT"
+
+
+@pytest.mark.slow
+def test_intersection_sumo_sample_scene(scene):
+    """Scene B with SUMO's traffic: at least 200 vehicle-frames in the InfraLOB (a
+    present vehicle whose box centre is in the region at a frame), pedestrians too."""
+    from rls_addon.blender.region import lob_polygon_world
+    from rls_addon.blender.scenes import build_scene
+    from rls_addon.core.metrics.polygon import points_in_polygon
+
+    info = build_scene("intersection_sumo", scene)
+    assert (scene.frame_start, scene.frame_end) == (1, 60)
+    assert not bpy.data.collections["Vehicles"].objects     # the hand traffic is gone
+    assert len(info["vehicles"]) >= 10 and info["pedestrians"] and info["mounts"]
+    poly = lob_polygon_world(bpy.data.objects[info["infralob"]])
+    objs = [bpy.data.objects[n] for n in info["vehicles"]]
+    frames = 0
+    for f in range(1, 61):
+        scene.frame_set(f)
+        for o in objs:
+            if o.hide_render:
+                continue
+            lo = np.array(o.bound_box[0]); hi = np.array(o.bound_box[6])
+            c = np.array(o.matrix_world) @ np.r_[(lo + hi) / 2, 1.0]
+            frames += bool(points_in_polygon(c[None, :2], poly)[0])
+    assert frames >= 200, frames

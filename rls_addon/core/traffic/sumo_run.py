@@ -224,3 +224,39 @@ def _merge_routes(paths):
         parts.append(data[a:b].strip(b"\r\n"))
     return b'<?xml version="1.0" encoding="UTF-8"?>\n<routes>\n' + b"\n".join(parts) + \
         b"\n</routes>\n"
+
+
+def plain_xml(nodes, edges):
+    """(nodes XML, edges XML) of a SUMO plain network. ``nodes``: (id, x, y, type);
+    ``edges``: (id, from, to, lanes, lane width, sidewalk width or 0, speed m/s)."""
+    nod = ["<nodes>"] + [f'    <node id="{i}" x="{x:g}" y="{y:g}" type="{t}"/>'
+                         for i, x, y, t in nodes] + ["</nodes>", ""]
+    edg = ["<edges>"]
+    for i, a, b, lanes, width, walk, speed in edges:
+        extra = f' sidewalkWidth="{walk:g}"' if walk else ""
+        edg.append(f'    <edge id="{i}" from="{a}" to="{b}" numLanes="{lanes}" '
+                   f'width="{width:g}" speed="{speed:g}" spreadType="right"{extra}/>')
+    edg += ["</edges>", ""]
+    return "\n".join(nod), "\n".join(edg)
+
+
+def netconvert_plain(nodes, edges, out, crossings=True):
+    """Write a plain network (``plain_xml``) and netconvert it to ``out`` in the given
+    coordinates (no offset: netOffset 0, 0), with crossings guessed at junctions."""
+    home = sumo_home()
+    env = dict(os.environ, SUMO_HOME=home)
+    tmp = tempfile.mkdtemp(prefix="rls-net-")
+    try:
+        nod, edg = plain_xml(nodes, edges)
+        pn, pe = os.path.join(tmp, "net.nod.xml"), os.path.join(tmp, "net.edg.xml")
+        with open(pn, "w", encoding="utf-8") as fh:
+            fh.write(nod)
+        with open(pe, "w", encoding="utf-8") as fh:
+            fh.write(edg)
+        _run([binary(home, "netconvert"), "--node-files", pn, "--edge-files", pe,
+              "--offset.disable-normalization", "true", "--no-turnarounds", "true",
+              "--crossings.guess", "true" if crossings else "false",
+              "--no-warnings", "true", "-o", out], env, "netconvert")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return out
