@@ -89,24 +89,29 @@ def _fill(action, obj, path, index, frames, values, interp):
     return fc
 
 
-def key_presence(action, obj, frames, present):
-    """``hide_render`` and ``hide_viewport`` keyed CONSTANT at the first frame and where
-    presence changes."""
+def key_presence(action, obj, frames, motion):
+    """``hide_render`` and ``hide_viewport`` keyed CONSTANT: at the scene's first frame,
+    where presence changes, and at the first frame after the object leaves."""
+    present = motion.present
     change = np.r_[True, present[1:] != present[:-1]]
-    f = frames[change].astype(np.float64)
-    hidden = (~present[change]).astype(np.float64)
+    f = list(frames[motion.first:motion.stop][change])
+    hidden = list((~present[change]).astype(np.float64))
+    if motion.first > 0:
+        f.insert(0, frames[0])
+        hidden.insert(0, 1.0)
+    if motion.stop < len(frames):
+        f.append(frames[motion.stop])
+        hidden.append(1.0)
     constant = _enum("CONSTANT")
     for path in ("hide_render", "hide_viewport"):
-        _fill(action, obj, path, 0, f, hidden, constant)
+        _fill(action, obj, path, 0, np.asarray(f, np.float64), np.asarray(hidden), constant)
 
 
 def key_object(obj, frames, motion):
-    """Key ``obj``'s motion (``core.traffic.fcd.Motion``) at ``frames``."""
-    present = motion.present
-    idx = np.nonzero(present)[0]
-    lo, hi = int(idx[0]), int(idx[-1]) + 1
-    f = frames[lo:hi].astype(np.float64)
-    xyz, yaw = motion.xyz[lo:hi], motion.yaw[lo:hi]
+    """Key ``obj``'s motion (``core.traffic.fcd.Motion``) at ``frames`` (those of the
+    times it was resampled at)."""
+    f = frames[motion.first:motion.stop].astype(np.float64)
+    xyz, yaw = motion.xyz, motion.yaw
     obj.location = tuple(map(float, xyz[0]))
     obj.rotation_euler = (0.0, 0.0, float(yaw[0]))
     obj.animation_data_create()
@@ -116,7 +121,7 @@ def key_object(obj, frames, motion):
     for i in range(3):
         _fill(action, obj, "location", i, f, xyz[:, i], linear)
     _fill(action, obj, "rotation_euler", 2, f, yaw, linear)
-    key_presence(action, obj, frames, present)
+    key_presence(action, obj, frames, motion)
 
 
 def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,

@@ -87,19 +87,20 @@ def test_resample_linear_shorter_arc_no_extrapolation(files):
     fcd = read_fcd(str(files[0]))
     times = frame_times(9, 2.0, -0.5)        # -0.5, 0, 0.5, ... 3.5 s
     m = resample(fcd.tracks["a"], 4.0, times, fcd.step, origin=(1.0, 0.0))
-    assert list(m.present) == [False, True, True, True, True, True, True, True, False]
+    # present from 0 s (frame 1) to 3 s (frame 7): not before, not after (no extrapolation)
+    assert (m.first, m.stop) == (1, 8) and m.present.all()
     # at 0.5 s the front is at x=15 heading east: centre 13, minus the origin's 1
-    assert m.xyz[2] == pytest.approx([12.0, 0.0, 0.0])
-    # absent frames hold the nearest present one (no extrapolation)
-    assert m.xyz[0] == pytest.approx(m.xyz[1]) and m.xyz[8] == pytest.approx(m.xyz[7])
+    assert m.xyz[1] == pytest.approx([12.0, 0.0, 0.0])
     # 2 s -> 3 s turns from 350 to 10 deg by the shorter arc (through 0): at 2.5 s, 0 deg
     # navigational, yaw 90 deg; continuous over frames
-    assert math.degrees(m.yaw[6]) % 360 == pytest.approx(90.0)
+    assert math.degrees(m.yaw[5]) % 360 == pytest.approx(90.0)
     assert np.all(np.abs(np.diff(m.yaw)) <= math.radians(50) + 1e-9)  # 100 deg a step at most
     # centre at 2.5 s: the interpolated centres of 2 s and 3 s
     c2 = box_centre([30.0], [0.0], [350.0], 4.0, (1.0, 0.0))
     c3 = box_centre([40.0], [0.0], [10.0], 4.0, (1.0, 0.0))
-    assert m.xyz[6][:2] == pytest.approx([(c2[0][0] + c3[0][0]) / 2, (c2[1][0] + c3[1][0]) / 2])
+    assert m.xyz[5][:2] == pytest.approx([(c2[0][0] + c3[0][0]) / 2, (c2[1][0] + c3[1][0]) / 2])
+    # times past its span: None
+    assert resample(fcd.tracks["a"], 4.0, frame_times(3, 1.0, 5.0), fcd.step) is None
 
 
 def test_gap_in_a_track_is_absent(tmp_path):
@@ -111,6 +112,7 @@ def test_gap_in_a_track_is_absent(tmp_path):
     fcd = read_fcd(str(f))
     m = resample(fcd.tracks["a"], 4.0, frame_times(4, 1.0, 0.0), fcd.step)
     assert list(m.present) == [True, False, False, True]
+    assert m.xyz[1] == pytest.approx(m.xyz[0])   # held in the gap, never extrapolated
 
 
 def test_not_xml_and_truncated_name_the_line(tmp_path, files):

@@ -23,7 +23,7 @@ Resampling: frame ``f`` is at simulation time ``begin + (f - first frame) / fps`
 object is present at a frame time that is one of its FCD steps or lies between two of
 its consecutive steps; there its pose is the linear interpolation of the two (headings
 along the shorter arc). It is never extrapolated: before it appears and after it
-leaves it is absent, and its pose is held at its nearest present frame.
+leaves it is absent (within a gap its pose is held at the last present frame).
 """
 
 import math
@@ -169,11 +169,19 @@ def box_centre(x, y, angle_deg, length, origin=(0.0, 0.0)):
 
 @dataclass
 class Motion:
-    """One object at a scene's frames: ``present`` (F,) bool, ``xyz`` (F, 3) the
-    bottom centre of its box, ``yaw`` (F,) radians, continuous (unwrapped)."""
+    """One object over the frames it spans: ``first`` the index (into the frame times
+    resampled at) of its first present frame; over that frame and the ones after it,
+    up to its last present one: ``present`` (F,) bool (false in a gap), ``xyz`` (F, 3)
+    the bottom centre of its box, ``yaw`` (F,) radians, continuous (unwrapped). Before
+    ``first`` and after the last it is absent."""
+    first: int
     present: np.ndarray
     xyz: np.ndarray
     yaw: np.ndarray
+
+    @property
+    def stop(self):
+        return self.first + len(self.present)
 
 
 def frame_times(n_frames, fps, begin):
@@ -182,11 +190,17 @@ def frame_times(n_frames, fps, begin):
 
 
 def resample(track, length, times, step, origin=(0.0, 0.0)):
-    """``Motion`` of ``track`` (box length ``length``) at simulation ``times``: linear
-    interpolation between consecutive FCD steps, headings by the shorter arc, no
-    extrapolation (see the module doc). None when it is present at none of them."""
+    """``Motion`` of ``track`` (box length ``length``) at simulation ``times``
+    (increasing): linear interpolation between consecutive FCD steps, headings by the
+    shorter arc, no extrapolation (see the module doc). None when it is present at none
+    of them. Only the times within the track's span are computed."""
     ts = np.asarray(track.times, float)
-    times = np.asarray(times, float)
+    all_times = np.asarray(times, float)
+    lo = int(np.searchsorted(all_times, ts[0] - TIME_EPS))
+    hi = int(np.searchsorted(all_times, ts[-1] + TIME_EPS, side="right"))
+    if hi <= lo:
+        return None
+    times = all_times[lo:hi]
     cx, cy, yaw = box_centre(track.x, track.y, track.angle, length, origin)
     z = np.asarray(track.z, float)
     k = np.searchsorted(ts, times - TIME_EPS)          # first sample at or after t
@@ -196,23 +210,24 @@ def resample(track, length, times, step, origin=(0.0, 0.0)):
     gap = ts[k1] - ts[k0]
     between = inner & ~exact & (gap <= GAP_STEPS * step + TIME_EPS)
     present = exact | between
-    if not present.any():
+    idx = np.nonzero(present)[0]
+    if not len(idx):
         return None
-    a = np.where(between, (times - ts[k0]) / np.where(gap > 0, gap, 1.0), 0.0)
+    a0, a1 = int(idx[0]), int(idx[-1]) + 1
+    sl = slice(a0, a1)
+    present, exact, between, k0, k1 = present[sl], exact[sl], between[sl], k0[sl], k1[sl]
+    times = times[sl]
+    a = np.where(between, (times - ts[k0]) / np.where(gap[sl] > 0, gap[sl], 1.0), 0.0)
     i0 = np.where(exact, k1, k0)
-    i1 = np.where(exact, k1, k1)
-    dyaw = (yaw[i1] - yaw[i0] + math.pi) % (2 * math.pi) - math.pi   # shorter arc
+    dyaw = (yaw[k1] - yaw[i0] + math.pi) % (2 * math.pi) - math.pi   # shorter arc
     out_yaw = yaw[i0] + a * dyaw
-    xyz = np.column_stack([cx[i0] + a * (cx[i1] - cx[i0]), cy[i0] + a * (cy[i1] - cy[i0]),
-                           z[i0] + a * (z[i1] - z[i0])])
-    # hold the nearest present frame where absent (no extrapolation, no jumps)
-    idx = np.arange(len(times))
-    last = np.maximum.accumulate(np.where(present, idx, -1))
-    nxt = np.minimum.accumulate(np.where(present, idx, len(times))[::-1])[::-1]
-    src = np.where(present, idx, np.where(last >= 0, last, nxt))
-    xyz, out_yaw = xyz[src], out_yaw[src]
-    out_yaw = np.unwrap(out_yaw)
-    return Motion(present, xyz, out_yaw)
+    xyz = np.column_stack([cx[i0] + a * (cx[k1] - cx[i0]), cy[i0] + a * (cy[k1] - cy[i0]),
+                           z[i0] + a * (z[k1] - z[i0])])
+    if not present.all():  # a gap: hold the last present frame before it
+        j = np.arange(len(present))
+        src = np.maximum.accumulate(np.where(present, j, 0))
+        xyz, out_yaw = xyz[src], out_yaw[src]
+    return Motion(lo + a0, present, xyz, np.unwrap(out_yaw))
 
 
 def default_vtypes_path(fcd_path):
