@@ -168,3 +168,18 @@ def test_strip_header_drops_sumo_comment_only():
     out = strip_header(data)
     assert b"generated on" not in out and out.startswith(b"<?xml") and b"<fcd-export>" in out
     assert strip_header(b"<a><!-- keep --></a>") == b"<a><!-- keep --></a>"
+
+
+def test_bad_values_named(tmp_path):
+    f = tmp_path / "nan.xml"
+    f.write_text('<fcd-export><timestep time="0"><vehicle id="a" x="abc" y="0" angle="0" '
+                 'type="car"/></timestep></fcd-export>')
+    with pytest.raises(InputError, match="id='a'.*not a number"):
+        read_fcd(str(f))
+    f.write_text('<fcd-export><timestep time="0"><vehicle id="a" y="0" angle="0" '
+                 'type="car"/></timestep></fcd-export>')
+    with pytest.raises(InputError, match="has no 'x'"):
+        read_fcd(str(f))
+    f.write_text('<fcd-export></fcd-export>')
+    with pytest.raises(InputError, match="no <timestep>"):
+        read_fcd(str(f))

@@ -28,6 +28,7 @@ leaves it is absent (within a gap its pose is held at the last present frame).
 
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
@@ -72,53 +73,70 @@ def _line_of(exc):
     return pos[0] if pos else "?"
 
 
+_ROOT_TAG = re.compile(rb"<([A-Za-z_][\w.:-]*)")
+
+
+def _root_tag(path):
+    """The first element's name in the file's head (declarations and comments skipped),
+    or None."""
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    head = re.sub(rb"<\?.*?\?>|<!--.*?-->", b"", head, flags=re.S)
+    m = _ROOT_TAG.search(head)
+    return m.group(1).decode("ascii", "replace") if m else None
+
+
 def read_fcd(path, begin=None, end=None):
-    """Read an FCD file, streamed (``iterparse``, elements cleared as read). Keeps the
-    steps within [begin, end] seconds when given. A file that is not XML, is cut short,
-    or is not FCD raises ``InputError`` naming the line."""
+    """Read an FCD file, streamed (``iterparse``: a timestep's objects are read when it
+    ends, then it is cleared). Keeps the steps within [begin, end] seconds when given. A
+    file that is not XML, is cut short, or is not FCD raises ``InputError`` naming the
+    line."""
     if not os.path.isfile(path):
         raise InputError(f"FCD file not found: {path}")
-    tracks, steps = {}, []
-    t = None
-    root_seen = False
     try:
-        for event, el in ET.iterparse(path, events=("start", "end")):
-            if event == "start":
-                if not root_seen:
-                    root_seen = True
-                    if el.tag != "fcd-export":
-                        raise InputError(f"{path} is not SUMO FCD output: its root element "
-                                         f"is <{el.tag}>, not <fcd-export> (write it with "
-                                         f"sumo --fcd-output)")
-                elif el.tag == "timestep":
-                    t = _num(el.get("time"), "time", path, "timestep")
-                    steps.append(t)
+        root = _root_tag(path)
+        if root is not None and root != "fcd-export":
+            raise InputError(f"{path} is not SUMO FCD output: its root element is <{root}>, "
+                             f"not <fcd-export> (write it with sumo --fcd-output)")
+        rows, steps = {}, []
+        lo = -math.inf if begin is None else begin - TIME_EPS
+        hi = math.inf if end is None else end + TIME_EPS
+        for _, el in ET.iterparse(path, events=("end",)):
+            if el.tag != "timestep":
                 continue
-            if el.tag in ("vehicle", "person"):
-                if t is None:
-                    raise InputError(f"{path}: a <{el.tag}> outside any <timestep>")
-                if (begin is None or t >= begin - TIME_EPS) and \
-                        (end is None or t <= end + TIME_EPS):
-                    _add(tracks, el, t, path)
-                el.clear()
-            elif el.tag == "timestep":
-                el.clear()
-                t = None
+            t = _num(el.get("time"), "time", path, "timestep")
+            steps.append(t)
+            if lo <= t <= hi:
+                for obj in el:
+                    _add(rows, obj, t, path)
+            el.clear()
     except ET.ParseError as exc:
         raise InputError(f"{path} is not complete, well-formed XML (cut short or not "
                          f"FCD): {str(exc).split(':')[0]} at line {_line_of(exc)}") from None
     except OSError as exc:
         raise InputError(f"cannot read FCD file {path}: {exc.strerror or exc}") from None
-    if not root_seen:
-        raise InputError(f"{path} is empty")
-    times = np.unique(np.asarray(steps, float))
-    if len(times) == 0:
+    if not steps:
         raise InputError(f"{path} has no <timestep>: is it SUMO FCD output?")
+    times = np.unique(np.asarray(steps, float))
     step = float(np.min(np.diff(times))) if len(times) > 1 else 1.0
-    for tr in tracks.values():
+    tracks = {}
+    for key, (kind, oid, typ, ts, xs, ys, zs, angles) in rows.items():
+        tr = Track(oid, kind, typ)
+        try:
+            tr.x, tr.y, tr.z, tr.angle = (np.asarray(v, dtype=np.float64)
+                                          for v in (xs, ys, zs, angles))
+        except ValueError:
+            raise InputError(f"{path}: <{kind} id={oid!r}> has a position or angle that "
+                             f"is not a number") from None
+        tr.times = np.asarray(ts, np.float64)
+        if not all(np.isfinite(v).all() for v in (tr.x, tr.y, tr.z, tr.angle)):
+            raise InputError(f"{path}: <{kind} id={oid!r}> has a position or angle that "
+                             f"is not finite")
         order = np.argsort(tr.times, kind="stable")
-        for name in ("times", "x", "y", "z", "angle"):
-            setattr(tr, name, np.asarray(getattr(tr, name), float)[order])
+        if (np.diff(order) != 1).any():
+            for name in ("times", "x", "y", "z", "angle"):
+                setattr(tr, name, getattr(tr, name)[order])
+        tracks[key] = tr
     return Fcd(tracks, step, float(times[0]), float(times[-1]))
 
 
@@ -132,23 +150,31 @@ def _num(value, name, path, tag):
     return v
 
 
-def _add(tracks, el, t, path):
-    oid = el.get("id")
+def _add(rows, el, t, path):
+    tag = el.tag
+    if tag != "vehicle" and tag != "person":
+        return
+    a = el.attrib
+    oid = a.get("id")
     if oid is None:
-        raise InputError(f"{path}: a <{el.tag}> without an id at time {t:g}")
-    if el.get("x") is None and el.get("lon") is not None:
-        raise InputError(f"{path} holds geo-coordinates (--fcd-output.geo): write the "
-                         f"FCD in network coordinates (without --fcd-output.geo)")
-    key = oid if el.tag == "vehicle" else f"person:{oid}"
-    tr = tracks.get(key)
-    typ = el.get("type") or ("DEFAULT_PEDTYPE" if el.tag == "person" else "DEFAULT_VEHTYPE")
-    if tr is None:
-        tr = tracks[key] = Track(oid, el.tag, typ)
-    tr.times.append(t)
-    tr.x.append(_num(el.get("x"), "x", path, el.tag))
-    tr.y.append(_num(el.get("y"), "y", path, el.tag))
-    tr.z.append(_num(el.get("z", "0"), "z", path, el.tag))
-    tr.angle.append(_num(el.get("angle"), "angle", path, el.tag))
+        raise InputError(f"{path}: a <{tag}> without an id at time {t:g}")
+    key = oid if tag == "vehicle" else "person:" + oid
+    row = rows.get(key)
+    if row is None:
+        if "x" not in a and "lon" in a:
+            raise InputError(f"{path} holds geo-coordinates (--fcd-output.geo): write the "
+                             f"FCD in network coordinates (without --fcd-output.geo)")
+        typ = a.get("type") or ("DEFAULT_PEDTYPE" if tag == "person" else "DEFAULT_VEHTYPE")
+        row = rows[key] = (tag, oid, typ, [], [], [], [], [])
+    try:
+        row[4].append(a["x"])
+        row[5].append(a["y"])
+        row[7].append(a["angle"])
+    except KeyError as exc:
+        raise InputError(f"{path}: <{tag} id={oid!r}> at time {t:g} has no "
+                         f"{exc.args[0]!r}") from None
+    row[3].append(t)
+    row[6].append(a.get("z", "0"))
 
 
 def yaw_of_angle(angle_deg):
