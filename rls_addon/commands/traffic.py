@@ -12,7 +12,6 @@ eclipse-sumo wheel, or SUMO_HOME). See docs/traffic.md.
 import argparse
 import json
 import os
-import sys
 
 from ..core.errors import InputError, OutputError
 
