@@ -472,6 +472,10 @@ def _others_lines(costs):
         from bench import evaluate_costs
 
         L.extend(evaluate_costs.section(costs["evaluate_costs"]))
+    if costs.get("traffic_costs"):
+        from bench import traffic_costs
+
+        L.extend(traffic_costs.section(costs["traffic_costs"]))
     if costs.get("scale_out"):
         from bench import scale_out
 

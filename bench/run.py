@@ -733,6 +733,15 @@ def measure(quick):
     from bench import evaluate_costs
 
     costs["evaluate_costs"] = evaluate_costs.measure(quick)
+    log("bench: a busy hour of SUMO traffic imported against its SUMO run "
+        "(bench/traffic_costs.py)")
+    from bench import traffic_costs
+    from rls_addon.core.traffic.sumo_run import SumoMissing
+
+    try:
+        costs["traffic_costs"] = traffic_costs.measure(quick)
+    except SumoMissing as exc:  # the section is left out
+        log(f"bench: SUMO traffic skipped: {exc}")
     info["loadavg_end"] = os.getloadavg()[0]
     return {"machine": info, "devices": dev, "triangles": tri_rows, "rays": ray_rows,
             "memory": mem, "tessellation": tess, "pattern_s": pattern_s, "hooks": hooks,

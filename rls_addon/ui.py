@@ -61,6 +61,7 @@ class VIEW3D_MT_rls_add(bpy.types.Menu):
                 layout.menu(menu.bl_idname, icon=FAMILY_ICONS[fam])
         layout.separator()
         layout.operator("object.rls_add_infralob", icon="MESH_PLANE")
+        layout.operator("rls.import_sumo_traffic", icon="AUTO")
 
 
 def draw_add_menu(self, context):

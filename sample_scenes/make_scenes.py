@@ -2,8 +2,10 @@
 
     .venv/bin/python sample_scenes/make_scenes.py [--out DIR] [NAME ...]
 
-NAME is t_junction, intersection or four_lane (default: all three); DIR defaults to
-this folder. The scenes are built by ``rls_addon.blender.scenes`` with ``bpy.data``
+NAME is t_junction, intersection, four_lane or intersection_sumo (default: all four);
+DIR defaults to this folder. intersection_sumo is scene B with its traffic made by SUMO
+(a fixed seed); without SUMO (pip install eclipse-sumo sumolib) it is skipped with a
+note and the others are still written. The scenes are built by ``rls_addon.blender.scenes`` with ``bpy.data``
 only, so the same code runs in the ``bpy`` module, ``blender -b`` and the UI.
 """
 
@@ -19,16 +21,22 @@ def main(argv=None):
     import bpy
 
     from rls_addon.blender.quiet import blender_output_silenced
-    from rls_addon.blender.scenes import SCENES, build_scene
+    from rls_addon.blender.scenes import SCENES, SUMO_SCENES, build_scene
+    from rls_addon.core.traffic.sumo_run import SumoMissing
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("names", nargs="*", choices=[[], *SCENES], default=[], metavar="NAME")
+    p.add_argument("names", nargs="*", choices=[[], *SCENES, *SUMO_SCENES], default=[],
+                   metavar="NAME")
     p.add_argument("--out", default=HERE)
     args = p.parse_args(argv)
     os.makedirs(args.out, exist_ok=True)
-    for name in args.names or list(SCENES):
+    for name in args.names or [*SCENES, *SUMO_SCENES]:
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        info = build_scene(name, bpy.context.scene)
+        try:
+            info = build_scene(name, bpy.context.scene)
+        except SumoMissing as exc:
+            print(f"{name}: skipped: {exc}", file=sys.stderr)
+            continue
         path = os.path.abspath(os.path.join(args.out, f"{name}.blend"))
         tmp = path + ".tmp.blend"
         with blender_output_silenced():

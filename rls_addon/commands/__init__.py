@@ -5,7 +5,7 @@ import importlib
 
 # Module names under this package, in the order ``--help`` lists them.
 COMMAND_MODULES = ("scan", "dataset", "study", "demo", "presets", "pattern", "metrics",
-                   "detect", "evaluate", "scene")
+                   "detect", "evaluate", "scene", "traffic")
 
 
 def load_commands():

@@ -1,0 +1,285 @@
+"""SUMO floating-car data (``sumo --fcd-output``) read and turned into box poses at a
+scene's frame rate.
+
+What FCD holds (SUMO documentation "Simulation/Output/FCDOutput",
+sumo.dlr.de/docs/Simulation/Output/FCDOutput.html, checked against SUMO 1.28's output):
+one ``<timestep time=...>`` per step with a ``<vehicle>`` or ``<person>`` per object in
+the network; ``x``, ``y`` (and ``z`` where the network has elevation) are in the
+network's coordinates (the net file's ``<location netOffset>`` is already applied) and
+are the centre of the object's *front bumper*; ``angle`` is in degrees "in navigational
+standard (0-360 degrees, going clockwise with 0 at the 12'o clock position)", 12
+o'clock being the network's +y. Persons follow the same rule: SUMO's pedestrian model
+places a person by the front of its walking extent (MSPModel_Striping, ``getPosition``
+at ``myRelX``, with the body reaching ``length`` behind it). Output written with
+``--fcd-output.geo`` (longitude, latitude) is not in metres and is refused.
+
+Conversion to Blender (world +x east, +y north, +z up; heading counter-clockwise from
++x): ``yaw = radians(90 - angle)``; the box's centre is the front minus half the
+type's length along the heading: ``(x, y) - L/2 (cos yaw, sin yaw)``, minus the
+``origin`` (the net coordinates that land on the scene's origin); the bottom of the box
+is at ``z`` (0 where FCD has none).
+
+Resampling: frame ``f`` is at simulation time ``begin + (f - first frame) / fps``. An
+object is present at a frame time that is one of its FCD steps or lies between two of
+its consecutive steps; there its pose is the linear interpolation of the two (headings
+along the shorter arc). It is never extrapolated: before it appears and after it
+leaves it is absent (within a gap its pose is held at the last present frame).
+"""
+
+import math
+import os
+import re
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import InputError
+
+# A step of an object counts as consecutive with the next when they are at most this
+# many FCD periods apart (SUMO writes every step, or every --device.fcd.period).
+GAP_STEPS = 1.5
+TIME_EPS = 1e-6
+READ_MARGIN_S = 5.0
+
+
+@dataclass
+class Track:
+    """One vehicle or person in the FCD: its samples in time order."""
+    id: str
+    kind: str            # "vehicle" or "person"
+    type: str
+    times: list = field(default_factory=list)
+    x: list = field(default_factory=list)
+    y: list = field(default_factory=list)
+    z: list = field(default_factory=list)
+    angle: list = field(default_factory=list)
+
+
+@dataclass
+class Fcd:
+    tracks: dict         # id -> Track (ids prefixed "person:" for persons)
+    step: float          # the FCD period (s)
+    first: float         # the first and last timestep (s)
+    last: float
+
+    @property
+    def types(self):
+        return {t.type for t in self.tracks.values()}
+
+
+def _line_of(exc):
+    pos = getattr(exc, "position", None)
+    return pos[0] if pos else "?"
+
+
+_ROOT_TAG = re.compile(rb"<([A-Za-z_][\w.:-]*)")
+
+
+def _root_tag(path):
+    """The first element's name in the file's head (declarations and comments skipped),
+    or None."""
+    with open(path, "rb") as fh:
+        head = fh.read(1 << 16)
+    head = re.sub(rb"<\?.*?\?>|<!--.*?-->", b"", head, flags=re.S)
+    m = _ROOT_TAG.search(head)
+    return m.group(1).decode("ascii", "replace") if m else None
+
+
+def read_fcd(path, begin=None, end=None):
+    """Read an FCD file, streamed (``iterparse``: a timestep's objects are read when it
+    ends, then it is cleared). Keeps the steps within [begin, end] seconds when given. A
+    file that is not XML, is cut short, or is not FCD raises ``InputError`` naming the
+    line."""
+    if not os.path.isfile(path):
+        raise InputError(f"FCD file not found: {path}")
+    try:
+        root = _root_tag(path)
+        if root is not None and root != "fcd-export":
+            raise InputError(f"{path} is not SUMO FCD output: its root element is <{root}>, "
+                             f"not <fcd-export> (write it with sumo --fcd-output)")
+        rows, steps = {}, []
+        lo = -math.inf if begin is None else begin - TIME_EPS
+        hi = math.inf if end is None else end + TIME_EPS
+        for _, el in ET.iterparse(path, events=("end",)):
+            if el.tag != "timestep":
+                continue
+            t = _num(el.get("time"), "time", path, "timestep")
+            steps.append(t)
+            if lo <= t <= hi:
+                for obj in el:
+                    _add(rows, obj, t, path)
+            el.clear()
+    except ET.ParseError as exc:
+        raise InputError(f"{path} is not complete, well-formed XML (cut short or not "
+                         f"FCD): {str(exc).split(':')[0]} at line {_line_of(exc)}") from None
+    except OSError as exc:
+        raise InputError(f"cannot read FCD file {path}: {exc.strerror or exc}") from None
+    if not steps:
+        raise InputError(f"{path} has no <timestep>: is it SUMO FCD output?")
+    times = np.unique(np.asarray(steps, float))
+    step = float(np.min(np.diff(times))) if len(times) > 1 else 1.0
+    tracks = {}
+    for key, (kind, oid, typ, ts, xs, ys, zs, angles) in rows.items():
+        tr = Track(oid, kind, typ)
+        try:
+            tr.x, tr.y, tr.z, tr.angle = (np.asarray(v, dtype=np.float64)
+                                          for v in (xs, ys, zs, angles))
+        except ValueError:
+            raise InputError(f"{path}: <{kind} id={oid!r}> has a position or angle that "
+                             f"is not a number") from None
+        tr.times = np.asarray(ts, np.float64)
+        if not all(np.isfinite(v).all() for v in (tr.x, tr.y, tr.z, tr.angle)):
+            raise InputError(f"{path}: <{kind} id={oid!r}> has a position or angle that "
+                             f"is not finite")
+        order = np.argsort(tr.times, kind="stable")
+        if (np.diff(order) != 1).any():
+            for name in ("times", "x", "y", "z", "angle"):
+                setattr(tr, name, getattr(tr, name)[order])
+        tracks[key] = tr
+    return Fcd(tracks, step, float(times[0]), float(times[-1]))
+
+
+def _num(value, name, path, tag):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not math.isfinite(v):
+        raise InputError(f"{path}: a <{tag}> with {name}={value!r}, not a number")
+    return v
+
+
+def _add(rows, el, t, path):
+    tag = el.tag
+    if tag != "vehicle" and tag != "person":
+        return
+    a = el.attrib
+    oid = a.get("id")
+    if oid is None:
+        raise InputError(f"{path}: a <{tag}> without an id at time {t:g}")
+    key = oid if tag == "vehicle" else "person:" + oid
+    row = rows.get(key)
+    if row is None:
+        if "x" not in a and "lon" in a:
+            raise InputError(f"{path} holds geo-coordinates (--fcd-output.geo): write the "
+                             f"FCD in network coordinates (without --fcd-output.geo)")
+        typ = a.get("type") or ("DEFAULT_PEDTYPE" if tag == "person" else "DEFAULT_VEHTYPE")
+        row = rows[key] = (tag, oid, typ, [], [], [], [], [])
+    try:
+        row[4].append(a["x"])
+        row[5].append(a["y"])
+        row[7].append(a["angle"])
+    except KeyError as exc:
+        raise InputError(f"{path}: <{tag} id={oid!r}> at time {t:g} has no "
+                         f"{exc.args[0]!r}") from None
+    row[3].append(t)
+    row[6].append(a.get("z", "0"))
+
+
+def yaw_of_angle(angle_deg):
+    """Blender yaw (radians, counter-clockwise from +x) of SUMO angles (degrees,
+    clockwise from +y)."""
+    return np.radians(90.0 - np.asarray(angle_deg, float))
+
+
+def box_centre(x, y, angle_deg, length, origin=(0.0, 0.0)):
+    """(cx, cy, yaw): the box centre of objects whose front bumper centre is (x, y)
+    heading SUMO ``angle_deg``, in the scene (net coordinates minus ``origin``)."""
+    yaw = yaw_of_angle(angle_deg)
+    half = 0.5 * np.asarray(length, float)
+    cx = np.asarray(x, float) - half * np.cos(yaw) - float(origin[0])
+    cy = np.asarray(y, float) - half * np.sin(yaw) - float(origin[1])
+    return cx, cy, yaw
+
+
+@dataclass
+class Motion:
+    """One object over the frames it spans: ``first`` the index (into the frame times
+    resampled at) of its first present frame; over that frame and the ones after it,
+    up to its last present one: ``present`` (F,) bool (false in a gap), ``xyz`` (F, 3)
+    the bottom centre of its box, ``yaw`` (F,) radians, continuous (unwrapped). Before
+    ``first`` and after the last it is absent."""
+    first: int
+    present: np.ndarray
+    xyz: np.ndarray
+    yaw: np.ndarray
+
+    @property
+    def stop(self):
+        return self.first + len(self.present)
+
+
+def frame_times(n_frames, fps, begin):
+    """Simulation time (s) of each of ``n_frames`` frames from ``begin``."""
+    return float(begin) + np.arange(int(n_frames)) / float(fps)
+
+
+def resample(track, length, times, step, origin=(0.0, 0.0)):
+    """``Motion`` of ``track`` (box length ``length``) at simulation ``times``
+    (increasing): linear interpolation between consecutive FCD steps, headings by the
+    shorter arc, no extrapolation (see the module doc). None when it is present at none
+    of them. Only the times within the track's span are computed."""
+    ts = np.asarray(track.times, float)
+    all_times = np.asarray(times, float)
+    lo = int(np.searchsorted(all_times, ts[0] - TIME_EPS))
+    hi = int(np.searchsorted(all_times, ts[-1] + TIME_EPS, side="right"))
+    if hi <= lo:
+        return None
+    times = all_times[lo:hi]
+    cx, cy, yaw = box_centre(track.x, track.y, track.angle, length, origin)
+    z = np.asarray(track.z, float)
+    k = np.searchsorted(ts, times - TIME_EPS)          # first sample at or after t
+    exact = (k < len(ts)) & (np.abs(ts[np.minimum(k, len(ts) - 1)] - times) <= TIME_EPS)
+    inner = (k > 0) & (k < len(ts))
+    k0, k1 = np.clip(k - 1, 0, len(ts) - 1), np.clip(k, 0, len(ts) - 1)
+    gap = ts[k1] - ts[k0]
+    between = inner & ~exact & (gap <= GAP_STEPS * step + TIME_EPS)
+    present = exact | between
+    idx = np.nonzero(present)[0]
+    if not len(idx):
+        return None
+    a0, a1 = int(idx[0]), int(idx[-1]) + 1
+    sl = slice(a0, a1)
+    present, exact, between, k0, k1 = present[sl], exact[sl], between[sl], k0[sl], k1[sl]
+    times = times[sl]
+    a = np.where(between, (times - ts[k0]) / np.where(gap[sl] > 0, gap[sl], 1.0), 0.0)
+    i0 = np.where(exact, k1, k0)
+    dyaw = (yaw[k1] - yaw[i0] + math.pi) % (2 * math.pi) - math.pi   # shorter arc
+    out_yaw = yaw[i0] + a * dyaw
+    xyz = np.column_stack([cx[i0] + a * (cx[k1] - cx[i0]), cy[i0] + a * (cy[k1] - cy[i0]),
+                           z[i0] + a * (z[k1] - z[i0])])
+    if not present.all():  # a gap: hold the last present frame before it
+        j = np.arange(len(present))
+        src = np.maximum.accumulate(np.where(present, j, 0))
+        xyz, out_yaw = xyz[src], out_yaw[src]
+    return Motion(lo + a0, present, xyz, np.unwrap(out_yaw))
+
+
+def default_vtypes_path(fcd_path):
+    """``OUT.vtypes.xml`` beside ``OUT.xml``, where ``rls traffic generate`` writes the
+    types; None when there is none."""
+    base = fcd_path[:-4] if fcd_path.lower().endswith(".xml") else fcd_path
+    path = base + ".vtypes.xml"
+    return path if os.path.isfile(path) else None
+
+
+def load(fcd_path, vtypes_paths=(), begin=None, end=None):
+    """(Fcd, {type id: VType}) of an FCD file with the vTypes of ``vtypes_paths`` (or
+    of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError."""
+    from .vtypes import read_vtypes, resolve
+
+    # steps a little outside [begin, end] are kept for the interpolation at its ends
+    fcd = read_fcd(fcd_path, None if begin is None else begin - READ_MARGIN_S,
+                   None if end is None else end + READ_MARGIN_S)
+    if not fcd.tracks:
+        raise InputError(f"{fcd_path} has no vehicle or person"
+                         + (" between --begin and --end" if begin is not None
+                            or end is not None else ""))
+    paths = list(vtypes_paths) or [p for p in [default_vtypes_path(fcd_path)] if p]
+    known = {}
+    for p in paths:
+        if not os.path.isfile(p):
+            raise InputError(f"vType file not found: {p}")
+        known.update(read_vtypes(p))
+    return fcd, resolve(fcd.types, known, fcd_path)
