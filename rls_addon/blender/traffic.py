@@ -23,6 +23,7 @@ import math
 import bpy
 import numpy as np
 
+from ..core.errors import SceneError
 from ..core.traffic.fcd import frame_times, resample
 
 COLLECTION = "SUMO Traffic"
@@ -122,6 +123,26 @@ def key_object(obj, frames, motion):
         _fill(action, obj, "location", i, f, xyz[:, i], linear)
     _fill(action, obj, "rotation_euler", 2, f, yaw, linear)
     key_presence(action, obj, frames, motion)
+
+
+def traffic_origin(scene, requested=None):
+    """The network point that lands on the scene's origin: ``requested`` (X, Y), else
+    the one the scene records (``rls_sumo_origin``: a scene built by ``rls scene
+    from-net``, or traffic imported before), else (0, 0), network coordinates. A
+    requested origin other than the recorded one is refused: the traffic would miss the
+    roads."""
+    recorded = scene.get("rls_sumo_origin")
+    recorded = None if recorded is None else (float(recorded[0]), float(recorded[1]))
+    if requested is None:
+        return recorded or (0.0, 0.0)
+    requested = (float(requested[0]), float(requested[1]))
+    if recorded is not None and max(abs(a - b) for a, b in zip(requested, recorded)) > 1e-6:
+        raise SceneError(
+            f"the scene places network point ({recorded[0]:g}, {recorded[1]:g}) at its origin "
+            f"(rls_sumo_origin, from rls scene from-net or an earlier import), not "
+            f"({requested[0]:g}, {requested[1]:g}): traffic there would miss its roads; "
+            f"leave the origin out to use the scene's")
+    return requested
 
 
 def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,

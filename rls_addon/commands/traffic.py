@@ -33,8 +33,9 @@ def add_parser(sub):
                                                   "frame (default: the FCD's first step)")
     imp.add_argument("--end", type=float, help="last simulation time (s) keyed (default: "
                                                 "the FCD's last step)")
-    imp.add_argument("--origin", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"),
-                     help="network coordinates (m) placed at the scene's origin (default 0 0)")
+    imp.add_argument("--origin", type=float, nargs=2, default=None, metavar=("X", "Y"),
+                     help="network coordinates (m) placed at the scene's origin (default: "
+                          "the scene's own, as rls scene from-net recorded it, else 0 0)")
     imp.add_argument("--overwrite", action="store_true", help="replace an existing NEW.blend")
     imp.set_defaults(func=run_import)
     gen = tsub.add_parser("generate", help="random traffic over a SUMO network, simulated")
@@ -102,12 +103,12 @@ def run_import(args):
         raise InputError(f"scene file not found: {args.blend}")
     check_out(args.blend, args.out, args.overwrite)
     fcd, types = load(args.fcd, args.vtypes, args.begin, args.end)  # before Blender
-    from ..blender.traffic import import_traffic
+    from ..blender.traffic import import_traffic, traffic_origin
     from .scan import open_scene
 
     scene = open_scene(args.blend, args.prepare_blender)
-    info = import_traffic(scene, fcd, types, origin=tuple(args.origin), begin=args.begin,
-                          end=args.end)
+    info = import_traffic(scene, fcd, types, origin=traffic_origin(scene, args.origin),
+                          begin=args.begin, end=args.end)
     save_blend_atomic(args.out)
     info["out"] = args.out
     print(json.dumps(info, indent=2))

@@ -18,13 +18,16 @@ class RLS_OT_import_sumo_traffic(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     filepath: StringProperty(subtype="FILE_PATH", description="SUMO FCD output (.xml)")
-    filter_glob: StringProperty(default="*.xml", options={"HIDDEN"})
+    filter_glob: StringProperty(default="*.xml", options={"HIDDEN"},
+                               description="Show SUMO FCD files (XML) in the file browser")
     vtypes: StringProperty(name="vTypes", subtype="FILE_PATH",
                            description="Route or additional file with the <vType>s (empty: "
                                        "FCD.vtypes.xml beside the FCD, else SUMO's built-in "
                                        "types)")
     origin: FloatVectorProperty(name="Origin", size=2, default=(0.0, 0.0), unit="LENGTH",
-                                description="Network coordinates placed at the scene's origin")
+                                description="Network coordinates placed at the scene's origin "
+                                            "(left unset: the origin the scene records, from "
+                                            "rls scene from-net, else 0, 0)")
     use_begin: BoolProperty(name="Begin", default=False,
                             description="Choose the simulation time of the first frame")
     begin: FloatProperty(name="Begin (s)", default=0.0, min=0.0,
@@ -39,7 +42,7 @@ class RLS_OT_import_sumo_traffic(bpy.types.Operator):
         return {"RUNNING_MODAL"}
 
     def execute(self, context):
-        from ..blender.traffic import import_traffic
+        from ..blender.traffic import import_traffic, traffic_origin
         from ..core.traffic.fcd import load
 
         if not self.filepath:
@@ -54,7 +57,9 @@ class RLS_OT_import_sumo_traffic(bpy.types.Operator):
             total = max(1, len(fcd.tracks))
             wm.progress_begin(0, total)
             try:
-                info = import_traffic(context.scene, fcd, types, origin=tuple(self.origin),
+                origin = traffic_origin(context.scene, tuple(self.origin)
+                                        if self.properties.is_property_set("origin") else None)
+                info = import_traffic(context.scene, fcd, types, origin=origin,
                                       begin=begin, end=end,
                                       progress=lambda done, n: wm.progress_update(done))
             finally:
