@@ -88,7 +88,8 @@ def test_driver_point_types_read_by_pcl_typed_loader(reference, pcl_reader, tmp_
         t = got[:, col["t"]]
         assert np.abs(t - np.round(time * 1e9)).max() <= 1  # uint32 ns since sweep start
         assert t.max() < 2**32 and np.count_nonzero(t) == np.count_nonzero(time) > len(ref) // 2
-        assert np.abs(got[:, col["range"]] - ref["range"] * 1000.0).max() <= 0.5 + 1e-6  # mm
+        # mm, rounded from the float64 range; the reference is float32 (0.007 mm at 120 m)
+        assert np.abs(got[:, col["range"]] - ref["range"] * 1000.0).max() <= 0.5 + 0.01
         el = elevation_by_ring(got, [col["x"], col["y"], col["z"]], col["ring"])
         assert np.all(np.diff(el) < 0), el  # 0 = top beam (ouster-ros)
     elif name == "hesai":
