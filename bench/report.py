@@ -472,6 +472,10 @@ def _others_lines(costs):
         from bench import evaluate_costs
 
         L.extend(evaluate_costs.section(costs["evaluate_costs"]))
+    if costs.get("long_runs"):
+        from bench import long_runs
+
+        L.extend(long_runs.section(costs["long_runs"]))
     if costs.get("traffic_costs"):
         from bench import traffic_costs
 

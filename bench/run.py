@@ -742,6 +742,10 @@ def measure(quick):
         costs["traffic_costs"] = traffic_costs.measure(quick)
     except SumoMissing as exc:  # the section is left out
         log(f"bench: SUMO traffic skipped: {exc}")
+    log("bench: long runs: memory, stalls, Bezier keyframes (bench/long_runs.py)")
+    from bench import long_runs
+
+    costs["long_runs"] = long_runs.measure(quick)
     info["loadavg_end"] = os.getloadavg()[0]
     return {"machine": info, "devices": dev, "triangles": tri_rows, "rays": ray_rows,
             "memory": mem, "tessellation": tess, "pattern_s": pattern_s, "hooks": hooks,

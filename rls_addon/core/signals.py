@@ -8,6 +8,7 @@ signal is noted, and raised as ``Interrupted`` when the step ends.
 """
 
 import contextlib
+import threading
 
 from .errors import Interrupted
 
@@ -16,7 +17,12 @@ _state = {"held": 0, "pending": None}
 
 @contextlib.contextmanager
 def held():
-    """Hold stop signals until the block ends (nested blocks: the outermost)."""
+    """Hold stop signals until the block ends (nested blocks: the outermost). Only the
+    main thread takes signals, so elsewhere (a background write) this holds nothing and
+    can never raise a signal there."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
     _state["held"] += 1
     try:
         yield

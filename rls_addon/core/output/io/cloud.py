@@ -24,12 +24,25 @@ def encode_cloud(points, fmt="pcd_binary", fields=None, time_dtype="float64"):
 def encode_records(records, fmt):
     """The bytes of a PCD or PLY file of packed records (any fields, e.g. a driver's
     point type)."""
+    return b"".join(record_parts(records, fmt))
+
+
+def record_parts(records, fmt):
+    """``encode_records`` as buffers to write one after another (no joined copy)."""
     check_format(fmt)
     if fmt not in _ENCODING:
         raise SettingsError(f"{fmt} files are written by the scan run's writers "
                             "(io.writer), not encode_records")
     module, encoding = _ENCODING[fmt]
-    return module.encode(records, encoding)
+    return module.encode_parts(records, encoding)
+
+
+def parts_writer(parts):
+    """A writer of ``parts`` for ``atomic_write_bytes``."""
+    def write(fh):
+        for part in parts:
+            fh.write(part)
+    return write
 
 
 def write_cloud(path, points, fmt="pcd_binary", fields=None, overwrite=False, time_dtype="float64"):
@@ -41,8 +54,8 @@ def write_cloud(path, points, fmt="pcd_binary", fields=None, overwrite=False, ti
     ``output_path`` to build one with the right extension.
     """
     path = pathlib.Path(path)
-    data = encode_cloud(points, fmt, fields, time_dtype)
-    return atomic_write_bytes(path, data, overwrite=overwrite)
+    parts = record_parts(pack(points, resolve_fields(fields), time_dtype), fmt)
+    return atomic_write_bytes(path, parts_writer(parts), overwrite=overwrite)
 
 
 def read_records(path):

@@ -51,16 +51,22 @@ def _columns(records):
 
 def encode(records, encoding):
     """Complete PCD file contents for a packed structured array."""
+    return b"".join(encode_parts(records, encoding))
+
+
+def encode_parts(records, encoding):
+    """The file's contents as buffers to write one after the other (the records of a
+    binary file as they are in memory, not copied behind the header)."""
     if encoding not in ENCODINGS:
         raise InputError(f"unknown PCD encoding {encoding!r}")
     head = header(records, encoding)
     if encoding == "ascii":
-        return head + ascii_rows(records)
+        return [head, ascii_rows(records)]
     if encoding == "binary":
-        return head + records.tobytes()
+        return [head, memoryview(np.ascontiguousarray(records)).cast("B")]
     raw, segments = _columns(records)
     packed = lzf.compress(raw, segments)
-    return head + struct.pack("<II", len(packed), len(raw)) + packed
+    return [head, struct.pack("<II", len(packed), len(raw)), packed]
 
 
 def _parse_header(blob):

@@ -34,13 +34,20 @@ def header(records, encoding):
 def encode(records, encoding):
     """Complete PLY file contents for a packed little-endian structured array; uint32
     columns whose values fit are stored as int32 (``fields.ply_records``)."""
+    return b"".join(encode_parts(records, encoding))
+
+
+def encode_parts(records, encoding):
+    """The file's contents as buffers to write one after the other (a binary file's
+    records as they are in memory, not copied behind the header)."""
     if encoding not in ENCODINGS:
         raise InputError(f"unknown PLY encoding {encoding!r}")
     records = ply_records(records)
     head = header(records, encoding)
     if encoding == "ascii":
-        return head + ascii_rows(records)
-    return head + records.tobytes()  # packed little-endian by fields.pack
+        return [head, ascii_rows(records)]
+    # packed little-endian by fields.pack
+    return [head, memoryview(np.ascontiguousarray(records)).cast("B")]
 
 
 def decode(blob):

@@ -13,7 +13,7 @@ from ...errors import OutputError, RLSError, SettingsError
 from ...labels import DEFAULT_LABELS
 from .sidecar import points_to_world
 from .atomic import atomic_write_bytes, writable_folder
-from .cloud import encode_records, read_records, write_cloud
+from .cloud import parts_writer, read_records, record_parts, write_cloud
 from .paths import output_path, sanitize_name
 from .point_types import to_point_type
 from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
@@ -203,7 +203,7 @@ class CloudWriter:
                 records = to_point_type(points, output.point_type,
                                         start_time_s=info.get("timestamp_s", 0.0),
                                         channel_elevations_deg=info.get("channel_elevations_deg"))
-                atomic_write_bytes(path, encode_records(records, output.format),
+                atomic_write_bytes(path, parts_writer(record_parts(records, output.format)),
                                    overwrite=overwrite)
                 fields = list(records.dtype.names)
             else:

@@ -1,0 +1,46 @@
+"""core.signals: a stop signal waits for the end of a held step, in the main thread;
+a background write holds nothing and never takes a signal."""
+
+import threading
+
+import pytest
+
+from rls_addon.core import signals
+from rls_addon.core.errors import Interrupted
+
+
+def test_a_signal_in_a_held_step_is_raised_when_it_ends():
+    done = []
+    with pytest.raises(Interrupted) as got:
+        with signals.held():
+            with signals.held():  # nested: the outermost decides
+                signals.deliver(15)
+                done.append("inner")
+            done.append("outer")  # the step runs to its end
+    assert done == ["inner", "outer"] and got.value.exit_code == 143
+    with pytest.raises(Interrupted):  # outside a held step: at once
+        signals.deliver(1)
+    with signals.held():  # nothing left pending from before
+        pass
+
+
+def test_a_background_thread_holds_nothing():
+    """The cloud writer writes behind the scan in a thread: its atomic writes hold, but a
+    signal arriving then (in the main thread) must stop the main thread, not be noted
+    for the writer's thread to raise."""
+    inside, release, out = threading.Event(), threading.Event(), []
+
+    def writer():
+        with signals.held():
+            inside.set()
+            release.wait(5)
+        out.append("written")
+
+    t = threading.Thread(target=writer)
+    t.start()
+    inside.wait(5)
+    with pytest.raises(Interrupted):
+        signals.deliver(15)  # the main thread holds nothing: raised here
+    release.set()
+    t.join(5)
+    assert out == ["written"]
