@@ -68,6 +68,12 @@ class BlenderScene:
         self._kept_read = (key, got) if self._keeps_reads(key[2]) else None
         return got
 
+    def timeless(self):
+        """Whether nothing in the scene changes from frame to frame (no animation,
+        driver, simulation or time-dependent modifier anywhere; never while the user
+        may edit it)."""
+        return self._keeps_reads(frozenset())
+
     def _keeps_reads(self, exclude):
         """Whether a read without the objects ``exclude`` may serve every frame."""
         if self.edited:

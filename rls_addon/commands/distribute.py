@@ -20,6 +20,7 @@ from ..core.scan.cluster import (
     cluster_client,
     parse_workers,
     piece_count,
+    run_seconds,
     run_tasks,
     shards,
     worker_memory,
@@ -60,9 +61,10 @@ def _local_cluster_possible():
         return False
 
 
-def worker_count(args, scans, rays, blend=None):
-    """The workers of a run of ``scans`` scans of ``rays`` rays in all, of the scene in
-    ``blend``: what --workers asks, capped at what this machine holds (a notice)."""
+def worker_count(args, scans, rays, blend=None, estimate=None):
+    """The workers of a run of ``scans`` scans of ``rays`` rays in all (``estimate``:
+    its serial seconds, if known better), of the scene in ``blend``: what --workers
+    asks, capped at what this machine holds (a notice)."""
     requested = parse_workers(args.workers)
     local_ok = _local_cluster_possible()
     if requested != "auto" and requested > 1 and not args.scheduler and not local_ok:
@@ -74,7 +76,7 @@ def worker_count(args, scans, rays, blend=None):
         scene_bytes = 0
     notices = []
     n = choose_workers(requested, scans, rays, args.scheduler, local_ok,
-                       worker_memory(scene_bytes, rays // max(1, scans)), notices)
+                       worker_memory(scene_bytes, rays // max(1, scans)), notices, estimate)
     for notice in notices:
         print(f"rls: notice: {notice}", file=sys.stderr, flush=True)
     return n
@@ -89,8 +91,11 @@ def _eta(done, total, t0):
 def run_scan(args, run, blend, by_sensor=True):
     """Run ``run`` (a ``core.run.ScanRun``) here or over workers, as ``--workers`` and
     ``--scheduler`` say; returns it, complete."""
-    rays = sum(len(j.preset.pattern(run.frames[0])) for j in run.sensors) * len(run.frames)
-    workers = worker_count(args, run.total, rays, blend)
+    per_scan = {j.name: len(j.preset.pattern(run.frames[0])) for j in run.sensors}
+    rays = sum(per_scan.values()) * len(run.frames)
+    still = run.still_sensors()
+    estimate = run_seconds([(len(run.frames), per_scan[n], n in still) for n in per_scan])
+    workers = worker_count(args, run.total, rays, blend, estimate)
     if workers != 1 and not run.writer.shardable:
         if args.scheduler or parse_workers(args.workers) != "auto":
             print("rls: notice: a ROS 2 bag is written by one process: running here",
@@ -109,7 +114,7 @@ def run_scan(args, run, blend, by_sensor=True):
     try:
         with cluster_client(workers, args.scheduler) as client:
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
-            pieces = run.pieces(piece_count(size, run.total, rays), by_sensor)
+            pieces = run.pieces(piece_count(size, run.total, rays, estimate), by_sensor)
             print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
                   + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
                   file=sys.stderr, flush=True)

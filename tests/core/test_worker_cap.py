@@ -57,3 +57,39 @@ def test_pieces_are_short_enough_for_progress_every_few_seconds():
             assert per_piece <= PIECE_SECONDS * 1.01
     assert piece_count(2, 10**7, 10**7 * rays_per_scan) == MAX_PIECES  # a bound on tasks
     assert piece_count(4, 3, 3 * rays_per_scan) == 3  # never more pieces than scans
+
+
+def test_auto_stays_here_for_a_still_sensor_over_a_still_scene(monkeypatch):
+    """Issue 31: 300 frames of one still Pandar64 over a scene where nothing moves
+    started two workers (5.8 s against 5.7 s in one process): its frames reuse their
+    first cast, and the model now counts them as such."""
+    monkeypatch.setattr(cluster, "cores", lambda: 2)
+    monkeypatch.setattr(cluster, "available_memory", lambda: 64 * 1024 ** 3)
+    rays = 115_200
+    still = cluster.run_seconds([(300, rays, True)])
+    moving = cluster.run_seconds([(300, rays, False)])
+    assert still < 5 < cluster.AUTO_MIN_SECONDS < moving
+    assert cluster.choose_workers("auto", 300, 300 * rays, estimate=still) == 1
+    assert cluster.choose_workers("auto", 300, 300 * rays, estimate=moving) == 2
+    # the default is the full model, as before
+    assert cluster.choose_workers("auto", 300, 300 * rays) == 2
+    assert cluster.run_seconds([(300, rays, True), (300, rays, False)]) == \
+        still + moving
+
+
+def test_still_sensors_are_those_that_cannot_move_in_a_timeless_scene():
+    from rls_addon.core.scan.run import ScanRun, SensorJob
+    from rls_addon.core.scan.settings import LidarSettings
+
+    from .fakes import numpy_factory, small_preset, street
+
+    scene, still_scene = street(), [True]
+    scene.timeless = lambda: still_scene[0]
+    scene.sensor_may_move = lambda sensor: sensor == "car"
+    jobs = [SensorJob(n, LidarSettings(), small_preset()) for n in ("pole", "car")]
+    run = ScanRun(scene, jobs, [1, 2], factory=numpy_factory)
+    assert run.still_sensors() == {"pole"}
+    still_scene[0] = False
+    assert run.still_sensors() == set()
+    del scene.timeless  # a source that cannot tell: none are counted still
+    assert run.still_sensors() == set()

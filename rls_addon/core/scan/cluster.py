@@ -46,6 +46,30 @@ SECONDS_PER_RAY = 2.5e-7
 # runs are the ones that lose most when ``auto`` wrongly stays in one process.
 
 
+# A still sensor over a scene where nothing changes casts its frame once and reuses it
+# (``ScanRun.still_sensors``): its later frames cost their points, not their rays.
+# Measured 2026-11-25 on the 2-core machine (bench/long_runs.py and `rls scan` of 300
+# frames, the sample intersection without its traffic): a VLP-16 frame (28,928 rays)
+# 3.0 ms, a Pandar64 frame (115,200 rays) 10.7 ms, both with their files; a line through
+# the two. The full model put the Pandar64's 300 frames at 24 s and started two
+# workers: 5.7 s in one process, 5.8 s on two.
+STILL_SECONDS_PER_SCAN = 0.0005
+STILL_SECONDS_PER_RAY = 9e-8
+
+
+def run_seconds(sensors):
+    """The cost model's serial seconds of a run: ``sensors`` [(scans, rays per scan,
+    still)], ``still`` for a sensor whose frames reuse their first cast."""
+    total = 0.0
+    for scans, rays, still in sensors:
+        if still:
+            total += rays * SECONDS_PER_RAY + scans * (STILL_SECONDS_PER_SCAN
+                                                       + rays * STILL_SECONDS_PER_RAY)
+        else:
+            total += scans * (SECONDS_PER_SCAN + rays * SECONDS_PER_RAY)
+    return total
+
+
 # Pieces: at least a few per worker (balance), and short enough that progress comes every
 # few seconds: a run of 1,000,000 frames in 8 pieces of 125,000 frames said nothing for
 # 10 minutes. A worker keeps its open scene and prepared structures over all the pieces
@@ -55,12 +79,13 @@ PIECE_SECONDS = 5.0
 MAX_PIECES = 20_000
 
 
-def piece_count(workers, scans, rays):
-    """How many pieces a run of ``scans`` scans (``rays`` rays in all) on ``workers``
-    workers is split into: ``PIECES_PER_WORKER`` each at least, more when the cost
-    model says a piece would take longer than ``PIECE_SECONDS``, never more than the
-    scans or ``MAX_PIECES``."""
-    estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
+def piece_count(workers, scans, rays, estimate=None):
+    """How many pieces a run of ``scans`` scans (``rays`` rays in all; or ``estimate``
+    seconds, ``run_seconds``) on ``workers`` workers is split into:
+    ``PIECES_PER_WORKER`` each at least, more when the cost model says a piece would
+    take longer than ``PIECE_SECONDS``, never more than the scans or ``MAX_PIECES``."""
+    if estimate is None:
+        estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
     n = max(workers * PIECES_PER_WORKER, math.ceil(estimate / PIECE_SECONDS))
     return int(max(1, min(n, MAX_PIECES, scans)))
 
@@ -119,11 +144,13 @@ def machine_cap(worker_bytes=WORKER_MEMORY_BYTES):
 
 
 def choose_workers(requested, scans, rays, scheduler=None, local_ok=True,
-                   worker_bytes=WORKER_MEMORY_BYTES, notices=None):
+                   worker_bytes=WORKER_MEMORY_BYTES, notices=None, estimate=None):
     """How many workers a run gets: 1 means in-process (today's run). With a scheduler
     address the cluster decides (returns 0: 'whatever the scheduler has'). A number
     beyond this machine's cores or memory (``machine_cap``, workers of ``worker_bytes``)
-    is capped, and a notice naming the cap is added to ``notices``."""
+    is capped, and a notice naming the cap is added to ``notices``. ``auto`` starts
+    workers when the run's serial seconds (``estimate``, ``run_seconds``; default: of
+    ``scans`` and ``rays`` with nothing still) reach ``AUTO_MIN_SECONDS``."""
     if scheduler:
         return 0
     if requested != "auto":
@@ -137,7 +164,8 @@ def choose_workers(requested, scans, rays, scheduler=None, local_ok=True,
     n = cores()
     if not local_ok or n < 2:
         return 1
-    estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
+    if estimate is None:
+        estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
     if estimate < AUTO_MIN_SECONDS or scans < 2 * n:
         return 1
     return int(machine_cap(worker_bytes)[0])

@@ -348,6 +348,15 @@ class ScanRun:
         for tmp in stale_temporaries(planned):
             _unlink(tmp)
 
+    def still_sensors(self):
+        """The sensors whose frames reuse their first frame's cast: those that cannot
+        move, in a scene where nothing changes (the source's ``timeless``; a source that
+        cannot tell: none). What the cost model of a run on workers counts."""
+        timeless = getattr(self.source, "timeless", None)
+        if timeless is None or not timeless():
+            return set()
+        return {j.name for j in self.sensors if not self.source.sensor_may_move(j.name)}
+
     def complete_on_disk(self):
         """How many scans of the plan have all their files, complete, now: what a run
         spread over workers has written when it stops between the pieces it has heard

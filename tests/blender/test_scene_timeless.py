@@ -1,0 +1,24 @@
+"""BlenderScene.timeless: whether nothing in a scene changes over time, which lets the
+cost model count a still LiDAR's frames as reuses of its first cast (issue 31)."""
+
+from rls_addon.blender.source import BlenderScene
+
+from .conftest import add_lidar, mesh_object
+
+
+def test_a_scene_with_nothing_animated_is_timeless_and_one_key_is_not(scene):
+    box = mesh_object("Box", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)])
+    lidar = add_lidar()
+    assert BlenderScene(scene, edited=False).timeless()
+    assert not BlenderScene(scene).timeless()  # the user may edit it: never
+    box.keyframe_insert("location", frame=1)
+    assert not BlenderScene(scene, edited=False).timeless()
+    box.animation_data_clear()
+    assert BlenderScene(scene, edited=False).timeless()
+    source = BlenderScene(scene, edited=False)
+    assert not source.sensor_may_move(lidar.name)
+    # a turning LiDAR is no geometry of the scene: the scene stays timeless, and the
+    # LiDAR is not still (ScanRun.still_sensors asks both)
+    lidar.keyframe_insert("rotation_euler", frame=1)
+    source = BlenderScene(scene, edited=False)
+    assert source.timeless() and source.sensor_may_move(lidar.name)
