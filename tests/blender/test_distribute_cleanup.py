@@ -32,7 +32,8 @@ def test_leftovers_are_removed_after_the_cluster_is_closed(monkeypatch):
     monkeypatch.setattr(distribute, "remove_temporaries", lambda run: events.append("cleanup"))
     writer = types.SimpleNamespace(shardable=True, overwrite=True, resume=False)
     run = types.SimpleNamespace(sensors=[], frames=[1], total=1, writer=writer,
-                                pieces=lambda count, by_sensor: [([], [1])])
+                                pieces=lambda count, by_sensor: [([], [1])],
+                                still_sensors=set)
     args = types.SimpleNamespace(workers="2", scheduler=None, prepare_blender=None)
     with pytest.raises(KeyboardInterrupt):
         distribute.run_scan(args, run, "scene.blend")
