@@ -465,7 +465,7 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
         for f in range(2, frames + 1):
             scene.frame_set(f)
             t = time.perf_counter()
-            _, info = scan_lidar(lidar, f, session=session, source=source)
+            res, info = scan_lidar(lidar, f, session=session, source=source)
             later.append(time.perf_counter() - t)
         PreparedScene.reuse_casts = False
         dg = bpy.context.evaluated_depsgraph_get()
@@ -497,7 +497,7 @@ def blender_section(g, pose, device="hesai_pandar64", frames=6):
             t = time.perf_counter()
             _, dinfo = scan_lidar(lidar, f, session=session, source=source)
             drive.append(time.perf_counter() - t)
-        return {"first_s": first, "later_s": min(later), "reused": info["static_cast_reused"],
+        return {"first_s": first, "later_s": min(later), "reused": res.stats["static_cast_reused"],
                 "extract_s": extract, "objects": info["objects_read"],
                 "driving_s": drive, "driving_builds": session.builds - builds,
                 "driving_moves": bool(dinfo["motion"].get("sensor_moves"))}
