@@ -296,3 +296,27 @@ def test_a_run_whose_files_will_not_fit_stops_after_its_first_scan(tmp_path, mon
            writer_kw={"resume": True}).run()
     assert len(list(tmp_path.glob("fake_pole_*.pcd"))) == 10
     assert first.scanned == 1
+
+
+def test_the_disk_budget_waits_for_files_written_behind_the_scan(tmp_path, monkeypatch):
+    """rls scan writes each scan's files on a background thread: the budget measures a
+    sensor's first scan once its files are on disk, a scan or two later."""
+    from rls_addon.core.output.io.writer import WRITES_BEHIND
+    from rls_addon.core.scan import disk_budget
+
+    scene = street()
+    run_of(scene, [job("pole", tmp_path)], [1], tmp_path).run()
+    per_scan = sum(p.stat().st_size for p in tmp_path.glob("fake_pole_000001.*"))
+    for p in tmp_path.iterdir():
+        p.unlink()
+    real = disk_budget.DiskBudget.__init__
+    monkeypatch.setattr(disk_budget.DiskBudget, "__init__", lambda self, remaining, free_=None:
+                        real(self, remaining, lambda folder: int(per_scan * 5.5)))
+    with pytest.raises(OutputError, match="will not fit"):
+        run_of(scene, [job("pole", tmp_path)], list(range(1, 31)), tmp_path,
+               writer_kw={"background": True}).run()
+    written = sorted(p.name for p in tmp_path.glob("fake_pole_*.pcd"))
+    assert 1 <= len(written) <= WRITES_BEHIND + 2, written  # stopped near the start
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    for name in written:  # each complete, with its sidecar
+        assert (tmp_path / name.replace(".pcd", ".json")).is_file()

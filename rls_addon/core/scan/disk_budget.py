@@ -24,15 +24,26 @@ class DiskBudget:
         self.free = free or (lambda folder: shutil.disk_usage(folder).free)
         self.per_device = {}  # st_dev -> bytes still to come, of the sensors measured
         self.measured = set()
+        self.waiting = []  # (sensor, files) written behind the scan, not on disk yet
 
     def written(self, sensor, files):
-        """One scan of ``sensor`` wrote ``files``; on its first, check what is to come."""
+        """One scan of ``sensor`` wrote ``files`` (or handed them to a background
+        write); on the first of a sensor whose files are complete, check what is to
+        come."""
         self.remaining[sensor] = max(0, self.remaining.get(sensor, 1) - 1)
-        if sensor in self.measured:
-            return
-        files = [f for f in map(str, files) if os.path.isfile(f)]
-        if not files:
-            return
+        if sensor not in self.measured:
+            self.waiting.append((sensor, [str(f) for f in files]))
+        still = []
+        for who, paths in self.waiting:
+            if who in self.measured:
+                continue
+            if not paths or not all(os.path.isfile(f) for f in paths):
+                still.append((who, paths))
+                continue
+            self._measure(who, paths)
+        self.waiting = [w for w in still if w[0] not in self.measured]
+
+    def _measure(self, sensor, files):
         self.measured.add(sensor)
         size = sum(os.path.getsize(f) for f in files)
         folder = os.path.dirname(os.path.abspath(files[0]))

@@ -1,0 +1,52 @@
+"""The cloud writer's background writes: in order, at most WRITES_BEHIND waiting, a
+failure raised at a later write or at flush with nothing left running behind it."""
+
+import threading
+import time
+
+import pytest
+
+from rls_addon.core.errors import OutputError
+from rls_addon.core.output.io import writer as wmod
+from rls_addon.core.output.io.writer import WRITES_BEHIND, CloudWriter
+
+
+def test_writes_behind_keep_their_order_and_their_bound(monkeypatch):
+    done, gate, most = [], threading.Event(), [0]
+    writer = CloudWriter("s", background=True)
+
+    def slow_write(path, sensor, output, points, info):
+        gate.wait(5)
+        done.append(info)
+
+    monkeypatch.setattr(writer, "_write", slow_write)
+    monkeypatch.setattr(writer, "path", lambda sensor, output, frame: f"{frame}.pcd")
+    for frame in range(WRITES_BEHIND + 3):
+        if frame == WRITES_BEHIND:
+            threading.Timer(0.2, gate.set).start()  # the writer thread gets going
+        writer.write("lidar", None, frame, None, frame)
+        most[0] = max(most[0], len(writer._pending))
+    writer.flush()
+    assert done == list(range(WRITES_BEHIND + 3)) and most[0] <= WRITES_BEHIND
+    assert not writer._pending
+
+
+def test_a_failed_write_is_raised_later_and_stops_the_rest(monkeypatch):
+    writer = CloudWriter("s", background=True)
+    ran = []
+
+    def write(path, sensor, output, points, info):
+        ran.append(info)
+        time.sleep(0.01)
+        if info == 2:
+            raise OutputError("disk full while writing 2.pcd")
+
+    monkeypatch.setattr(writer, "_write", write)
+    monkeypatch.setattr(writer, "path", lambda sensor, output, frame: f"{frame}.pcd")
+    with pytest.raises(OutputError, match="2.pcd"):
+        for frame in range(20):
+            writer.write("lidar", None, frame, None, frame)
+        writer.flush()
+    assert not writer._pending  # nothing left running behind the error
+    assert ran[:3] == [0, 1, 2] and len(ran) <= 3 + WRITES_BEHIND
+    assert wmod.WRITES_BEHIND >= 2
