@@ -369,9 +369,20 @@ class _Aim:
             dirs = pattern.rotated(rot)
             if beam is not None:
                 origins = origins + beam @ rot.T
+        elif sensor_track.is_rigid:
+            # Turning without scale or shear: each ray turned by the rotation at its own
+            # firing time, by the track's turn within its knot interval (``Track.rotate``,
+            # no matrix per time: with every channel at its own time, a matrix and its
+            # polar decomposition per ray cost 240 ms a Pandar64 frame).
+            times, at = distinct_times(tscene)
+            poses = sensor_track.positions_at(times)
+            origins = poses[at]
+            dirs = sensor_track.rotate(tscene, dirs_sensor)
+            if beam is not None:
+                origins = origins + sensor_track.rotate(tscene, beam)
         else:
-            # One pose per distinct firing time (the channels of a firing share it): a
-            # spinning lidar has 64 to 128 times fewer poses to take apart than rays.
+            # One pose per distinct firing time (the channels of a firing share it, where
+            # the device fires them together), scale and shear taken apart.
             times, at = distinct_times(tscene)
             poses, rots = sensor_axes(sensor_track.at(times))
             origins = poses[at]

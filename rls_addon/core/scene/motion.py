@@ -138,6 +138,62 @@ class Track:
         return cls(np.zeros(1), np.asarray(matrix, np.float64)[None])
 
     @property
+    def is_rigid(self):
+        """Unit scale and no shear at every knot, to the float32 precision of Blender's
+        matrices (1e-5): its rotation at any time is its slerped quaternion, and the
+        polar decomposition of ``at`` gives that back."""
+        if getattr(self, "_rigid", None) is None:
+            self._rigid = bool(np.abs(self._scale - np.eye(3)).max() <= 1e-5)
+        return self._rigid
+
+    def rotate(self, t, vectors):
+        """(N, 3) ``R(t_i) v_i``: each vector turned by the track's rotation at its own
+        time, for a rigid track (``is_rigid``), without a matrix per time. Within a
+        knot interval the slerp from q0 to q1 is q0 followed by a turn about one fixed
+        axis by the fraction of the interval's angle, applied to each vector by
+        Rodrigues' formula; then the interval's first rotation. Equal to
+        ``sensor_axes(self.at(t))[1] @ v`` to rounding (tested), at a tenth of the
+        cost for a spinning lidar whose every channel fires at its own time."""
+        v = np.asarray(vectors, np.float64).reshape(-1, 3)
+        if len(self.times) == 1 or self.is_static:
+            return v @ matrix_from_quat(self._quat[0]).T
+        i, a, _ = self._segments(t)
+        axes, angles, starts = self._turns()
+        out = np.empty_like(v)
+        for seg in np.unique(i):  # a few knot intervals a sweep: one axis and start each
+            sel = np.nonzero(i == seg)[0] if len(axes) > 1 else slice(None)
+            kx, ky, kz = axes[seg]
+            phi = angles[seg] * a[sel]
+            c, s = np.cos(phi), np.sin(phi)
+            vx, vy, vz = v[sel, 0], v[sel, 1], v[sel, 2]
+            kv = (kx * vx + ky * vy + kz * vz) * (1.0 - c)
+            turned = np.empty((len(phi), 3))
+            turned[:, 0] = vx * c + (ky * vz - kz * vy) * s + kx * kv
+            turned[:, 1] = vy * c + (kz * vx - kx * vz) * s + ky * kv
+            turned[:, 2] = vz * c + (kx * vy - ky * vx) * s + kz * kv
+            out[sel] = turned @ starts[seg].T
+        return out
+
+    def _turns(self):
+        """Per knot interval: the unit axis and angle of the turn from its first
+        rotation to its last (q0* q1), and its first rotation matrix."""
+        if getattr(self, "_turn_cache", None) is None:
+            q0, q1 = self._quat[:-1], self._quat[1:]
+            w0, x0, y0, z0 = q0.T
+            w1, x1, y1, z1 = q1.T
+            rel = np.stack([w0 * w1 + x0 * x1 + y0 * y1 + z0 * z1,   # conj(q0) * q1
+                            w0 * x1 - x0 * w1 - y0 * z1 + z0 * y1,
+                            w0 * y1 + x0 * z1 - y0 * w1 - z0 * x1,
+                            w0 * z1 - x0 * y1 + y0 * x1 - z0 * w1], 1)
+            rel[rel[:, 0] < 0] *= -1.0  # the shorter way, as slerp takes it
+            sine = np.linalg.norm(rel[:, 1:], axis=1)
+            angle = 2.0 * np.arctan2(sine, rel[:, 0])
+            axis = np.where(sine[:, None] > 0, rel[:, 1:] / np.where(sine > 0, sine, 1.0)[:, None],
+                            np.array([1.0, 0.0, 0.0]))
+            self._turn_cache = (axis, angle, matrix_from_quat(q0))
+        return self._turn_cache
+
+    @property
     def is_static(self):
         return bool(np.all(self.matrices == self.matrices[0]))
 
