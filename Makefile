@@ -9,7 +9,7 @@
 #                        (builds only the Linux zip it installs)
 #     make test-cli      python -m rls_addon in subprocesses, as users run it
 #     make test-fast     the core and Blender tiers without the tests marked slow, on
-#                        every core (under a minute here)
+#                        every core (about a minute here)
 #   make build   build and validate one zip per platform with Blender's tooling:
 #                dist/rls_addon-<version>-{linux_x64,windows_x64,macos_arm64,macos_x64}.zip
 #                (docs/platforms.md); the compiled loop is cross-compiled with Zig
