@@ -57,3 +57,22 @@ def test_blenders_float32_matrices_take_the_fast_way_and_agree():
     v = np.random.default_rng(0).normal(size=(3000, 3))
     want = np.einsum("nij,nj->ni", sensor_axes(track.at(times))[1], v)
     np.testing.assert_allclose(track.rotate(times, v), want, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_positions_by_interval_are_the_positions_gathered_per_time(seed):
+    """Track._hermite broadcasts each interval's knots to its many times: the same
+    arithmetic as gathering them per time, so the same bytes."""
+    from rls_addon.core.scene.motion import hermite
+
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 12))
+    t = np.sort(rng.uniform(0, 0.1, n))
+    t[0] = 0.0
+    m = np.repeat(np.eye(4)[None], n, 0)
+    m[:, :3, 3] = rng.normal(size=(n, 3))
+    track = Track(t, m)
+    q = rng.uniform(-0.01, 0.11, 20000)
+    i, a, span = track._segments(q)
+    p, v = track.matrices[:, :3, 3], track.velocities
+    assert np.array_equal(track.positions_at(q), hermite(p[i], v[i], p[i + 1], v[i + 1], a, span))

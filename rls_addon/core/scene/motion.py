@@ -287,7 +287,17 @@ class Track:
         (exact for constant velocity, O(dt^4) for smooth motion: far fewer samples than
         linear interpolation for eased keyframes)."""
         p, v = self.matrices[:, :3, 3], self.velocities
-        return hermite(p[i], v[i], p[i + 1], v[i + 1], a, span)
+        segments = np.unique(i)
+        if len(segments) * 64 > len(i):
+            return hermite(p[i], v[i], p[i + 1], v[i + 1], a, span)
+        # few intervals, many times (a ray per firing time): each interval's knots
+        # broadcast instead of gathered per time; the same arithmetic, the same bytes
+        out = np.empty((len(i), 3))
+        for seg in segments:
+            sel = np.nonzero(i == seg)[0]
+            out[sel] = hermite(p[seg][None], v[seg][None], p[seg + 1][None], v[seg + 1][None],
+                               a[sel], span[sel])
+        return out
 
     def max_displacement(self, points):
         """Largest distance any of ``points`` (local coordinates) travels between the
