@@ -14,7 +14,7 @@ from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from .csv_cells import finite_number
+from .csv_cells import commented_rows, finite_number
 from ..errors import PresetError
 
 MAX_TABLE_BYTES = 1_000_000
@@ -85,21 +85,10 @@ def read_angle_table(path, where=None):
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise PresetError(f"{where}: cannot read angle table ({exc})") from None
-    source = note = ""
+    rows, source, note = commented_rows(text)
     header = None
     ids, els, azs, origins = [], [], [], []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        if line.startswith("#"):
-            body = line[1:].strip()
-            if body.startswith("source:"):
-                source = body[len("source:"):].strip()
-            elif body.startswith("note:"):
-                note = body[len("note:"):].strip()
-            continue
-        cells = [c.strip() for c in line.split(",")]
+    for lineno, line, cells in rows:
         if header is None:
             header = cells
             if header[:2] != ["channel", "elevation_deg"] or \

@@ -16,7 +16,7 @@ start of its cycle, and must fire within the cycle.
 from dataclasses import dataclass
 from pathlib import Path
 
-from .csv_cells import finite_number
+from .csv_cells import commented_rows, finite_number
 from ..errors import PresetError
 
 MAX_FIRING_BYTES = 200_000
@@ -50,22 +50,11 @@ def read_firing_times(path, channel_ids, where=None):
         text = path.read_text(encoding="utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise PresetError(f"{where}: cannot read firing-time file ({exc})") from None
-    source = note = ""
+    rows, source, note = commented_rows(text)
     header = None
     known = set(channel_ids)
     times, lines = {}, {}
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        if line.startswith("#"):
-            body = line[1:].strip()
-            if body.startswith("source:"):
-                source = body[len("source:"):].strip()
-            elif body.startswith("note:"):
-                note = body[len("note:"):].strip()
-            continue
-        cells = [c.strip() for c in line.split(",")]
+    for lineno, line, cells in rows:
         if header is None:
             if cells != HEADER:
                 raise PresetError(f"{where} line {lineno}: header must be "
