@@ -13,8 +13,6 @@ Targets: footprints <= 1.3x, fog <= 1.2x the clear thin-ray frame.
     .venv/bin/python -m bench.effect_costs [--quick]     (prints JSON, then markdown)
 """
 
-import argparse
-import json
 import os
 import sys
 import time
@@ -23,6 +21,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+from bench import standalone  # noqa: E402 - after the path above
 
 PRESETS = ("velodyne_hdl64e", "livox_mid40")
 CASES = {
@@ -126,14 +126,9 @@ def section(res):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="a smaller street, 3 repeats")
-    args = ap.parse_args(argv)
-    res = measure(args.quick)
-    print(json.dumps(res, indent=2))
-    print("\n".join(section(res)))
-    return 0
+    return standalone.main(__doc__, measure, section, argv,
+                           quick_help="a smaller street, 3 repeats")
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

@@ -14,7 +14,6 @@ Target: detecting and scoring a frame cost no more than twice scanning it.
     .venv/bin/python -m bench.evaluate_costs [--quick]     (prints JSON, then markdown)
 """
 
-import argparse
 import json
 import os
 import statistics
@@ -27,6 +26,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+from bench import standalone  # noqa: E402 - after the path above
 
 TARGET = 2.0
 MOUNT = r"""
@@ -121,12 +122,8 @@ def section(r):
     ]
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    r = measure(ap.parse_args().quick)
-    print(json.dumps(r, indent=1, default=float))
-    print("\n".join(section(r)))
+def main(argv=None):
+    return standalone.main(__doc__, measure, section, argv)
 
 
 if __name__ == "__main__":

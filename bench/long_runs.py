@@ -25,13 +25,14 @@ Targets: memory growth under 5 MB after warm-up (the first 100 frames), no frame
     .venv/bin/python -m bench.long_runs [--quick]      (prints JSON, then markdown)
 """
 
-import argparse
 import json
 import os
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+from bench import standalone
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -41,7 +42,6 @@ sys.path.insert(0, {root!r})
 import bpy, numpy as np
 import rls_addon
 rls_addon.register()
-from rls_addon.blender.quiet import blender_output_silenced
 
 case, frames, interp, out = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -225,12 +225,8 @@ def section(r):
     ]
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true")
-    r = measure(ap.parse_args().quick)
-    print(json.dumps(r, indent=1))
-    print("\n".join(section(r)))
+def main(argv=None):
+    return standalone.main(__doc__, measure, section, argv)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,6 @@ Run alone: ``python bench/study_costs.py [--quick]`` (prints JSON with the load 
 """
 
 import gc
-import json
 import os
 import sys
 import time
@@ -34,6 +33,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
+
+from bench import standalone  # noqa: E402 - after the path above
 
 REGION = np.array([(-20.0, -20.0), (20.0, -20.0), (20.0, 20.0), (-20.0, 20.0)])
 
@@ -301,10 +302,7 @@ def section(res):
 
 
 def main(argv=None):
-    out = measure("--quick" in (argv if argv is not None else sys.argv[1:]))
-    print(json.dumps(out, indent=2))
-    print("\n".join(section(out)))
-    return out
+    return standalone.main(__doc__, measure, section, argv)
 
 
 if __name__ == "__main__":
