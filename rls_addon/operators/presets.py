@@ -112,6 +112,14 @@ class RLS_OT_preset_save(bpy.types.Operator):
         return {"FINISHED"}
 
 
+def _use_new_preset(context, preset):
+    """After an import: the preset lists re-read, and the active LiDAR (if any) on it."""
+    properties.refresh_preset_items()
+    obj = _active_lidar(context)
+    if obj is not None:
+        lidar_props(obj).preset_id = preset.id
+
+
 class RLS_OT_preset_import(bpy.types.Operator):
     """Import a device preset file (.toml): it is validated, never executed, and stored
     in the user preset folder"""
@@ -137,10 +145,7 @@ class RLS_OT_preset_import(bpy.types.Operator):
             p = import_preset(self.filepath, preset_catalog.user_dir(), overwrite=self.overwrite)
         except RLSError as exc:
             return cancelled(self, exc)
-        properties.refresh_preset_items()
-        obj = _active_lidar(context)
-        if obj is not None:
-            lidar_props(obj).preset_id = p.id
+        _use_new_preset(context, p)
         self.report({"INFO"}, f"Imported preset '{p.id}' ({p.name})")
         return {"FINISHED"}
 
@@ -195,10 +200,7 @@ class RLS_OT_preset_import_calibration(bpy.types.Operator):
                                    overwrite=self.overwrite)
         except RLSError as exc:
             return cancelled(self, exc)
-        properties.refresh_preset_items()
-        obj = _active_lidar(context)
-        if obj is not None:
-            lidar_props(obj).preset_id = p.id
+        _use_new_preset(context, p)
         self.report({"INFO"}, f"Imported calibration as preset '{p.id}' ({p.name})")
         return {"FINISHED"}
 
