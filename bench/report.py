@@ -2,6 +2,7 @@
 measures; ``python bench/run.py --from-json`` rewrites these from a saved run):
 ``docs/benchmarks.md`` a section per function, the scaling and tessellation charts."""
 
+import importlib
 from pathlib import Path
 
 def chart_tessellation(rows, path, device):
@@ -460,30 +461,11 @@ def _others_lines(costs):
         from bench import frame_costs
 
         L.extend(frame_costs.report_lines(costs["frame_costs"]))
-    if costs.get("effect_costs"):
-        from bench import effect_costs
-
-        L.extend(effect_costs.section(costs["effect_costs"]))
-    if costs.get("study_costs"):
-        from bench import study_costs
-
-        L.extend(study_costs.section(costs["study_costs"]))
-    if costs.get("evaluate_costs"):
-        from bench import evaluate_costs
-
-        L.extend(evaluate_costs.section(costs["evaluate_costs"]))
-    if costs.get("long_runs"):
-        from bench import long_runs
-
-        L.extend(long_runs.section(costs["long_runs"]))
-    if costs.get("traffic_costs"):
-        from bench import traffic_costs
-
-        L.extend(traffic_costs.section(costs["traffic_costs"]))
-    if costs.get("scale_out"):
-        from bench import scale_out
-
-        L.extend(scale_out.section(costs["scale_out"]))
+    # each module's own section, in the report's order (the key is the module's name)
+    for name in ("effect_costs", "study_costs", "evaluate_costs", "long_runs",
+                 "traffic_costs", "scale_out"):
+        if costs.get(name):
+            L.extend(importlib.import_module(f"bench.{name}").section(costs[name]))
     return L
 
 
