@@ -104,10 +104,28 @@ def atomic_write_bytes(path, data, overwrite=False):
 
 def _atomic_write_bytes(path, data, overwrite):
     path = pathlib.Path(path)
+    _check_target(path, overwrite)
+    tmp = _temporary(path, data)
+    try:
+        _place(tmp, path, overwrite)
+    except BaseException:
+        _unlink_quietly(tmp)
+        raise
+    return path
+
+
+def _check_target(path, overwrite):
+    """Refuse a directory in the way, or an existing file without ``overwrite``."""
     if path.is_dir():
         raise OutputError(f"cannot write {path}: it is a directory")
     if path.exists() and not overwrite:
         raise _exists_error(path)
+
+
+def _temporary(path, data):
+    """The temporary of a write of ``path`` (beside it), holding ``data`` (bytes-like,
+    or a callable taking a binary file), synced and readable by all; it is removed
+    again if anything fails on the way."""
     ensure_directory(path.parent)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TEMPORARY_MARK}",
@@ -123,21 +141,33 @@ def _atomic_write_bytes(path, data, overwrite):
             fh.flush()
             os.fsync(fh.fileno())
         os.chmod(tmp, 0o644)  # mkstemp makes 0600; clouds are meant to be shared
+    except BaseException as exc:
+        _unlink_quietly(tmp)
+        if isinstance(exc, OSError):
+            raise _oserror(path, exc) from None
+        raise
+    return tmp
+
+
+def _place(tmp, path, overwrite):
+    """The complete temporary ``tmp`` takes its name ``path`` (without ``overwrite``,
+    never over a file that appeared meanwhile)."""
+    try:
         if overwrite:
             os.replace(tmp, path)
         else:
             _link_no_clobber(tmp, path)
-    except BaseException as exc:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        if isinstance(exc, FileExistsError):
-            raise _exists_error(path) from None
-        if isinstance(exc, OSError):
-            raise _oserror(path, exc) from None
-        raise
-    return path
+    except FileExistsError:
+        raise _exists_error(path) from None
+    except OSError as exc:
+        raise _oserror(path, exc) from None
+
+
+def _unlink_quietly(path):
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
 
 
 def atomic_write_files(files, overwrite=False):
@@ -152,51 +182,20 @@ def atomic_write_files(files, overwrite=False):
 def _atomic_write_files(files, overwrite):
     paths = [pathlib.Path(p) for p in files]
     for path in paths:
-        if path.is_dir():
-            raise OutputError(f"cannot write {path}: it is a directory")
-        if path.exists() and not overwrite:
-            raise _exists_error(path)
+        _check_target(path, overwrite)
     temporaries, placed = [], []
     try:
         for path, data in zip(paths, files.values()):
-            ensure_directory(path.parent)
-            try:
-                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}{TEMPORARY_MARK}",
-                                           suffix=TEMPORARY_SUFFIX, dir=path.parent)
-            except OSError as exc:
-                raise _oserror(path, exc) from None
-            temporaries.append(tmp)
-            try:
-                with os.fdopen(fd, "wb") as fh:
-                    fh.write(data)
-                    fh.flush()
-                    os.fsync(fh.fileno())
-                os.chmod(tmp, 0o644)
-            except OSError as exc:
-                raise _oserror(path, exc) from None
+            temporaries.append(_temporary(path, data))
         for path, tmp in zip(paths, temporaries):
-            try:
-                if overwrite:
-                    os.replace(tmp, path)
-                else:
-                    _link_no_clobber(tmp, path)
-            except FileExistsError:
-                raise _exists_error(path) from None
-            except OSError as exc:
-                raise _oserror(path, exc) from None
+            _place(tmp, path, overwrite)
             placed.append(path)
     except BaseException:
         for tmp in temporaries:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
+            _unlink_quietly(tmp)
         if not overwrite:  # what this call placed did not exist before it
             for path in placed:
-                try:
-                    os.unlink(path)
-                except FileNotFoundError:
-                    pass
+                _unlink_quietly(path)
         raise
     return paths
 
