@@ -88,17 +88,28 @@ def world_points(path):
     return points_to_world(pts, info, path) if info else pts
 
 
-def cloud_names(paths):
-    """A short name per cloud: its sidecar's sensor (device, frame) or the file's stem."""
+def _label_sidecar(path):
+    """A cloud's sidecar for labelling a chart, or {} when it has none or it is
+    unreadable (the chart then names the file)."""
     from ..core.output.io import read_sidecar
 
+    try:
+        return read_sidecar(path) or {}
+    except (InputError, OSError, ValueError):
+        return {}
+
+
+def _sensor_name(path, info):
+    """The sidecar's sensor, else the file's stem."""
+    return str(info.get("sensor") or os.path.splitext(os.path.basename(str(path)))[0])
+
+
+def cloud_names(paths):
+    """A short name per cloud: its sidecar's sensor (device, frame) or the file's stem."""
     names = []
     for path in paths:
-        try:
-            info = read_sidecar(path) or {}
-        except (InputError, OSError, ValueError):
-            info = {}
-        name = str(info.get("sensor") or os.path.splitext(os.path.basename(str(path)))[0])
+        info = _label_sidecar(path)
+        name = _sensor_name(path, info)
         device = info.get("device", {}).get("name") if isinstance(info.get("device"), dict) else None
         frame = info.get("frame") if isinstance(info.get("frame"), int) else None
         more = ", ".join(x for x in (device, None if frame is None else f"frame {frame}") if x)
@@ -112,14 +123,9 @@ def sensor_markers(paths):
     and the way its +X axis pointed. Clouds without a sidecar or pose add nothing."""
     import numpy as np
 
-    from ..core.output.io import read_sidecar
-
     markers = {}
     for path in paths:
-        try:
-            info = read_sidecar(path) or {}
-        except (InputError, OSError, ValueError):
-            continue
+        info = _label_sidecar(path)
         pose = info.get("sensor_pose_start", info.get("sensor_to_world"))
         try:
             m = np.asarray(pose, dtype=np.float64)
@@ -127,7 +133,7 @@ def sensor_markers(paths):
             continue
         if m.shape != (4, 4) or not np.all(np.isfinite(m)):
             continue
-        name = str(info.get("sensor") or os.path.splitext(os.path.basename(str(path)))[0])
+        name = _sensor_name(path, info)
         forward = m[:2, 0]
         heading = (float(np.degrees(np.arctan2(forward[1], forward[0])))
                    if np.hypot(*forward) > 1e-9 else None)  # pointing straight up or down
