@@ -244,8 +244,7 @@ def _facing(rays, centre, idx):
     to /= np.maximum(np.linalg.norm(to, axis=1, keepdims=True), 1e-12)
     dots = np.einsum("ij,ij->i", np.broadcast_to(to, dirs.shape), dirs)
     k = int(np.argmax(dots))
-    whole = np.arange(len(rays.dirs))[idx] if not isinstance(idx, slice) else None
-    return (int(whole[k]) if whole is not None else k), float(dots[k])
+    return (k if isinstance(idx, slice) else int(idx[k])), float(dots[k])
 
 
 class RayFan:
