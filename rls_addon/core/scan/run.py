@@ -222,12 +222,17 @@ class ScanRun:
 
     def _disk_budget(self):
         """The run's ``DiskBudget``: per sensor, the scans whose files are not there yet
-        (a --resume keeps the others)."""
+        (a --resume keeps the others, an --overwrite replaces them in place; without
+        either, ``free_outputs`` made sure none is there: no file is looked at again)."""
         from .disk_budget import DiskBudget
 
         remaining = {}
-        for frame, job, files in self._planned():
-            if not all(os.path.isfile(p) for p in files):
+        if getattr(self.writer, "resume", False) or getattr(self.writer, "overwrite", False):
+            for _, job, files in self._planned():
+                if not all(os.path.isfile(p) for p in files):
+                    remaining[job.name] = remaining.get(job.name, 0) + 1
+        else:
+            for _, job in self.plan:
                 remaining[job.name] = remaining.get(job.name, 0) + 1
         return DiskBudget(remaining)
 
