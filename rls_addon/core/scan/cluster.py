@@ -57,6 +57,12 @@ STILL_SECONDS_PER_SCAN = 0.0005
 STILL_SECONDS_PER_RAY = 9e-8
 
 
+def model_seconds(scans, rays):
+    """The cost model's serial seconds of ``scans`` scans of ``rays`` rays in all,
+    none of them still."""
+    return scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
+
+
 def run_seconds(sensors):
     """The cost model's serial seconds of a run: ``sensors`` [(scans, rays per scan,
     still)], ``still`` for a sensor whose frames reuse their first cast."""
@@ -85,7 +91,7 @@ def piece_count(workers, scans, rays, estimate=None):
     ``PIECES_PER_WORKER`` each at least, more when the cost model says a piece would
     take longer than ``PIECE_SECONDS``, never more than the scans or ``MAX_PIECES``."""
     if estimate is None:
-        estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
+        estimate = model_seconds(scans, rays)
     n = max(workers * PIECES_PER_WORKER, math.ceil(estimate / PIECE_SECONDS))
     return int(max(1, min(n, MAX_PIECES, scans)))
 
@@ -165,7 +171,7 @@ def choose_workers(requested, scans, rays, scheduler=None, local_ok=True,
     if not local_ok or n < 2:
         return 1
     if estimate is None:
-        estimate = scans * SECONDS_PER_SCAN + rays * SECONDS_PER_RAY
+        estimate = model_seconds(scans, rays)
     if estimate < AUTO_MIN_SECONDS or scans < 2 * n:
         return 1
     return int(machine_cap(worker_bytes)[0])
