@@ -298,15 +298,12 @@ def cost_model(dataset_summary, study_summary, traffic_frames):
     study_rays = len(get_preset(STUDY[STUDY.index("--device") + 1]).pattern()) * study_scans
     study_s = study_summary["timing_s"]["scan_s"]
 
-    def model(n, r):
-        return n * cluster.SECONDS_PER_SCAN + r * cluster.SECONDS_PER_RAY
-
     return {"dataset": {"scans": scans, "rays": rays, "run_s": run_s, "scan_s": scan_s,
                         "per_scan_s": (run_s - scan_s) / scans, "per_ray_s": scan_s / rays,
-                        "model_s": model(scans, rays)},
+                        "model_s": cluster.model_seconds(scans, rays)},
             "study": {"scans": study_scans, "rays": study_rays, "run_s": study_s,
                       "per_scan_s": study_s / study_scans, "per_ray_s": study_s / study_rays,
-                      "model_s": model(study_scans, study_rays)},
+                      "model_s": cluster.model_seconds(study_scans, study_rays)},
             "constants": {"SECONDS_PER_SCAN": cluster.SECONDS_PER_SCAN,
                           "SECONDS_PER_RAY": cluster.SECONDS_PER_RAY,
                           "AUTO_MIN_SECONDS": cluster.AUTO_MIN_SECONDS}}
