@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from .xml_errors import parse_reason
 
 # A step of an object counts as consecutive with the next when they are at most this
 # many FCD periods apart (SUMO writes every step, or every --device.fcd.period).
@@ -66,11 +67,6 @@ class Fcd:
     @property
     def types(self):
         return {t.type for t in self.tracks.values()}
-
-
-def _line_of(exc):
-    pos = getattr(exc, "position", None)
-    return pos[0] if pos else "?"
 
 
 _ROOT_TAG = re.compile(rb"<([A-Za-z_][\w.:-]*)")
@@ -112,7 +108,7 @@ def read_fcd(path, begin=None, end=None):
             el.clear()
     except ET.ParseError as exc:
         raise InputError(f"{path} is not complete, well-formed XML (cut short or not "
-                         f"FCD): {str(exc).split(':')[0]} at line {_line_of(exc)}") from None
+                         f"FCD): {parse_reason(exc)}") from None
     except OSError as exc:
         raise InputError(f"cannot read FCD file {path}: {exc.strerror or exc}") from None
     if not steps:

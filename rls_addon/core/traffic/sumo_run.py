@@ -31,6 +31,7 @@ import xml.etree.ElementTree as ET
 
 from ..errors import InputError, RLSError
 from ..output.io.atomic import atomic_write_bytes
+from .xml_errors import parse_reason
 
 
 class SumoMissing(RLSError):
@@ -112,8 +113,8 @@ def has_sidewalks(net):
             if el.tag in ("edge", "junction", "connection"):
                 el.clear()
     except ET.ParseError as exc:
-        raise InputError(f"{net} is not a readable SUMO network: {str(exc).split(':')[0]} "
-                         f"at line {exc.position[0]}") from None
+        raise InputError(f"{net} is not a readable SUMO network: {parse_reason(exc)}") \
+            from None
     except OSError as exc:
         raise InputError(f"cannot read network {net}: {exc.strerror or exc}") from None
     return False

@@ -20,6 +20,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from ..errors import InputError
+from .xml_errors import parse_reason
 
 # vClass -> (length, width, height) in metres (SUMO 1.28 source, see the module doc).
 VCLASS_DEFAULTS = {
@@ -122,17 +123,11 @@ def read_vtypes(path):
             elif el.tag in ("vehicle", "trip", "flow", "person", "route"):
                 el.clear()
     except ET.ParseError as exc:
-        raise InputError(f"{path} is not a readable SUMO XML file: {_parse_reason(exc)}") \
+        raise InputError(f"{path} is not a readable SUMO XML file: {parse_reason(exc)}") \
             from None
     except OSError as exc:
         raise InputError(f"cannot read vType file {path}: {exc.strerror or exc}") from None
     return out
-
-
-def _parse_reason(exc):
-    line = exc.position[0] if getattr(exc, "position", None) else "?"
-    text = str(exc).split(":")[0]
-    return f"{text} at line {line}"
 
 
 def resolve(type_ids, vtypes, source="the FCD"):
