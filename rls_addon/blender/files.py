@@ -1,11 +1,13 @@
-"""Opening .blend files for the command line, with errors a user can act on."""
+"""Opening and saving .blend files for the command line, with errors a user can act
+on."""
 
 import os
 import sys
 
 import bpy
 
-from ..core.errors import SceneError
+from ..core.errors import OutputError, SceneError
+from ..core.output.io.atomic import temporary_name
 from .quiet import blender_output_silenced
 
 
@@ -33,3 +35,37 @@ def newer_file_warning(path, file_version, app_file_version):
             f"{'.'.join(map(str, file_version))}), newer than this Blender "
             f"{bpy.app.version_string}: data it added may be lost or misread; run RLS in "
             f"Blender {file_version[0]}.{file_version[1]} or later (or its bpy module)")
+
+
+def save_blend(path, overwrite=False):
+    """Write the current file to ``path`` all at once: a temporary in the same folder,
+    then a rename (without ``overwrite``, refused when ``path`` exists)."""
+    path = os.path.abspath(os.fspath(path))
+    folder = os.path.dirname(path)
+    if os.path.isdir(path):
+        raise OutputError(f"cannot write {path}: it is a directory")
+    if os.path.exists(path) and not overwrite:
+        raise OutputError(f"{path} already exists; pass --overwrite to replace it")
+    if not os.path.isdir(folder):
+        raise OutputError(f"cannot write {path}: folder {folder} does not exist")
+    tmp = os.path.join(folder, temporary_name(os.path.basename(path), os.urandom(6).hex()))
+    try:
+        with blender_output_silenced():
+            bpy.ops.wm.save_as_mainfile(filepath=tmp, compress=True, copy=True)
+        if not os.path.isfile(tmp):
+            raise OutputError(f"Blender did not write {path}")
+        if overwrite:
+            os.replace(tmp, path)
+        else:
+            try:
+                os.link(tmp, path)
+            except FileExistsError:
+                raise OutputError(f"{path} already exists; pass --overwrite to "
+                                  "replace it") from None
+            os.unlink(tmp)
+    except RuntimeError as exc:
+        raise OutputError(f"cannot write {path}: {str(exc).strip()}") from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path

@@ -20,18 +20,14 @@ Objects (labels from their collections, see ``core/labels.py``):
 * ``InfraLOB`` (collection Regions): ``rls_infralob``, over the junction.
 """
 
-import os
 
 import bpy
 import numpy as np
 from mathutils import Vector
 from mathutils.geometry import delaunay_2d_cdt
 
-from ..core.errors import OutputError
 from ..core.metrics.polygon import points_in_polygon
-from ..core.output.io.atomic import temporary_name
 from ..core.roads.layout import KERB_M, KINDS
-from .quiet import blender_output_silenced
 from .scenes.build import collection, infralob, material, mount_pole, standard_materials
 
 POLE_HEIGHT_M = 6.0
@@ -171,37 +167,3 @@ def build_roads(scene, layout, progress=None):
             "region": [round(float(v), 3) for v in layout.region], "mounts": mounts,
             "objects": sorted(made), "triangles": int(len(tris)),
             "pieces": {k: layout.count(k) for k in KINDS}}
-
-
-def save_blend(path, overwrite=False):
-    """Write the current file to ``path`` all at once: a temporary in the same folder,
-    then a rename (without ``overwrite``, refused when ``path`` exists)."""
-    path = os.path.abspath(os.fspath(path))
-    folder = os.path.dirname(path)
-    if os.path.isdir(path):
-        raise OutputError(f"cannot write {path}: it is a directory")
-    if os.path.exists(path) and not overwrite:
-        raise OutputError(f"{path} already exists; pass --overwrite to replace it")
-    if not os.path.isdir(folder):
-        raise OutputError(f"cannot write {path}: folder {folder} does not exist")
-    tmp = os.path.join(folder, temporary_name(os.path.basename(path), os.urandom(6).hex()))
-    try:
-        with blender_output_silenced():
-            bpy.ops.wm.save_as_mainfile(filepath=tmp, compress=True, copy=True)
-        if not os.path.isfile(tmp):
-            raise OutputError(f"Blender did not write {path}")
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            try:
-                os.link(tmp, path)
-            except FileExistsError:
-                raise OutputError(f"{path} already exists; pass --overwrite to "
-                                  "replace it") from None
-            os.unlink(tmp)
-    except RuntimeError as exc:
-        raise OutputError(f"cannot write {path}: {str(exc).strip()}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path

@@ -55,7 +55,8 @@ def run(args):
 
     import bpy
 
-    from ..blender.roads import build_roads, save_blend
+    from ..blender.files import save_blend
+    from ..blender.roads import build_roads
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     args.prepare_blender()

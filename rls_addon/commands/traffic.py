@@ -75,27 +75,6 @@ def check_out(scene_path, out, overwrite):
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
 
 
-def save_blend_atomic(path):
-    """Save the open file as a copy at ``path``, through a temporary in the same folder."""
-    import bpy
-
-    from ..blender.quiet import blender_output_silenced
-    from ..core.output.io.atomic import ensure_directory
-
-    path = os.path.abspath(path)
-    ensure_directory(os.path.dirname(path))
-    tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.rls-save.blend")
-    try:
-        with blender_output_silenced():
-            bpy.ops.wm.save_as_mainfile(filepath=tmp, copy=True, compress=True)
-        os.replace(tmp, path)
-    except RuntimeError as exc:
-        raise OutputError(f"cannot save {path}: {str(exc).strip()}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 def run_import(args):
     from ..core.traffic.fcd import load
 
@@ -109,7 +88,11 @@ def run_import(args):
     scene = open_scene(args.blend, args.prepare_blender)
     info = import_traffic(scene, fcd, types, origin=traffic_origin(scene, args.origin),
                           begin=args.begin, end=args.end)
-    save_blend_atomic(args.out)
+    from ..blender.files import save_blend
+    from ..core.output.io.atomic import ensure_directory
+
+    ensure_directory(os.path.dirname(os.path.abspath(args.out)))
+    save_blend(args.out, overwrite=args.overwrite)
     info["out"] = args.out
     print(json.dumps(info, indent=2))
     return 0

@@ -79,7 +79,8 @@ def lane_union(net_path):
 
 
 def written_scene(folder, net, **kw):
-    from rls_addon.blender.roads import build_roads, save_blend
+    from rls_addon.blender.files import save_blend
+    from rls_addon.blender.roads import build_roads
 
     layout = build_layout(read_network(net), **kw)
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -154,7 +155,7 @@ def test_written_scene_covers_the_lanes(tmp_path, scene, which):
 
 
 def test_save_refuses_an_existing_file(tmp_path, scene):
-    from rls_addon.blender.roads import save_blend
+    from rls_addon.blender.files import save_blend
 
     path = tmp_path / "s.blend"
     path.write_bytes(b"keep")
