@@ -8,6 +8,7 @@ import bpy
 
 from ..core.errors import OutputError, SceneError
 from ..core.output.io.atomic import temporary_name
+from ..core.signals import held
 from .quiet import blender_output_silenced
 
 
@@ -17,7 +18,7 @@ def open_blend(path, error=SceneError):
     if not os.path.isfile(path):
         raise error(f"scene file not found: {path}")
     try:
-        with blender_output_silenced():
+        with held(), blender_output_silenced():  # a stop signal waits for the file
             bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
     except RuntimeError as exc:
         raise error(f"cannot open scene {path}: {str(exc).strip()}") from None

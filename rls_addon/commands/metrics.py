@@ -66,12 +66,15 @@ def polygon_from_blend(spec):
     path, sep, name = spec.rpartition(":")
     if not sep or not path or not name:
         raise InputError(f"--lob expects SCENE.blend:OBJECT, got {spec!r}")
-    import bpy  # only here: everything else in this command works without Blender
+    from ..core.signals import held
 
-    from ..blender.files import open_blend
-    from ..blender.region import lob_polygon_world
+    with held():  # a stop signal waits for Blender to be loaded (as in open_scene)
+        import bpy  # only here: everything else in this command works without Blender
 
-    open_blend(path, error=InputError)
+        from ..blender.files import open_blend
+        from ..blender.region import lob_polygon_world
+
+        open_blend(path, error=InputError)
     obj = bpy.data.objects.get(name)
     if obj is None:
         raise RegionError(f"no object named {name!r} in {path}")
