@@ -13,7 +13,7 @@ from pathlib import Path
 from . import schema as sch
 from .angle_tables import ORIGIN_COLUMNS
 from .calibration_files import FORMATS, read_calibration
-from .presets import get_preset, load_preset, spinning_beam_origins
+from .presets import channel_count, get_preset, load_preset, spinning_beam_origins
 from .user_presets import dumps_preset, preset_to_dict, refuse_builtin_id
 from ..errors import OutputError, PresetError
 from ..output.io.atomic import atomic_write_bytes
@@ -22,15 +22,6 @@ from ..output.io.atomic import atomic_write_bytes
 ANGLE_KEYS = ("table", "elevations_deg", "azimuth_offsets_deg", "table_source", "table_note",
               "channels", "upper_fov_deg", "lower_fov_deg", "azimuth_convention")
 MAX_SOURCE = 4000
-
-
-def channel_count(preset):
-    s = preset.scan
-    if preset.table is not None:
-        return len(preset.table.elevations_deg)
-    if "elevations_deg" in s:
-        return len(s["elevations_deg"])
-    return int(s.get("channels", 0))
 
 
 def check_base(base, cal, where):
@@ -43,7 +34,7 @@ def check_base(base, cal, where):
         raise PresetError(f"{where}: the file is a {FORMATS[cal.format]}, but base preset "
                           f"'{base.id}' is a {vendor or 'generic'} device; choose a "
                           f"{cal.vendor} base")
-    want, got = channel_count(base), len(cal.elevations_deg)
+    want, got = channel_count(base.scan, base.table), len(cal.elevations_deg)
     if want != got:
         raise PresetError(f"{where}: the file has {got} channels, base preset '{base.id}' "
                           f"has {want}; choose the base of the same model")

@@ -127,7 +127,8 @@ def spinning_elevations_offsets(preset):
     return el, off
 
 
-def _channel_count(s, table):
+def channel_count(s, table):
+    """Channels of a spinning ``[scan]`` ``s`` with its resolved angle ``table``."""
     if table is not None:
         return len(table.elevations_deg)
     return len(s["elevations_deg"]) if "elevations_deg" in s else int(s["channels"])
@@ -270,7 +271,7 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
             offsets = firing.offsets_us(table.channel_ids, zero)
         rays = sch.check_spinning(scan, sw, freq, None if table is None else len(table.elevations_deg),
                                   offsets)
-        sch.check_beam_origins(scan, sw, _channel_count(scan, table),
+        sch.check_beam_origins(scan, sw, channel_count(scan, table),
                                table is not None and table.origins_m is not None)
     elif family == "mems":
         rays = sch.check_mems(scan, sw, freq)
@@ -422,5 +423,5 @@ __all__ = [
     "FAMILIES", "RangeModel", "DropoutModel", "DevicePreset", "ScanPattern", "preset_from_dict",
     "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "readable_presets_in",
     "get_preset", "pattern_span", "spinning_elevations_offsets", "spinning_beam_origins",
-    "custom_pattern_path",
+    "custom_pattern_path", "channel_count",
 ]
