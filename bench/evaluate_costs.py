@@ -15,7 +15,6 @@ Target: detecting and scoring a frame cost no more than twice scanning it.
 """
 
 import json
-import os
 import statistics
 import subprocess
 import sys
@@ -28,6 +27,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from bench import standalone  # noqa: E402 - after the path above
+from bench.commands import rls  # noqa: E402
 
 TARGET = 2.0
 MOUNT = r"""
@@ -52,16 +52,6 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 """
 
 
-def _rls(*args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    t = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "rls_addon", *map(str, args)], env=env,
-                          capture_output=True, text=True, timeout=3600)
-    if proc.returncode != 0:
-        raise RuntimeError(f"rls {args[0]} failed: {proc.stderr[-2000:]}")
-    return proc, time.perf_counter() - t
-
-
 def measure(quick=False):
     from rls_addon.core.evaluate.detect_dataset import detect_datasets
     from rls_addon.core.evaluate.ground_truth_files import read_ground_truth
@@ -73,19 +63,20 @@ def measure(quick=False):
         blend = tmp / "intersection.blend"
         subprocess.run([sys.executable, "-c", MOUNT, str(ROOT), str(blend)], check=True,
                        capture_output=True, timeout=300)
-        proc, _ = _rls("scan", blend, "--frames", frames, "--out", tmp / "scan",
-                       "--workers", "1")
-        scan_s = [o["seconds"] for o in json.loads(proc.stdout)["outputs"]][1:]  # warm
-        _rls("dataset", blend, "--layout", "kitti", "--frames", frames, "--out", tmp / "ds")
+        scanned, _ = rls("scan", blend, "--frames", frames, "--out", tmp / "scan",
+                         "--workers", "1", timeout=3600)
+        scan_s = [o["seconds"] for o in scanned["outputs"]][1:]  # warm
+        rls("dataset", blend, "--layout", "kitti", "--frames", frames, "--out", tmp / "ds",
+            timeout=3600)
         root = tmp / "ds" / "L_TL_SW"
         boxes, done, timing = detect_datasets([root])
         truth = read_ground_truth(root)
         t = time.perf_counter()
         res = score(truth, boxes, min_points=5)
         score_s = (time.perf_counter() - t) / len(done)
-        _, study_s = _rls("study", blend, "--device", "hesai_pandar64", "--k", "1,2",
-                          "--pitch", "15", "--evaluate", "1-60:4", "--out", tmp / "study",
-                          "--workers", "1")
+        _, study_s = rls("study", blend, "--device", "hesai_pandar64", "--k", "1,2",
+                         "--pitch", "15", "--evaluate", "1-60:4", "--out", tmp / "study",
+                         "--workers", "1", timeout=3600)
         report = json.loads((tmp / "study" / "study.json").read_text())
     scan = statistics.median(scan_s)
     detect = statistics.median(timing["detect_s"])

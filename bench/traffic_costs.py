@@ -12,8 +12,6 @@ one lane each way), no pedestrians, ``--rate 1200`` vehicles per hour, seed 1.
     .venv/bin/python -m bench.traffic_costs [--quick]     (prints JSON, then markdown)
 """
 
-import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -25,6 +23,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from bench import standalone  # noqa: E402 - after the path above
+from bench.commands import rls  # noqa: E402
 
 EMPTY = r"""
 import sys, bpy
@@ -32,16 +31,6 @@ bpy.ops.wm.read_factory_settings(use_empty=True)
 bpy.context.scene.render.fps = 10
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[1])
 """
-
-
-def _rls(*args):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
-    t = time.perf_counter()
-    proc = subprocess.run([sys.executable, "-m", "rls_addon", *map(str, args)], env=env,
-                          capture_output=True, text=True, timeout=7200)
-    if proc.returncode != 0:
-        raise RuntimeError(f"rls {args[0]} failed: {proc.stderr[-2000:]}")
-    return json.loads(proc.stdout[proc.stdout.index("{"):]), time.perf_counter() - t
 
 
 def measure(quick=False):
@@ -59,14 +48,14 @@ def measure(quick=False):
         subprocess.run([sys.executable, "-c", EMPTY, str(blend)], check=True,
                        capture_output=True, timeout=300)
         fcd = tmp / "hour.xml"
-        gen, gen_s = _rls("traffic", "generate", net, "--duration", duration, "--rate", rate,
+        gen, gen_s = rls("traffic", "generate", net, "--duration", duration, "--rate", rate,
                           "--seed", 1, "--pedestrians", "no", "--out", fcd)
         t = time.perf_counter()
         data, _ = load(str(fcd))
         read_s = time.perf_counter() - t
         samples = sum(len(tr.times) for tr in data.tracks.values())
         del data
-        imp, import_s = _rls("traffic", "import", blend, "--fcd", fcd, "--out",
+        imp, import_s = rls("traffic", "import", blend, "--fcd", fcd, "--out",
                              tmp / "hour.blend")
         size_mb = fcd.stat().st_size / 1e6
     return {"duration_s": duration, "rate_veh_h": rate, "vehicles": imp["vehicle"]
