@@ -106,7 +106,7 @@ def test_install_zip_and_scan_through_installed_operator(tmp_path):
     assert embree["notice"] is None and embree["name"] == "embree", embree
     assert embree["mode"] == "packets", embree
     assert "C loop" in embree["describe"], embree  # the compiled loop shipped in the zip
-    # What the LiDAR panel says under its backend choice (ui.py).
+    # What the LiDAR panel says under its backend choice (ui/lidar.py).
     assert embree["status"][0] == "embree", embree
     assert embree["status"][1].startswith("Embree with the compiled loop"), embree
     assert abs(embree["dist"][0] - 2.0) < 1e-5 and embree["tri"] == [0, -1], embree

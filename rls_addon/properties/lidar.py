@@ -1,5 +1,5 @@
-"""Blender properties: one ``PropertyGroup`` per LiDAR object (``Object.rls_lidar``) and
-one per scene (``Scene.rls``: InfraLOB metric settings and the last results).
+"""The LiDAR's properties: one ``PropertyGroup`` per LiDAR object (``Object.rls_lidar``),
+with the device preset list its enums show.
 
 Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
 ``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
@@ -12,15 +12,13 @@ from bpy.props import (
     EnumProperty,
     FloatProperty,
     IntProperty,
-    PointerProperty,
     StringProperty,
 )
 
-from .blender import preset_catalog
-from .blender.preview import COLOR_ATTRIBUTES
-from .blender.region import is_lob
-from .blender.sensor import DEFAULT_PRESET
-from .core.choices import (
+from ..blender import preset_catalog
+from ..blender.preview import COLOR_ATTRIBUTES
+from ..blender.sensor import DEFAULT_PRESET
+from ..core.choices import (
     BACKENDS,
     DETECTION,
     FIELDS,
@@ -32,10 +30,10 @@ from .core.choices import (
     SNOW_TYPES,
     WEATHER,
 )
-from .core.errors import RLSError
-from .core.output.io import DEFAULT_FIELDS
-from .core.output.io.point_types import POINT_TYPE_CHOICES
-from .core.labels import DEFAULT_LABELS, label_id
+from ..core.errors import RLSError
+from ..core.output.io import DEFAULT_FIELDS
+from ..core.output.io.point_types import POINT_TYPE_CHOICES
+from ..core.labels import DEFAULT_LABELS, label_id
 
 COLOR_ITEMS = [(a, a.title(), f"Colour preview points by {a}") for a in COLOR_ATTRIBUTES]
 
@@ -110,7 +108,7 @@ def _update_fov(self, context):
     obj = self.id_data
     if not isinstance(obj, bpy.types.Object) or not self.is_lidar:
         return
-    from .blender import fov
+    from ..blender import fov
 
     if not self.show_fov:
         fov.remove_fov(obj)
@@ -269,62 +267,3 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
                                 description="Attribute the preview points are coloured by")
     label: EnumProperty(name="Semantic Label", items=LABEL_ITEMS, get=_get_label, set=_set_label,
                         description="The object's rls_label property: the class its points get")
-
-
-def _lob_poll(self, obj):
-    return is_lob(obj)
-
-
-class RLS_SceneSettings(bpy.types.PropertyGroup):
-    frame_start: IntProperty(name="Start", default=1, description="First frame to scan")
-    frame_end: IntProperty(name="End", default=10, description="Last frame to scan")
-    frame_step: IntProperty(name="Step", default=1, min=1, description="Scan every Nth frame")
-    use_scene_range: BoolProperty(name="Scene Frame Range", default=True,
-                                  description="Scan the scene's frame range")
-    range_all_lidars: BoolProperty(name="All LiDARs", default=False,
-                                   description="Scan the frame range with every LiDAR in the scene")
-    lob: PointerProperty(name="InfraLOB", type=bpy.types.Object, poll=_lob_poll,
-                         description="Region of interest for the placement metrics")
-    metric_labels: StringProperty(name="Labels", default="road,sidewalk",
-                                  description="Labels of the points counted (names or ids, comma separated)")
-    metric_disks: IntProperty(name="Disks", default=6000, min=1, soft_max=50000,
-                              description="Random disks for InfraNUC")
-    metric_radius: FloatProperty(name="Disk Radius", default=0.7, min=0.01, unit="LENGTH",
-                                 description="Radius of the InfraNUC disks")
-    metric_cell: FloatProperty(name="Map Cell", default=1.0, min=0.05, unit="LENGTH",
-                               description="Cell size of the density map")
-    metric_seed: IntProperty(name="Seed", default=0, min=0,
-                             description="Seed of the random disk placement")
-    # results of the last rls.compute_metrics (draw() only shows them)
-    has_metrics: BoolProperty(default=False, options={"HIDDEN"},
-                              description="Metrics have been computed (results below)")
-    infra_d: FloatProperty(name="InfraD", default=0.0, precision=3,
-                           description="Points per square metre in the InfraLOB")
-    infra_nuc: FloatProperty(name="InfraNUC", default=0.0, precision=4,
-                             description="Non-uniformity: standard deviation of normalised disk counts")
-    metric_points: IntProperty(name="Points", default=0,
-                               description="Points counted in the InfraLOB")
-    metric_area: FloatProperty(name="Area", default=0.0, unit="AREA",
-                               description="Area of the InfraLOB")
-    metric_lob_name: StringProperty(name="Region", default="",
-                                    description="The InfraLOB the metrics were computed over")
-    metric_sensors: StringProperty(name="Sensors", default="",
-                                   description="The LiDARs whose points were counted")
-    metric_image: PointerProperty(name="Density Map", type=bpy.types.Image,
-                                  description="Image of points per square metre in the InfraLOB")
-
-
-CLASSES = (RLS_LidarSettings, RLS_SceneSettings)
-
-
-def register_properties():
-    bpy.types.Object.rls_lidar = PointerProperty(type=RLS_LidarSettings)
-    bpy.types.Scene.rls = PointerProperty(type=RLS_SceneSettings)
-
-
-def unregister_properties():
-    del bpy.types.Scene.rls
-    del bpy.types.Object.rls_lidar
-    _ITEMS["presets"] = []
-    _ITEMS["old"].clear()
-    preset_catalog.clear()

@@ -1,74 +1,14 @@
-"""Panels and menus. ``draw()`` only lays out properties and cached data: no scanning, no
-file I/O, no preset loading (the preset list is an in-memory catalog refreshed by the
-preset operators)."""
-
-import textwrap
+"""The LiDAR panel (Object properties) and its sub-panels, and the device preset popover
+in its header."""
 
 import bpy
 
-from .blender import preset_catalog
-from .blender.extract import GEOMETRY_TYPES
-from .blender.region import is_lob
-from .blender.sensor import is_lidar, lidar_objects
-from .core.casting import backend_status
-from .core.device.presets import FAMILIES
-from .properties import lidar_mode_items
+from ..blender import preset_catalog
+from ..blender.sensor import is_lidar
+from ..core.casting import backend_status
+from ..properties import lidar_mode_items
+from .common import FAMILY_ICONS, wrapped
 
-FAMILY_ICONS = {"spinning": "LIGHTPROBE_SPHERE", "mems": "LIGHTPROBE_PLANE",
-                "risley": "LIGHTPROBE_VOLUME", "custom": "FILE_TEXT"}
-
-
-def _wrapped(layout, text, width=48):
-    col = layout.column(align=True)
-    for line in textwrap.wrap(text, width) or [""]:
-        col.label(text=line)
-
-
-# ---- Add menu ----------------------------------------------------------------------------
-
-def _family_menu(family):
-    def draw(self, context):
-        layout = self.layout
-        layout.operator_context = "EXEC_REGION_WIN"
-        for e in preset_catalog.catalog():
-            if e.family == family:
-                op = layout.operator("object.rls_add_lidar", text=e.name,
-                                     icon="NONE" if e.builtin else "USER")
-                op.preset = e.id
-
-    return type(f"VIEW3D_MT_rls_add_{family}", (bpy.types.Menu,), {
-        "bl_idname": f"VIEW3D_MT_rls_add_{family}",
-        "bl_label": preset_catalog.FAMILY_LABELS[family],
-        "bl_description": f"Add a {preset_catalog.FAMILY_LABELS[family]} LiDAR",
-        "draw": draw,
-    })
-
-
-FAMILY_MENUS = tuple(_family_menu(f) for f in FAMILIES)
-
-
-class VIEW3D_MT_rls_add(bpy.types.Menu):
-    """Add a LiDAR sensor with a device preset, or an InfraLOB region"""
-
-    bl_idname = "VIEW3D_MT_rls_add"
-    bl_label = "LiDAR"
-
-    def draw(self, context):
-        layout = self.layout
-        present = {e.family for e in preset_catalog.catalog()}
-        for fam, menu in zip(FAMILIES, FAMILY_MENUS):
-            if fam in present:
-                layout.menu(menu.bl_idname, icon=FAMILY_ICONS[fam])
-        layout.separator()
-        layout.operator("object.rls_add_infralob", icon="MESH_PLANE")
-        layout.operator("rls.import_sumo_traffic", icon="AUTO")
-
-
-def draw_add_menu(self, context):
-    self.layout.menu(VIEW3D_MT_rls_add.bl_idname, icon="LIGHTPROBE_SPHERE")
-
-
-# ---- device preset popover (in the LiDAR panel's header) ------------------------------------
 
 class RLS_PT_device_presets(bpy.types.Panel):
     """Device presets: built-in (read-only) and user presets, all validated TOML data"""
@@ -137,7 +77,7 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
             kind = "built-in" if e.builtin else "user preset"
             box.label(text=f"{preset_catalog.FAMILY_LABELS.get(e.family, e.family)}, {kind}",
                       icon="INFO")
-            _wrapped(box, f"Source: {e.source}")
+            wrapped(box, f"Source: {e.source}")
         row = layout.row(heading="Field of View")
         row.prop(s, "show_fov", text="")
         sub = row.row()
@@ -271,93 +211,3 @@ class OBJECT_PT_rls_lidar_preview(_LidarPanel, bpy.types.Panel):
         layout.prop(s, "preview_color")
         layout.operator("rls.preview_color", icon="COLOR").attribute = s.preview_color
         layout.label(text="Colours show in Material Preview and Rendered shading", icon="INFO")
-
-
-def draw_metrics(layout, context):
-    """The InfraLOB metric settings and the stored results (never computed here)."""
-    layout.use_property_split = True
-    layout.use_property_decorate = False
-    rs = context.scene.rls
-    layout.prop(rs, "lob")
-    col = layout.column(align=True)
-    col.prop(rs, "metric_labels")
-    col.prop(rs, "metric_disks")
-    col.prop(rs, "metric_radius")
-    col.prop(rs, "metric_cell")
-    col.prop(rs, "metric_seed")
-    layout.operator("rls.compute_metrics", icon="GRAPH")
-    if not rs.has_metrics:
-        return
-    box = layout.box()
-    box.label(text=f"{rs.metric_lob_name}: {rs.metric_points} points from {rs.metric_sensors}")
-    grid = box.grid_flow(columns=2, align=True)
-    grid.label(text="InfraD")
-    grid.label(text=f"{rs.infra_d:.3f} pts/m²")
-    grid.label(text="InfraNUC")
-    grid.label(text=f"{rs.infra_nuc:.4f}")
-    grid.label(text="Area")
-    grid.label(text=f"{rs.metric_area:.1f} m²")
-    if rs.metric_image is not None:
-        box.template_icon(icon_value=layout.icon(rs.metric_image), scale=10.0)
-        box.label(text=f"Density map: image '{rs.metric_image.name}' (north up)")
-
-
-class OBJECT_PT_rls_lidar_metrics(_LidarPanel, bpy.types.Panel):
-    bl_label = "InfraLOB Metrics"
-    bl_parent_id = "OBJECT_PT_rls_lidar"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    def draw(self, context):
-        draw_metrics(self.layout, context)
-
-
-class OBJECT_PT_rls_infralob(bpy.types.Panel):
-    bl_label = "InfraLOB"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
-    bl_context = "object"
-
-    @classmethod
-    def poll(cls, context):
-        return context.object is not None and is_lob(context.object)
-
-    def draw(self, context):
-        n = len(lidar_objects(context.scene))
-        self.layout.label(text=f"Region of interest for {n} LiDAR(s) in the scene", icon="INFO")
-        draw_metrics(self.layout, context)
-
-
-class OBJECT_PT_rls_label(bpy.types.Panel):
-    """The semantic label this object's LiDAR points get"""
-
-    bl_label = "LiDAR Label"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
-    bl_context = "object"
-    bl_options = {"DEFAULT_CLOSED"}
-
-    @classmethod
-    def poll(cls, context):
-        obj = context.object
-        return (obj is not None and obj.type in GEOMETRY_TYPES and not is_lob(obj)
-                and not obj.get("rls_preview") and not obj.get("rls_fov"))
-
-    def draw(self, context):
-        layout = self.layout
-        layout.use_property_split = True
-        layout.use_property_decorate = False
-        layout.prop(context.object.rls_lidar, "label")
-
-
-CLASSES = FAMILY_MENUS + (
-    VIEW3D_MT_rls_add,
-    RLS_PT_device_presets,
-    OBJECT_PT_rls_lidar,
-    OBJECT_PT_rls_lidar_range,
-    OBJECT_PT_rls_lidar_motion,
-    OBJECT_PT_rls_lidar_output,
-    OBJECT_PT_rls_lidar_preview,
-    OBJECT_PT_rls_lidar_metrics,
-    OBJECT_PT_rls_infralob,
-    OBJECT_PT_rls_label,
-)
