@@ -51,13 +51,16 @@ COLOURS = {"car": (0.55, 0.06, 0.05), "van": (0.8, 0.8, 0.78), "truck": (0.15, 0
 
 def profile_mesh(name, shape, size):
     """A mesh: ``shape``'s profile scaled to ``size`` (length, width, height), extruded
-    across the width; its bounds are exactly [-L/2, L/2] x [-W/2, W/2] x [0, H]."""
+    across the width; its bounds are exactly [-L/2, L/2] x [-W/2, W/2] x [0, H]. Its
+    faces are wound so their normals point out of the solid (positive signed volume):
+    a profile is counter-clockwise seen from -y, so the side at -y keeps its order, the
+    side at +y is reversed, and each band runs from the +y side to the -y side."""
     L, W, H = map(float, size)
     prof = PROFILES[shape]
     n = len(prof)
     verts = [(x * L, side * W / 2, z * H) for side in (-1.0, 1.0) for x, z in prof]
-    faces = [list(range(n))[::-1], list(range(n, 2 * n))]
-    faces += [[i, (i + 1) % n, n + (i + 1) % n, n + i] for i in range(n)]
+    faces = [list(range(n)), list(range(n, 2 * n))[::-1]]
+    faces += [[n + i, n + (i + 1) % n, (i + 1) % n, i] for i in range(n)]
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(verts, [], faces)
     mesh.update()

@@ -1,0 +1,88 @@
+"""The SUMO scene pipeline without surprises (issue #37): what ``rls traffic import``
+makes, checked in Blender on small hand-written FCD files (no SUMO run needed)."""
+
+import numpy as np
+import pytest
+
+from .conftest import add_lidar, bpy, ground
+
+from rls_addon.blender.traffic import PROFILES, import_traffic, profile_mesh  # noqa: E402
+from rls_addon.core.labels import label_id  # noqa: E402
+from rls_addon.core.traffic.fcd import load  # noqa: E402
+
+
+def signed_volume(mesh):
+    """The mesh's signed volume (divergence theorem over its polygons, fanned into
+    triangles): positive when every face's normal points out of the solid."""
+    co = np.array([v.co[:] for v in mesh.vertices], dtype=np.float64)
+    vol = 0.0
+    for poly in mesh.polygons:
+        idx = list(poly.vertices)
+        a = co[idx[0]]
+        for i in range(1, len(idx) - 1):
+            vol += np.dot(a, np.cross(co[idx[i]], co[idx[i + 1]])) / 6.0
+    return vol
+
+
+@pytest.mark.parametrize("shape", sorted(PROFILES))
+def test_every_traffic_mesh_has_outward_normals(scene, shape):
+    """Positive signed volume, equal to the profile's area x the width (the profile is
+    extruded across the width); every face's normal points away from the box's
+    inside along the axis it faces."""
+    size = (4.0, 2.0, 1.5)
+    mesh = profile_mesh(f"m {shape}", shape, size)
+    prof = np.array(PROFILES[shape]) * (size[0], size[2])
+    x, z = prof[:, 0], prof[:, 1]
+    area = 0.5 * abs(np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1)))
+    assert signed_volume(mesh) == pytest.approx(area * size[1], rel=1e-6)
+    centre = np.array([0.0, 0.0, size[2] / 2])
+    for poly in mesh.polygons:
+        n = np.array(poly.normal[:])
+        c = np.array(poly.center[:])
+        if abs(n[1]) > 0.99:  # the two side faces
+            assert np.sign(n[1]) == np.sign(c[1])
+    mesh.validate()
+
+
+FCD_ONE_BUS = """<?xml version="1.0" encoding="UTF-8"?>
+<fcd-export>
+    <timestep time="0.00">
+        <vehicle id="bus0" x="16.00" y="0.00" angle="90.00" type="DEFAULT_BUS" speed="0.00" pos="16.00" lane="a_0" slope="0.00"/>
+    </timestep>
+    <timestep time="0.10">
+        <vehicle id="bus0" x="16.00" y="0.00" angle="90.00" type="DEFAULT_BUS" speed="0.00" pos="16.00" lane="a_0" slope="0.00"/>
+    </timestep>
+</fcd-export>
+"""
+VTYPES_BUS = """<additional>
+    <vType id="DEFAULT_BUS" vClass="bus"/>
+</additional>
+"""
+
+
+def test_a_lidar_beside_an_imported_bus_is_not_inside_it(scene, tmp_path):
+    """A LiDAR 6 m from a standing bus sees its outside: no 'the sensor is inside'
+    warning (with inward faces, every hit on the bus was on a back face)."""
+    from rls_addon.blender.sensor import read_settings, sensor_job
+    from rls_addon.blender.source import BlenderScene
+    from rls_addon.core.casting import caster_factory
+    from rls_addon.core.scan.session import ScanSession
+
+    fcd_path = tmp_path / "bus.xml"
+    fcd_path.write_text(FCD_ONE_BUS)
+    (tmp_path / "bus.vtypes.xml").write_text(VTYPES_BUS)
+    scene.render.fps = 10
+    ground(60.0)
+    fcd, types = load(str(fcd_path))
+    import_traffic(scene, fcd, types)
+    lidar = add_lidar(location=(0.0, 0.0, 2.0))
+    scene.frame_set(scene.frame_start)
+    job = sensor_job(lidar, read_settings(lidar))
+    session = ScanSession(caster_factory("bvhtree")[0])
+    result, _ = session.scan(BlenderScene(scene), lidar.name, job.preset, job.settings.scan,
+                             scene.frame_start)
+    bus = bpy.data.objects["vehicle bus0"]
+    assert bus.data.name  # imported
+    on_bus = np.count_nonzero(result.points["label"] == label_id("vehicle"))
+    assert on_bus > 200  # the warning's test is meaningful: many hits on the bus
+    assert not [w for w in result.warnings if "inside" in w], result.warnings
