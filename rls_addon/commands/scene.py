@@ -62,6 +62,8 @@ def run(args):
     args.prepare_blender()
     _say(f"{len(net.lanes)} lanes, {len(net.junctions)} junctions read in {t_read:.2f} s; "
          f"junction {layout.junction.id}")
+    for notice in layout.notices:
+        _say(notice)
     info = build_roads(bpy.context.scene, layout, progress=_say)
     _say(f"writing {out}")
     save_blend(out, overwrite=args.overwrite)

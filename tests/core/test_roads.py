@@ -216,3 +216,28 @@ def test_sumolib_missing(monkeypatch, grid):
     monkeypatch.setitem(sys.modules, "sumolib.net", None)
     with pytest.raises(InputError, match="pip install sumolib"):
         read_network(grid)
+
+
+def outside_region(xy, region):
+    """How far (m) ``xy`` lies outside the box ``region`` (x0, x1, y0, y1); 0 inside."""
+    x0, x1, y0, y1 = region
+    return float(np.hypot(max(x0 - xy[0], 0.0, xy[0] - x1), max(y0 - xy[1], 0.0, xy[1] - y1)))
+
+
+def test_poles_stand_at_the_chosen_junction_only(tmp_path):
+    """On the OSM fixture, junctions '1' and '6' have a gap between two roads that runs
+    along a road (its two ways diverge): the search along that bisector found no clear
+    ground and put a pole 68-73 m away, at the far end of the road. Every pole of every
+    junction is now within MOUNT_REACH_M (15 m) of the InfraLOB, and a gap with no
+    clear ground within reach gets no pole and a notice naming it."""
+    net = read_network(osm_net(tmp_path))
+    told = 0
+    for j in net.junctions:
+        lay = build_layout(net, j.id)
+        for m in lay.mounts:
+            assert outside_region(m.xy, lay.region) <= 15.0, (j.id, m.name, m.xy)
+        told += sum(f"junction {j.id}" in n and "no pole" in n for n in lay.notices)
+    lay1 = build_layout(net, "1")
+    assert len(lay1.mounts) >= 4  # the four real corners keep their poles
+    assert all(m.on_sidewalk for m in lay1.mounts)
+    assert told >= 2

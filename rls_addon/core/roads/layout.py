@@ -17,10 +17,12 @@ Conventions (docs/roads.md):
 * the mounts: one per gap between the roads that meet at the junction (roads within
   ``SAME_ROAD_DEG`` of each other are one), on the gap's bisector from the junction's
   centre, ``POLE_CLEARANCE_M`` beyond the last road or crossing surface; on a sidewalk
-  when the network has one there.
+  when the network has one there. A pole stands at most ``MOUNT_REACH_M`` outside the
+  InfraLOB: where the bisector finds no clear ground that near (it runs along a road
+  whose two ways diverge, say), that gap gets no pole and a notice says so.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -36,6 +38,7 @@ MIN_GAP_DEG = 30.0
 POLE_CLEARANCE_M = 1.0
 POLE_STEP_M = 0.25
 POLE_SEARCH_M = 80.0
+MOUNT_REACH_M = 15.0     # no pole farther than this outside the InfraLOB
 ORIGINS = ("net", "junction")
 LIST_IDS = 8
 
@@ -55,6 +58,7 @@ class RoadLayout:
     region: tuple         # (x0, x1, y0, y1) in the scene's frame
     mounts: list          # Mount, scene frame
     net_offset: tuple
+    notices: list = field(default_factory=list)  # what a user should hear (stderr)
 
     def count(self, kind):
         return sum(p.kind == kind for p in self.pieces)
@@ -111,9 +115,10 @@ def build_layout(net, junction_id=None, origin="net"):
     shape = (j.shape if len(j.shape) >= 3 else j.centre[None, :]) - o
     lo, hi = shape.min(axis=0) - REGION_MARGIN_M, shape.max(axis=0) + REGION_MARGIN_M
     region = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
-    mounts = corner_mounts(j, pieces, j.centre - o)
+    notices = []
+    mounts = corner_mounts(j, pieces, j.centre - o, region, notices)
     return RoadLayout(pieces=pieces, junction=j, origin=o, region=region, mounts=mounts,
-                      net_offset=net.net_offset)
+                      net_offset=net.net_offset, notices=notices)
 
 
 def _inside(points, pieces):
@@ -151,24 +156,44 @@ def road_gaps(directions):
 COMPASS = ("E", "NE", "N", "NW", "W", "SW", "S", "SE")
 
 
-def corner_mounts(junction, pieces, centre):
-    """A mount per corner of the junction (see the module's conventions)."""
+def reach(centre, u, region, margin=MOUNT_REACH_M):
+    """How far (m) from ``centre`` along the unit vector ``u`` the box ``region`` (x0,
+    x1, y0, y1) grown by ``margin`` reaches."""
+    x0, x1, y0, y1 = region
+    lo = np.array([x0 - margin, y0 - margin])
+    hi = np.array([x1 + margin, y1 + margin])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(u > 0, (hi - centre) / u, np.where(u < 0, (lo - centre) / u, np.inf))
+    return float(max(0.0, np.min(t)))
+
+
+def corner_mounts(junction, pieces, centre, region, notices=None):
+    """A mount per corner of the junction (see the module's conventions); a corner
+    with no clear ground within ``MOUNT_REACH_M`` of ``region`` gets none, and a line
+    in ``notices``."""
     near = [p for p in pieces if np.min(np.linalg.norm(p.ring - centre, axis=1)) < POLE_SEARCH_M
             or points_in_polygon(centre[None, :], p.ring)[0]]
     paved = [p for p in near if p.kind in ("road", "crossing")]
     walks = [p for p in near if p.kind == "sidewalk"]
     ts = np.arange(0.0, POLE_SEARCH_M, POLE_STEP_M)
+    span = int(np.ceil(2 * POLE_CLEARANCE_M / POLE_STEP_M)) + 1
     mounts = []
-    for k, a in enumerate(road_gaps(junction.roads)):
+    for a in road_gaps(junction.roads):
         u = np.array([np.cos(a), np.sin(a)])
+        compass = COMPASS[int(np.round(a / (np.pi / 4))) % 8]
         ray = centre + ts[:, None] * u
         off = ~_inside(ray, paved) | _inside(ray, walks)  # sidewalks win
-        span = int(np.ceil(2 * POLE_CLEARANCE_M / POLE_STEP_M)) + 1
         clear = np.array([off[i:i + span].all() for i in range(len(ts) - span)])
-        first = np.flatnonzero(clear)
-        t = (ts[first[0]] if len(first) else ts[-1]) + POLE_CLEARANCE_M
-        xy = centre + t * u
-        compass = COMPASS[int(np.round(a / (np.pi / 4))) % 8]
+        first = np.flatnonzero(clear & (ts[:len(clear)] + POLE_CLEARANCE_M
+                                        <= reach(centre, u, region)))
+        if not len(first):
+            if notices is not None:
+                notices.append(
+                    f"junction {junction.id}: no pole in its {compass} gap (bearing "
+                    f"{np.degrees(a):.0f} deg): the ground is paved all the way to "
+                    f"{MOUNT_REACH_M:g} m beyond the InfraLOB")
+            continue
+        xy = centre + (ts[first[0]] + POLE_CLEARANCE_M) * u
         mounts.append(Mount(name=f"Pole {compass} {junction.id}", xy=xy,
                             on_sidewalk=bool(_inside(xy, walks)[0])))
     base = [m.name for m in mounts]
