@@ -27,7 +27,7 @@ def add_parser(sub):
     fn.add_argument("--out", required=True, help="the scene file to write (.blend)")
     fn.add_argument("--junction", metavar="ID",
                     help="the junction the mounts and the InfraLOB are at (default: the "
-                         "largest by area)")
+                         "signalised one with the most incoming lanes, named on stderr)")
     fn.add_argument("--origin", choices=("net", "junction"), default="net",
                     help="the scene's (0, 0): 'net' (default) keeps SUMO's network "
                          "coordinates; 'junction' puts the chosen junction at the origin")

@@ -152,7 +152,7 @@ def test_osm_network_reads(tmp_path):
 
 
 def test_junction_not_found_lists_ids(grid):
-    with pytest.raises(InputError, match=r"no junction 'nope' .*largest first\): B1, "):
+    with pytest.raises(InputError, match=r"no junction 'nope' .*most lanes in\): B1, "):
         build_layout(read_network(grid), "nope")
     with pytest.raises(InputError, match="--origin"):
         build_layout(read_network(grid), origin="centre")
@@ -241,3 +241,39 @@ def test_poles_stand_at_the_chosen_junction_only(tmp_path):
     assert len(lay1.mounts) >= 4  # the four real corners keep their poles
     assert all(m.on_sidewalk for m in lay1.mounts)
     assert told >= 2
+
+
+def test_the_default_junction_is_the_signalised_one(tmp_path):
+    """A 3 x 3 grid with one traffic light, at its corner A0: the default junction is A0
+    (it was B1, the largest by area, a priority junction), and the notice names it and
+    lists the others."""
+    net = read_network(grid_net(tmp_path, "--tls.set", "A0"))
+    lay = build_layout(net)
+    assert lay.junction.id == "A0" and lay.junction.signalised
+    told = [n for n in lay.notices if n.startswith("junction A0")]
+    assert told and "signalised" in told[0] and "B1 (priority, 4 lanes in)" in told[0]
+
+
+def test_the_default_junction_has_the_most_incoming_lanes():
+    """Among signalised junctions the one with the most lanes coming in wins over a
+    larger one; an unsignalised one with more lanes and area loses to both; without a
+    signalised junction the most lanes in wins and the notice says there is none."""
+    from rls_addon.core.roads.layout import choose_junction
+    from rls_addon.core.roads.network import Junction, RoadNetwork
+
+    def square(half):
+        return np.array([(-half, -half), (half, -half), (half, half), (-half, half)])
+
+    js = [Junction("big", "traffic_light", np.zeros(2), square(12.0), incoming_lanes=8),
+          Junction("busy", "traffic_light_right_on_red", np.zeros(2), square(8.0),
+                   incoming_lanes=12),
+          Junction("plain", "priority", np.zeros(2), square(20.0), incoming_lanes=16)]
+    notices = []
+    assert choose_junction(RoadNetwork("n.net.xml", [], js), None, notices).id == "busy"
+    assert "big (signalised, 8 lanes in), plain (priority, 16 lanes in)" in notices[0]
+    notices = []
+    unsignalised = [Junction(j.id, "priority", j.centre, j.shape,
+                             incoming_lanes=j.incoming_lanes) for j in js]
+    assert choose_junction(RoadNetwork("n.net.xml", [], unsignalised), None,
+                           notices).id == "plain"
+    assert "no signalised junction" in notices[0]

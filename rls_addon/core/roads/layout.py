@@ -11,8 +11,11 @@ Conventions (docs/roads.md):
   ``junction`` puts it at the chosen junction's position, so scene x, y = SUMO's x, y
   minus that position. Either way ``RoadLayout.origin`` is the network coordinates of
   the scene's (0, 0): scene = net - origin, for lanes and for SUMO's traffic alike;
-* the junction: the one named, else the largest by the area of its outline (ties: the
-  first in the network's order); internal nodes are not junctions;
+* the junction: the one named, else the signalised one (a SUMO node type
+  ``traffic_light*``) with the most incoming lanes (of edges ending there, sidewalks
+  left out), then the largest by the area of its outline (ties: the first in the
+  network's order); without a signalised junction, the one with the most incoming
+  lanes. Internal nodes are not junctions;
 * the InfraLOB: the junction outline's bounding box grown by ``REGION_MARGIN_M``;
 * the mounts: one per gap between the roads that meet at the junction (roads within
   ``SAME_ROAD_DEG`` of each other are one), on the gap's bisector from the junction's
@@ -64,19 +67,45 @@ class RoadLayout:
         return sum(p.kind == kind for p in self.pieces)
 
 
-def choose_junction(net, junction_id=None):
+def ranked_junctions(net):
+    """The network's junctions, the default first: signalised ones before the others,
+    then the most incoming lanes, then the largest outline (ties: network order)."""
+    order = sorted(range(len(net.junctions)), key=lambda i: (
+        not net.junctions[i].signalised, -net.junctions[i].incoming_lanes,
+        -_area(net.junctions[i].shape), i))
+    return [net.junctions[i] for i in order]
+
+
+def _describe(j):
+    return f"{j.id} ({'signalised' if j.signalised else j.type}, {j.incoming_lanes} lanes in)"
+
+
+def choose_junction(net, junction_id=None, notices=None):
+    """The junction named, else the default (``ranked_junctions``' first); without a
+    name, a line in ``notices`` says which was chosen, why, and lists the others."""
     if not net.junctions:
         raise InputError(f"{net.path} has no junctions (only internal nodes or none): "
                          "there is nothing to put an InfraLOB over")
+    ranked = ranked_junctions(net)
     if junction_id is not None:
         j = net.junction(junction_id)
         if j is None:
-            ids = [k.id for k in sorted(net.junctions, key=lambda k: -_area(k.shape))]
+            ids = [k.id for k in ranked]
             more = f", ... ({len(ids)} in all)" if len(ids) > LIST_IDS else ""
             raise InputError(f"no junction {junction_id!r} in {net.path}; junctions there "
-                             f"(largest first): {', '.join(ids[:LIST_IDS])}{more}")
+                             f"(signalised first, then most lanes in): "
+                             f"{', '.join(ids[:LIST_IDS])}{more}")
         return j
-    best = max(net.junctions, key=lambda k: _area(k.shape))  # first of the largest
+    best, others = ranked[0], ranked[1:]
+    if notices is not None:
+        why = ("the signalised junction with the most incoming lanes" if best.signalised
+               else "the network has no signalised junction: the one with the most "
+                    "incoming lanes")
+        listed = ", ".join(_describe(k) for k in others[:LIST_IDS])
+        more = f", ... ({len(others)} others in all)" if len(others) > LIST_IDS else ""
+        notices.append(f"junction {_describe(best)}: {why}"
+                       + (f"; others: {listed}{more}" if others else "")
+                       + "; choose another with --junction ID")
     return best
 
 
@@ -107,7 +136,8 @@ def surface_pieces(net, origin=(0.0, 0.0)):
 def build_layout(net, junction_id=None, origin="net"):
     if origin not in ORIGINS:
         raise InputError(f"--origin must be one of {', '.join(ORIGINS)}, got {origin!r}")
-    j = choose_junction(net, junction_id)
+    notices = []
+    j = choose_junction(net, junction_id, notices)
     if not net.lanes:
         raise InputError(f"{net.path} has no lanes: there are no roads to build")
     o = j.centre.copy() if origin == "junction" else np.zeros(2)
@@ -115,7 +145,6 @@ def build_layout(net, junction_id=None, origin="net"):
     shape = (j.shape if len(j.shape) >= 3 else j.centre[None, :]) - o
     lo, hi = shape.min(axis=0) - REGION_MARGIN_M, shape.max(axis=0) + REGION_MARGIN_M
     region = (float(lo[0]), float(hi[0]), float(lo[1]), float(hi[1]))
-    notices = []
     mounts = corner_mounts(j, pieces, j.centre - o, region, notices)
     return RoadLayout(pieces=pieces, junction=j, origin=o, region=region, mounts=mounts,
                       net_offset=net.net_offset, notices=notices)

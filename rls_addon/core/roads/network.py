@@ -29,6 +29,9 @@ from ..errors import InputError
 
 FLAT_TOLERANCE_M = 0.01
 PEDESTRIAN = "pedestrian"
+# SUMO's node types with traffic lights (sumo.dlr.de/docs/Networks/PlainXML.html,
+# "Node types"); rail_signal is a railway's, not a road junction's.
+SIGNALISED = ("traffic_light", "traffic_light_unregulated", "traffic_light_right_on_red")
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,11 @@ class Junction:
     centre: np.ndarray   # (2,) the node's position
     shape: np.ndarray    # (n, 2) outline, possibly empty
     roads: tuple = ()    # unit vectors from the centre along each road that meets here
+    incoming_lanes: int = 0  # lanes of the edges that end here, sidewalks left out
+
+    @property
+    def signalised(self):
+        return self.type in SIGNALISED
 
 
 @dataclass
@@ -165,9 +173,13 @@ def read_network(path):
         roads = [_road_direction(e, centre, incoming)
                  for incoming, edges in ((True, node.getIncoming()), (False, node.getOutgoing()))
                  for e in edges if not e.getFunction()]
+        lanes_in = sum(1 for e in node.getIncoming() if not e.getFunction()
+                       for lane in e.getLanes()
+                       if lane_kind("", lane.getPermissions()) == "road")
         junctions.append(Junction(id=node.getID(), type=node.getType(), centre=centre,
                                   shape=_xy(node.getShape(), f"junction {node.getID()}"),
-                                  roads=tuple(r for r in roads if r is not None)))
+                                  roads=tuple(r for r in roads if r is not None),
+                                  incoming_lanes=lanes_in))
     offset = tuple(float(v) for v in net.getLocationOffset()[:2])
     return RoadNetwork(path=path, lanes=lanes, junctions=junctions, net_offset=offset,
                        by_id={j.id: j for j in junctions})
