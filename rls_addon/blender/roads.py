@@ -18,6 +18,8 @@ Objects (labels from their collections, see ``core/labels.py``):
 * ``Kerbs`` (collection Sidewalk): the sidewalks' edges, vertical faces 0 to ``KERB_M``;
 * ``Pole ...`` (collection Poles): one per corner of the junction, ``rls_mount``;
 * ``InfraLOB`` (collection Regions): ``rls_infralob``, over the junction.
+
+The scene runs at one frame per SUMO step (``layout.step_s``, 0.1 s: 10 fps).
 """
 
 
@@ -162,8 +164,10 @@ def build_roads(scene, layout, progress=None):
     scene["rls_sumo_origin"] = [float(v) for v in layout.origin]
     scene["rls_sumo_net_offset"] = [float(v) for v in layout.net_offset]
     scene["rls_sumo_junction"] = layout.junction.id
+    scene.render.fps, scene.render.fps_base = layout.fps, 1.0
+    scene["rls_sumo_step_s"] = float(layout.step_s)
     return {"junction": layout.junction.id, "origin": [float(v) for v in layout.origin],
             "net_offset": list(layout.net_offset), "infralob": lob.name,
             "region": [round(float(v), 3) for v in layout.region], "mounts": mounts,
-            "objects": sorted(made), "triangles": int(len(tris)),
+            "objects": sorted(made), "triangles": int(len(tris)), "fps": layout.fps,
             "pieces": {k: layout.count(k) for k in KINDS}}

@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 
 from ..core.errors import SceneError
-from ..core.traffic.fcd import frame_times, resample
+from ..core.traffic.fcd import frame_times, resample, step_notice
 
 COLLECTION = "SUMO Traffic"
 
@@ -201,6 +201,8 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     scene["rls_sumo_begin_s"] = float(begin)
     if progress is not None:
         progress(len(keys), len(keys))
+    notice = step_notice(fps, fcd.step, begin, scene.frame_start)
     return {"collection": coll.name, "objects": sum(counts.values()), **counts,
             "frames": n, "first_frame": int(frames[0]), "last_frame": int(frames[-1]),
-            "object_frames": object_frames, "begin_s": begin, "end_s": end}
+            "object_frames": object_frames, "begin_s": begin, "end_s": end,
+            "fps": fps, "fcd_step_s": fcd.step, "notices": [notice] if notice else []}

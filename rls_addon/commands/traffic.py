@@ -12,8 +12,10 @@ eclipse-sumo wheel, or SUMO_HOME). See docs/traffic.md.
 import argparse
 import json
 import os
+import sys
 
 from ..core.errors import InputError, OutputError
+from ..core.roads.layout import STEP_S
 
 
 def add_parser(sub):
@@ -45,8 +47,9 @@ def add_parser(sub):
                      help="vehicles inserted per hour")
     gen.add_argument("--seed", type=int, required=True, metavar="N")
     gen.add_argument("--out", required=True, metavar="FCD.xml")
-    gen.add_argument("--step", type=float, default=0.1, metavar="S",
-                     help="SUMO's step length and FCD period (default 0.1 s)")
+    gen.add_argument("--step", type=float, default=STEP_S, metavar="S",
+                     help=f"SUMO's step length and FCD period (default {STEP_S:g} s: one "
+                          f"frame of a scene from rls scene from-net)")
     gen.add_argument("--pedestrians", choices=("auto", "yes", "no"), default="auto",
                      help="persons walking: 'auto' where the network has sidewalks")
     gen.add_argument("--ped-rate", type=float, metavar="PER_H",
@@ -94,6 +97,8 @@ def run_import(args):
     ensure_directory(os.path.dirname(os.path.abspath(args.out)))
     save_blend(args.out, overwrite=args.overwrite)
     info["out"] = args.out
+    for notice in info["notices"]:
+        print(f"rls: notice: {notice}", file=sys.stderr)
     print(json.dumps(info, indent=2))
     return 0
 

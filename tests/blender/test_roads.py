@@ -152,6 +152,9 @@ def test_written_scene_covers_the_lanes(tmp_path, scene, which):
         base = KERB_M if planned[o.name].on_sidewalk else 0.0
         assert z == pytest.approx(base + 6.0 + 0.25, abs=1e-4)
     assert any(m.on_sidewalk for m in layout.mounts)
+    # it runs at rls traffic generate's default step, 0.1 s: one frame per SUMO step
+    render = bpy.context.scene.render
+    assert render.fps / render.fps_base == 10 and bpy.context.scene["rls_sumo_step_s"] == 0.1
 
 
 def test_save_refuses_an_existing_file(tmp_path, scene):

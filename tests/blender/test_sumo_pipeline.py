@@ -86,3 +86,20 @@ def test_a_lidar_beside_an_imported_bus_is_not_inside_it(scene, tmp_path):
     on_bus = np.count_nonzero(result.points["label"] == label_id("vehicle"))
     assert on_bus > 200  # the warning's test is meaningful: many hits on the bus
     assert not [w for w in result.warnings if "inside" in w], result.warnings
+
+
+def test_import_says_how_frames_map_to_sumo_steps(scene, tmp_path):
+    """At 24 fps the import says how SUMO's 0.1 s steps map to frames; at 10 fps (a
+    scene from rls scene from-net) it keys one frame per step and says nothing."""
+    fcd_path = tmp_path / "bus.xml"
+    fcd_path.write_text(FCD_ONE_BUS)
+    (tmp_path / "bus.vtypes.xml").write_text(VTYPES_BUS)
+    fcd, types = load(str(fcd_path))
+    scene.render.fps, scene.render.fps_base = 24, 1.0
+    info = import_traffic(scene, fcd, types)
+    assert len(info["notices"]) == 1 and "24 fps" in info["notices"][0]
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.fps = 10
+    info = import_traffic(scene, fcd, types)
+    assert info["notices"] == [] and info["frames"] == 2

@@ -183,3 +183,18 @@ def test_bad_values_named(tmp_path):
     f.write_text('<fcd-export></fcd-export>')
     with pytest.raises(InputError, match="no <timestep>"):
         read_fcd(str(f))
+
+
+def test_how_frames_map_to_sumo_steps_is_said():
+    """One frame per step says nothing; otherwise the mapping is named with the fps
+    that would make it one to one."""
+    from rls_addon.core.traffic.fcd import step_notice
+
+    assert step_notice(10, 0.1, 0.0, 1) is None
+    assert step_notice(10.0, 0.1 + 1e-9, 5.0, 1) is None
+    slow = step_notice(24, 0.1, 60.0, 1)
+    assert "step is 0.1 s" in slow and "24 fps" in slow and "2.4 frames" in slow
+    assert "60 + (f - 1) / 24 s" in slow and "10 fps" in slow
+    coarse = step_notice(10, 1.0, 0.0, 1)
+    assert "10 frames" in coarse and "set the scene to 1 fps" in coarse
+    assert "steps apart" in step_notice(5, 0.1, 0.0, 1)

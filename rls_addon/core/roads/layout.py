@@ -43,6 +43,10 @@ POLE_STEP_M = 0.25
 POLE_SEARCH_M = 80.0
 MOUNT_REACH_M = 15.0     # no pole farther than this outside the InfraLOB
 ORIGINS = ("net", "junction")
+# A scene from a network runs at one frame per SUMO step of rls traffic generate's
+# default step, 0.1 s (SUMO's own default --step-length is 1 s): 10 fps, so traffic
+# imported into it keys each FCD step on its own frame, with no resampling.
+STEP_S = 0.1
 LIST_IDS = 8
 
 
@@ -62,6 +66,11 @@ class RoadLayout:
     mounts: list          # Mount, scene frame
     net_offset: tuple
     notices: list = field(default_factory=list)  # what a user should hear (stderr)
+    step_s: float = STEP_S  # the scene's frame period: one SUMO step
+
+    @property
+    def fps(self):
+        return round(1.0 / self.step_s)
 
     def count(self, kind):
         return sum(p.kind == kind for p in self.pieces)

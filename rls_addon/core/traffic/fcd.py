@@ -211,6 +211,20 @@ def frame_times(n_frames, fps, begin):
     return float(begin) + np.arange(int(n_frames)) / float(fps)
 
 
+def step_notice(fps, step, begin, frame_start):
+    """None when each frame is one FCD step (``fps`` x ``step`` = 1); else a line saying
+    how the scene's frames map to SUMO's steps, and how to make them one to one."""
+    per = float(fps) * float(step)
+    if abs(per - 1.0) <= 1e-6:
+        return None
+    how = (f"each step spans {per:.3g} frames, interpolated between steps" if per > 1
+           else f"frames are {1 / per:.3g} steps apart, the steps between them unkeyed")
+    return (f"the FCD's step is {step:g} s and the scene runs at {fps:g} fps: frame f is "
+            f"simulation time {begin:g} + (f - {frame_start}) / {fps:g} s, so {how}; set "
+            f"the scene to {1 / step:g} fps to key one frame per SUMO step (a scene from "
+            f"rls scene from-net runs at 10 fps, for rls traffic generate's 0.1 s)")
+
+
 def resample(track, length, times, step, origin=(0.0, 0.0)):
     """``Motion`` of ``track`` (box length ``length``) at simulation ``times``
     (increasing): linear interpolation between consecutive FCD steps, headings by the

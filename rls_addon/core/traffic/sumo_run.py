@@ -31,6 +31,7 @@ import xml.etree.ElementTree as ET
 
 from ..errors import InputError, RLSError
 from ..output.io.atomic import atomic_write_bytes
+from ..roads.layout import STEP_S
 from .xml_errors import parse_reason
 
 
@@ -144,7 +145,7 @@ def _run(cmd, env, what):
     return proc
 
 
-def generate(net, out, duration, rate, seed, step=0.1, pedestrians="auto", ped_rate=None,
+def generate(net, out, duration, rate, seed, step=STEP_S, pedestrians="auto", ped_rate=None,
              overwrite=False, keep=None):
     """Random traffic over ``net`` simulated by SUMO; writes ``out`` (FCD),
     ``OUT.vtypes.xml`` and ``OUT.rou.xml``. Returns a dict of what ran (counts, seconds
