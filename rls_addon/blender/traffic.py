@@ -25,6 +25,7 @@ import numpy as np
 
 from ..core.errors import SceneError
 from ..core.traffic.fcd import frame_times, resample, step_notice
+from ..core.traffic.ground import STANDING_LABELS
 
 COLLECTION = "SUMO Traffic"
 
@@ -148,6 +149,22 @@ def traffic_origin(scene, requested=None):
     return requested
 
 
+def scene_ground(scene):
+    """The scene's ground surfaces (``core.traffic.ground``: objects labelled road,
+    sidewalk, terrain or ground, as rendered now) to stand people and bicycles on."""
+    from ..core.casting import caster_factory
+    from ..core.labels import label_id
+    from ..core.scene.instances import object_table, world_geometry
+    from ..core.traffic.ground import GROUND_LABELS, GroundSurface
+    from .extract import read_instances
+
+    instances, materials, _ = read_instances(bpy.context.evaluated_depsgraph_get())
+    labels = {label_id(n) for n in GROUND_LABELS}
+    flat = [i for i in instances if i.label in labels]
+    geo = world_geometry(flat, object_table(flat), materials)
+    return GroundSurface(geo.vertices, geo.triangles, caster_factory("auto")[0])
+
+
 def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
                    progress=None, ground=None):
     """Animated objects for every track of ``fcd`` (``core.traffic.fcd.Fcd``) with
@@ -155,8 +172,10 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     ``scene.frame_start`` is simulation time ``begin`` (default: the FCD's first step);
     frames are keyed up to ``end`` (default its last step), and the scene's last frame
     is set to the last keyed one. ``progress(done, total)`` is called as objects are
-    made. ``ground(xy (N, 2)) -> (N,)`` heights added to FCD's z (a scene's kerbs, which
-    SUMO's flat network does not have). Returns a summary dict."""
+    made. ``ground(xy (N, 2)) -> (N,)`` heights added to FCD's z of every object (a
+    sample scene's own kerbs); without it, pedestrians and cyclists stand on the scene's
+    ground surfaces under them (``scene_ground``; vehicles keep FCD's z). Returns a
+    summary dict."""
     fps = scene.render.fps / scene.render.fps_base
     begin = fcd.first if begin is None else float(begin)
     end = fcd.last if end is None else float(end)
@@ -173,6 +192,7 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     counts = {"vehicle": 0, "pedestrian": 0, "cyclist": 0}
     object_frames = 0
     keys = sorted(fcd.tracks)
+    surface = scene_ground(scene) if ground is None else None
     for j, key in enumerate(keys):
         tr = fcd.tracks[key]
         vt = types[tr.type]
@@ -183,6 +203,8 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
             continue
         if ground is not None:
             motion.xyz[:, 2] += ground(motion.xyz[:, :2])
+        elif vt.label in STANDING_LABELS:
+            motion.xyz[:, 2] = surface.heights(motion.xyz[:, :2], motion.xyz[:, 2])
         mesh = meshes.get(vt.id)
         if mesh is None:
             mesh = meshes[vt.id] = profile_mesh(f"SUMO {vt.id}", vt.shape, vt.size)

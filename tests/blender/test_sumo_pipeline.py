@@ -103,3 +103,55 @@ def test_import_says_how_frames_map_to_sumo_steps(scene, tmp_path):
     scene.render.fps = 10
     info = import_traffic(scene, fcd, types)
     assert info["notices"] == [] and info["frames"] == 2
+
+
+FCD_WALK = """<?xml version="1.0" encoding="UTF-8"?>
+<fcd-export>
+    <timestep time="0.00">
+        <person id="p0" x="0.10" y="0.00" angle="90.00" type="DEFAULT_PEDTYPE" speed="1.00" pos="0.00" edge="a" slope="0.00"/>
+        <vehicle id="b0" x="0.80" y="-3.00" angle="90.00" type="DEFAULT_BIKETYPE" speed="4.00" pos="0.80" lane="a_0" slope="0.00"/>
+        <vehicle id="c0" x="5.00" y="-1.00" angle="90.00" type="DEFAULT_VEHTYPE" speed="10.00" pos="5.00" lane="a_1" slope="0.00"/>
+    </timestep>
+    <timestep time="1.00">
+        <person id="p0" x="8.10" y="0.00" angle="90.00" type="DEFAULT_PEDTYPE" speed="1.00" pos="8.00" edge="a" slope="0.00"/>
+        <vehicle id="b0" x="8.80" y="-3.00" angle="90.00" type="DEFAULT_BIKETYPE" speed="4.00" pos="8.80" lane="a_0" slope="0.00"/>
+        <vehicle id="c0" x="15.00" y="-1.00" angle="90.00" type="DEFAULT_VEHTYPE" speed="10.00" pos="15.00" lane="a_1" slope="0.00"/>
+    </timestep>
+</fcd-export>
+"""
+
+
+def test_people_and_bicycles_stand_on_the_surface_under_them(scene, tmp_path):
+    """A person and a bicycle walk from the road (z = 0) onto a sidewalk raised 0.15 m
+    (x >= 4); a car drives on the road. Their boxes' bottoms follow the surface under
+    their centres: 0 on the road, 0.15 on the sidewalk (FCD's z is 0 all along); the
+    car keeps FCD's z."""
+    from .conftest import mesh_object
+
+    road = mesh_object("Road", [(-20, -10, 0), (30, -10, 0), (30, 10, 0), (-20, 10, 0)],
+                       [(0, 1, 2, 3)])
+    road["rls_label"] = "road"
+    kerb = 0.15
+    walk = mesh_object("Sidewalk", [(4, -4, kerb), (30, -4, kerb), (30, 2, kerb),
+                                    (4, 2, kerb)], [(0, 1, 2, 3)])
+    walk["rls_label"] = "sidewalk"
+    building = mesh_object("Roof", [(-20, -10, 0.3), (30, -10, 0.3), (30, 10, 0.3),
+                                    (-20, 10, 0.3)], [(0, 1, 2, 3)])
+    building["rls_label"] = "building"  # not ground: nobody stands on it
+    fcd_path = tmp_path / "walk.xml"
+    fcd_path.write_text(FCD_WALK)
+    scene.render.fps = 10
+    fcd, types = load(str(fcd_path))
+    import_traffic(scene, fcd, types)
+    for name, length in (("person p0", types["DEFAULT_PEDTYPE"].length),
+                         ("vehicle b0", types["DEFAULT_BIKETYPE"].length)):
+        obj = bpy.data.objects[name]
+        for frame in range(1, 12):
+            scene.frame_set(frame)
+            x = obj.matrix_world.translation.x
+            want = kerb if x >= 4.0 else 0.0
+            assert obj.matrix_world.translation.z == pytest.approx(want, abs=1e-5), \
+                (name, frame, x)
+    car = bpy.data.objects["vehicle c0"]
+    scene.frame_set(11)
+    assert car.matrix_world.translation.z == pytest.approx(0.0, abs=1e-6)

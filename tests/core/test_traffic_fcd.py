@@ -198,3 +198,25 @@ def test_how_frames_map_to_sumo_steps_is_said():
     coarse = step_notice(10, 1.0, 0.0, 1)
     assert "10 frames" in coarse and "set the scene to 1 fps" in coarse
     assert "steps apart" in step_notice(5, 0.1, 0.0, 1)
+
+
+def test_ground_surface_heights():
+    """The first ground surface down from STEP_M above FCD's z, within 2 STEP_M; else
+    FCD's z (exact numpy caster; two stacked squares: 0.15 m over x >= 0, 3 m over
+    x >= 5, a level too far above a z of 0 to step onto)."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.traffic.ground import STEP_M, GroundSurface
+
+    quads = [(0.0, 0.15), (5.0, 3.0)]
+    v, t = [], []
+    for x0, z in quads:
+        k = len(v)
+        v += [(x0, -1, z), (10, -1, z), (10, 1, z), (x0, 1, z)]
+        t += [(k, k + 1, k + 2), (k, k + 2, k + 3)]
+    g = GroundSurface(np.array(v, float), np.array(t), NumpyCaster)
+    xy = np.array([(-1.0, 0.0), (1.0, 0.0), (6.0, 0.0), (6.0, 0.0), (1.0, 5.0)])
+    z = np.array([0.0, 0.0, 0.0, 2.8, 0.0])
+    assert g.heights(xy, z) == pytest.approx([0.0, 0.15, 0.15, 3.0, 0.0])
+    assert STEP_M == 0.5
+    assert GroundSurface(np.zeros((0, 3)), np.zeros((0, 3)), NumpyCaster).heights(
+        xy, 0.25) == pytest.approx([0.25] * 5)
