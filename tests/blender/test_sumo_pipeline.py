@@ -155,3 +155,22 @@ def test_people_and_bicycles_stand_on_the_surface_under_them(scene, tmp_path):
     car = bpy.data.objects["vehicle c0"]
     scene.frame_set(11)
     assert car.matrix_world.translation.z == pytest.approx(0.0, abs=1e-6)
+
+
+def test_traffic_span_is_the_keyed_frames(scene, tmp_path):
+    """The imported road users' keys span the frames the import keyed (1-11 for 1 s at
+    10 fps); a road user keyed once (not moving) does not count."""
+    from rls_addon.blender.source import traffic_span
+    from .conftest import mesh_object
+
+    assert traffic_span(scene) is None
+    still = mesh_object("Parked", [(0, 0, 0), (1, 0, 0), (1, 1, 0)], [(0, 1, 2)])
+    still["rls_label"] = "vehicle"
+    still.keyframe_insert("location", frame=1)
+    assert traffic_span(scene) is None
+    fcd_path = tmp_path / "walk.xml"
+    fcd_path.write_text(FCD_WALK)
+    scene.render.fps = 10
+    fcd, types = load(str(fcd_path))
+    info = import_traffic(scene, fcd, types)
+    assert traffic_span(scene) == (info["first_frame"], info["last_frame"]) == (1, 11)
