@@ -277,3 +277,71 @@ def test_the_default_junction_has_the_most_incoming_lanes():
     assert choose_junction(RoadNetwork("n.net.xml", [], unsignalised), None,
                            notices).id == "plain"
     assert "no signalised junction" in notices[0]
+
+
+BAD_LANES = [
+    # (what is changed in lane A0B0_0's or A0B0_1's line, words of the error)
+    ('width="2.00" shape="5.20,-4.20 72.80,-4.20"', 'width="nan" shape="5.20,-4.20 72.80,-4.20"',
+     r"lane A0B0_0 has width 'nan'|lane A0B0_0 has width nan"),
+    ('width="2.00" shape="5.20,-4.20 72.80,-4.20"', 'width="-2.00" shape="5.20,-4.20 72.80,-4.20"',
+     r"lane A0B0_0 has width -2"),
+    ('width="2.00" shape="5.20,-4.20 72.80,-4.20"', 'width="2.00" shape="5.20,-4.20"',
+     r"lane A0B0_0 has a shape of 1 point\(s\) but no length"),
+    ('shape="5.20,-1.60 72.80,-1.60"', 'shape="5.20,-1.60 1e15,-1.60"',
+     r"lane A0B0_1 lies 1e\+15 m from the scene's origin: RLS takes coordinates within "
+     r"100000 m of the scene's origin \(Blender stores coordinates as float32"),
+]
+
+
+@pytest.mark.parametrize("old, new, words", BAD_LANES)
+def test_a_bad_lane_is_refused_naming_it(grid, tmp_path, old, new, words):
+    """A lane whose width is NaN or negative, whose shape is one point, or with a vertex
+    at 1e15 m: each was dropped without a word (or, at 1e15, collapsed the whole
+    triangulation to 0 triangles); now one error names the lane."""
+    text = grid.read_text()
+    assert text.count(old) == 1
+    bad = tmp_path / "bad.net.xml"
+    bad.write_text(text.replace(old, new))
+    with pytest.raises(InputError, match=words):
+        build_layout(read_network(bad))
+    with pytest.raises(InputError, match=words):
+        build_layout(read_network(bad), origin="junction")
+
+
+def test_far_coordinates_are_fine_with_the_origin_at_the_junction(grid, tmp_path):
+    """A network 3e6 m from (0, 0), as UTM without netconvert's normalisation: refused
+    with the origin at the network's (0, 0), built with --origin junction."""
+    import re
+
+    text = grid.read_text()
+    shift = lambda m: f"{float(m.group(1)) + 3e6:.2f},{float(m.group(2)):.2f}"  # noqa: E731
+    far = re.sub(r'(?<=shape=")[^"]*', lambda m: re.sub(r"(-?[\d.]+),(-?[\d.]+)", shift,
+                                                       m.group(0)), text)
+    far = re.sub(r'(<junction [^>]*\bx=")([\d.]+)',
+                 lambda m: m.group(1) + f"{float(m.group(2)) + 3e6:.2f}", far)
+    path = tmp_path / "far.net.xml"
+    path.write_text(far)
+    with pytest.raises(InputError, match="--origin junction puts"):
+        build_layout(read_network(path))
+    lay = build_layout(read_network(path), origin="junction")
+    assert lay.junction.id == "B1" and len(lay.mounts) == 4
+
+
+NO_JUNCTION_ELEMENTS = """<?xml version="1.0" encoding="UTF-8"?>
+<net version="1.20">
+    <location netOffset="0.00,0.00" convBoundary="0.00,0.00,100.00,0.00" origBoundary="0.00,0.00,100.00,0.00" projParameter="!"/>
+    <edge id="a" from="J0" to="J1" priority="1">
+        <lane id="a_0" index="0" speed="13.89" length="100.00" shape="0.00,0.00 100.00,0.00"/>
+    </edge>
+</net>
+"""
+
+
+def test_a_network_without_junction_elements_is_one_error(tmp_path):
+    """Edges naming junctions that no <junction> defines: a TypeError from sumolib's
+    node without a position before; now an InputError naming the junction."""
+    path = tmp_path / "nojunctions.net.xml"
+    path.write_text(NO_JUNCTION_ELEMENTS)
+    with pytest.raises(InputError, match=r"junction 'J0' is named by edge 'a' but has no "
+                                         r"<junction> element"):
+        read_network(path)

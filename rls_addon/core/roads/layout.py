@@ -31,6 +31,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..metrics.polygon import points_in_polygon, shoelace_area
+from ..scene.extent import check_span
 from .pieces import Piece, lane_pieces, outline_piece
 
 KINDS = ("road", "crossing", "sidewalk")  # lowest priority first
@@ -150,6 +151,7 @@ def build_layout(net, junction_id=None, origin="net"):
     if not net.lanes:
         raise InputError(f"{net.path} has no lanes: there are no roads to build")
     o = j.centre.copy() if origin == "junction" else np.zeros(2)
+    check_extent(net, o, origin)
     pieces = surface_pieces(net, o)
     shape = (j.shape if len(j.shape) >= 3 else j.centre[None, :]) - o
     lo, hi = shape.min(axis=0) - REGION_MARGIN_M, shape.max(axis=0) + REGION_MARGIN_M
@@ -157,6 +159,19 @@ def build_layout(net, junction_id=None, origin="net"):
     mounts = corner_mounts(j, pieces, j.centre - o, region, notices)
     return RoadLayout(pieces=pieces, junction=j, origin=o, region=region, mounts=mounts,
                       net_offset=net.net_offset, notices=notices)
+
+
+def check_extent(net, o, origin):
+    """``InputError`` for a lane or junction beyond ``extent.SPAN_M`` of the scene's
+    origin ``o`` (a vertex at 1e15 m, say: its triangulation collapses)."""
+    hint = ("; is a vertex of it wrong? Fix or remove it (SUMO's netedit)"
+            if origin == "junction" else "; --origin junction puts the scene's origin "
+            "at the junction, for a network in far coordinates (UTM without netOffset)")
+    for lane in net.lanes:
+        check_span(lane.shape - o, f"{net.path}: lane {lane.id}", hint)
+    for j in net.junctions:
+        check_span((j.shape if len(j.shape) else j.centre[None, :]) - o,
+                   f"{net.path}: junction {j.id}", hint)
 
 
 def _inside(points, pieces):
