@@ -18,13 +18,19 @@ frame after it leaves. RLS reads which objects exist once per scan, at the frame
 present at a frame is scanned over that whole sweep and one that is absent is not.
 """
 
-import math
 
 import bpy
 import numpy as np
 
 from ..core.errors import SceneError
-from ..core.traffic.fcd import frame_times, resample, step_notice
+from ..core.traffic.fcd import (
+    check_origin,
+    check_positions,
+    frame_times,
+    keyed_frames,
+    resample,
+    step_notice,
+)
 from ..core.traffic.ground import STANDING_LABELS
 
 COLLECTION = "SUMO Traffic"
@@ -135,6 +141,7 @@ def traffic_origin(scene, requested=None):
     from-net``, or traffic imported before), else (0, 0), network coordinates. A
     requested origin other than the recorded one is refused: the traffic would miss the
     roads."""
+    check_origin(requested)
     recorded = scene.get("rls_sumo_origin")
     recorded = None if recorded is None else (float(recorded[0]), float(recorded[1]))
     if requested is None:
@@ -177,13 +184,9 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     ground surfaces under them (``scene_ground``; vehicles keep FCD's z). Returns a
     summary dict."""
     fps = scene.render.fps / scene.render.fps_base
-    begin = fcd.first if begin is None else float(begin)
-    end = fcd.last if end is None else float(end)
-    n = int(math.floor((end - begin) * fps + 1e-6)) + 1
-    if n < 1:
-        from ..core.errors import InputError
-
-        raise InputError(f"--end {end:g} s is before --begin {begin:g} s")
+    begin, end, n = keyed_frames(fcd, fps, scene.frame_start, begin, end)
+    check_origin(origin)
+    check_positions(fcd, types, origin)  # all before anything is added to the scene
     times = frame_times(n, fps, begin)
     frames = scene.frame_start + np.arange(n)
     coll = bpy.data.collections.new(COLLECTION)

@@ -79,11 +79,12 @@ def check_out(scene_path, out, overwrite):
 
 
 def run_import(args):
-    from ..core.traffic.fcd import load
+    from ..core.traffic.fcd import check_origin, load
 
     if not os.path.isfile(args.blend):
         raise InputError(f"scene file not found: {args.blend}")
     check_out(args.blend, args.out, args.overwrite)
+    check_origin(args.origin)
     fcd, types = load(args.fcd, args.vtypes, args.begin, args.end)  # before Blender
     from ..blender.traffic import import_traffic, traffic_origin
     from .scan import open_scene

@@ -35,7 +35,6 @@ def test_every_traffic_mesh_has_outward_normals(scene, shape):
     x, z = prof[:, 0], prof[:, 1]
     area = 0.5 * abs(np.dot(x, np.roll(z, -1)) - np.dot(z, np.roll(x, -1)))
     assert signed_volume(mesh) == pytest.approx(area * size[1], rel=1e-6)
-    centre = np.array([0.0, 0.0, size[2] / 2])
     for poly in mesh.polygons:
         n = np.array(poly.normal[:])
         c = np.array(poly.center[:])
