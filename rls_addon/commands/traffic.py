@@ -13,6 +13,7 @@ import argparse
 import json
 import os
 import sys
+import time
 
 from ..core.errors import InputError, OutputError
 from ..core.roads.layout import STEP_S
@@ -78,20 +79,42 @@ def check_out(scene_path, out, overwrite):
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
 
 
+def _say(text):
+    print(f"rls: traffic: {text}", file=sys.stderr, flush=True)
+
+
 def run_import(args):
+    from ..core.progress import Throttled, eta
     from ..core.traffic.fcd import check_origin, load
 
     if not os.path.isfile(args.blend):
         raise InputError(f"scene file not found: {args.blend}")
     check_out(args.blend, args.out, args.overwrite)
     check_origin(args.origin)
-    fcd, types = load(args.fcd, args.vtypes, args.begin, args.end)  # before Blender
+    tell = Throttled(_say)
+
+    def reading(share):
+        spent = tell.elapsed()
+        tell(f"reading {args.fcd}: {share:.0%} in {spent:.0f} s, about "
+             f"{eta(share, 1.0, spent):.0f} s left")
+
+    fcd, types = load(args.fcd, args.vtypes, args.begin, args.end, reading)  # before Blender
+    tell(f"{len(fcd.tracks)} vehicles and persons read in {tell.elapsed():.1f} s",
+         final=True)
     from ..blender.traffic import import_traffic, traffic_origin
     from .scan import open_scene
 
     scene = open_scene(args.blend, args.prepare_blender)
+    t_keys = time.perf_counter()
+
+    def keying(done, total):
+        spent = time.perf_counter() - t_keys
+        tell(f"keying objects: {done} of {total}, about {eta(done, total, spent):.0f} s left",
+             final=done == total)
+
     info = import_traffic(scene, fcd, types, origin=traffic_origin(scene, args.origin),
-                          begin=args.begin, end=args.end)
+                          begin=args.begin, end=args.end, progress=keying)
+    tell(f"writing {args.out}", final=True)
     from ..blender.files import save_blend
     from ..core.output.io.atomic import ensure_directory
 

@@ -165,3 +165,15 @@ def test_generate_writes_its_outputs_as_a_set(tmp_path, monkeypatch):
         "traffic.rou.xml", "traffic.vtypes.xml", "traffic.xml"]
     assert info["vehicles"] == 1
     assert np.isfinite(info["sumo_s"])
+
+
+def test_reading_a_long_fcd_reports_its_progress(tmp_path):
+    """2,000 timesteps: the share of the file read is reported every PROGRESS_STEPS
+    steps, increasing, up to the end (the 100,000-step import was silent)."""
+    steps = [(f"{k / 10:.2f}", [veh(x=k * 0.1)]) for k in range(2000)]
+    path = fcd(tmp_path, *steps)
+    shares = []
+    f = read_fcd(path, progress=shares.append)
+    assert len(shares) == 2000 // fcd_module.PROGRESS_STEPS
+    assert shares == sorted(shares) and 0 < shares[0] and shares[-1] <= 1.0
+    assert shares[-1] > 0.9 and len(f.tracks["a"].times) == 2000

@@ -32,7 +32,7 @@ import numpy as np
 from ..errors import InputError
 from ..metrics.polygon import points_in_polygon, shoelace_area
 from ..scene.extent import check_span
-from .pieces import Piece, lane_pieces, outline_piece
+from .pieces import Piece, lanes_pieces, outline_piece
 
 KINDS = ("road", "crossing", "sidewalk")  # lowest priority first
 KERB_M = 0.15            # as the sample scenes' kerbs (blender/scenes/streets.py)
@@ -131,15 +131,16 @@ def surface_pieces(net, origin=(0.0, 0.0)):
         p = outline_piece(j.shape - o if len(j.shape) else j.shape, "road", j.id)
         if p is not None:
             pieces.append(p)
+    strips = [lane for lane in net.lanes if lane.kind != "walkingarea"]
+    rings = iter(lanes_pieces([lane.shape - o for lane in strips],
+                              [lane.width for lane in strips]))
     for lane in net.lanes:
-        shape = lane.shape - o
         if lane.kind == "walkingarea":
-            p = outline_piece(shape, "sidewalk", lane.id)
+            p = outline_piece(lane.shape - o, "sidewalk", lane.id)
             if p is not None:
                 pieces.append(p)
             continue
-        kind = "sidewalk" if lane.kind == "sidewalk" else lane.kind
-        pieces += [Piece(kind, r, lane.id) for r in lane_pieces(shape, lane.width)]
+        pieces += [Piece(lane.kind, r, lane.id) for r in next(rings)]
     return pieces
 
 
@@ -224,8 +225,10 @@ def corner_mounts(junction, pieces, centre, region, notices=None):
     """A mount per corner of the junction (see the module's conventions); a corner
     with no clear ground within ``MOUNT_REACH_M`` of ``region`` gets none, and a line
     in ``notices``."""
-    near = [p for p in pieces if np.min(np.linalg.norm(p.ring - centre, axis=1)) < POLE_SEARCH_M
-            or points_in_polygon(centre[None, :], p.ring)[0]]
+    lo = np.array([p.ring.min(axis=0) for p in pieces]).reshape(-1, 2)
+    hi = np.array([p.ring.max(axis=0) for p in pieces]).reshape(-1, 2)
+    reach_box = ((lo <= centre + POLE_SEARCH_M) & (hi >= centre - POLE_SEARCH_M)).all(axis=1)
+    near = [pieces[i] for i in np.flatnonzero(reach_box)]  # every piece a ray can meet
     paved = [p for p in near if p.kind in ("road", "crossing")]
     walks = [p for p in near if p.kind == "sidewalk"]
     ts = np.arange(0.0, POLE_SEARCH_M, POLE_STEP_M)

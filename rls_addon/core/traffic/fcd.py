@@ -86,11 +86,14 @@ def _root_tag(path):
     return m.group(1).decode("ascii", "replace") if m else None
 
 
-def read_fcd(path, begin=None, end=None):
+PROGRESS_STEPS = 500  # timesteps between two calls of read_fcd's progress
+
+
+def read_fcd(path, begin=None, end=None, progress=None):
     """Read an FCD file, streamed (``iterparse``: a timestep's objects are read when it
     ends, then it is cleared). Keeps the steps within [begin, end] seconds when given. A
     file that is not XML, is cut short, or is not FCD raises ``InputError`` naming the
-    line."""
+    line. ``progress(share of the file read)`` every ``PROGRESS_STEPS`` timesteps."""
     if not os.path.isfile(path):
         raise InputError(f"FCD file not found: {path}")
     try:
@@ -101,22 +104,12 @@ def read_fcd(path, begin=None, end=None):
         rows, steps = {}, []
         lo = -math.inf if begin is None else begin - TIME_EPS
         hi = math.inf if end is None else end + TIME_EPS
-        for _, el in ET.iterparse(path, events=("end",)):
-            if el.tag != "timestep":
-                continue
-            t = _num(el.get("time"), "time", path, "timestep")
-            if steps and t <= steps[-1] + TIME_EPS:
-                raise InputError(
-                    f"{path}: <timestep time={el.get('time')!r}> (the {len(steps) + 1}th) "
-                    + ("repeats the timestep before it" if abs(t - steps[-1]) <= TIME_EPS
-                       else f"goes back in time after time={steps[-1]:g}")
-                    + ": SUMO writes each step once, in time order; was the file joined "
-                    "from several runs?")
-            steps.append(t)
-            if lo <= t <= hi:
-                for obj in el:
-                    _add(rows, obj, t, path)
-            el.clear()
+        fh = open(path, "rb")
+        size = max(1, os.fstat(fh.fileno()).st_size)
+        with fh:
+            for t in _timesteps(fh, path, rows, steps, lo, hi):
+                if progress is not None and len(steps) % PROGRESS_STEPS == 0:
+                    progress(fh.tell() / size)
     except ET.ParseError as exc:
         raise InputError(f"{path} is not complete, well-formed XML (cut short or not "
                          f"FCD): {parse_reason(exc)}") from None
@@ -151,6 +144,28 @@ def read_fcd(path, begin=None, end=None):
                 setattr(tr, name, getattr(tr, name)[order])
         tracks[key] = tr
     return Fcd(tracks, step, float(times[0]), float(times[-1]), path)
+
+
+def _timesteps(fh, path, rows, steps, lo, hi):
+    """Each timestep's time as it is read from ``fh``, its objects (within [lo, hi])
+    added to ``rows``; a repeated or backward timestep is an ``InputError``."""
+    for _, el in ET.iterparse(fh, events=("end",)):
+        if el.tag != "timestep":
+            continue
+        t = _num(el.get("time"), "time", path, "timestep")
+        if steps and t <= steps[-1] + TIME_EPS:
+            raise InputError(
+                f"{path}: <timestep time={el.get('time')!r}> (the {len(steps) + 1}th) "
+                + ("repeats the timestep before it" if abs(t - steps[-1]) <= TIME_EPS
+                   else f"goes back in time after time={steps[-1]:g}")
+                + ": SUMO writes each step once, in time order; was the file joined "
+                "from several runs?")
+        steps.append(t)
+        if lo <= t <= hi:
+            for obj in el:
+                _add(rows, obj, t, path)
+        el.clear()
+        yield t
 
 
 def _num(value, name, path, tag):
@@ -356,15 +371,16 @@ def check_positions(fcd, types, origin):
         check_span(tr.z, f"{fcd.path}: <{tr.kind} id={tr.id!r}>'s z")
 
 
-def load(fcd_path, vtypes_paths=(), begin=None, end=None):
+def load(fcd_path, vtypes_paths=(), begin=None, end=None, progress=None):
     """(Fcd, {type id: VType}) of an FCD file with the vTypes of ``vtypes_paths`` (or
-    of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError."""
+    of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError.
+    ``progress(share of the FCD read)`` as it is read."""
     from .vtypes import read_vtypes, resolve
 
     check_times(begin, end)
     # steps a little outside [begin, end] are kept for the interpolation at its ends
     fcd = read_fcd(fcd_path, None if begin is None else begin - READ_MARGIN_S,
-                   None if end is None else end + READ_MARGIN_S)
+                   None if end is None else end + READ_MARGIN_S, progress)
     if not fcd.tracks:
         raise InputError(f"{fcd_path} has no vehicle or person"
                          + (" between --begin and --end" if begin is not None
