@@ -60,11 +60,12 @@ def add_parser(sub):
 
 
 def run_generate(args):
-    from ..core.traffic.sumo_run import generate
+    from ..core.traffic.sumo_run import GenerateSettings, generate_traffic
 
-    info = generate(args.net, args.out, args.duration, args.rate, args.seed, step=args.step,
-                    pedestrians=args.pedestrians, ped_rate=args.ped_rate,
-                    overwrite=args.overwrite)
+    info = generate_traffic(GenerateSettings(
+        net=args.net, out=args.out, duration=args.duration, rate=args.rate, seed=args.seed,
+        step=args.step, pedestrians=args.pedestrians, ped_rate=args.ped_rate,
+        overwrite=args.overwrite))
     print(json.dumps(info, indent=2))
     return 0
 

@@ -160,7 +160,8 @@ def test_generate_writes_its_outputs_as_a_set(tmp_path, monkeypatch):
         sumo_run.generate(str(net), str(out), 10.0, 100.0, 1, pedestrians="no")
     assert list(out.parent.iterdir()) == []
     monkeypatch.setattr(atomic.os, "fsync", real_fsync)
-    info = sumo_run.generate(str(net), str(out), 10.0, 100.0, 1, pedestrians="no")
+    info = sumo_run.generate_traffic(sumo_run.GenerateSettings(
+        str(net), str(out), 10.0, 100.0, 1, pedestrians="no"))
     assert sorted(p.name for p in out.parent.iterdir()) == [
         "traffic.rou.xml", "traffic.vtypes.xml", "traffic.xml"]
     assert info["vehicles"] == 1

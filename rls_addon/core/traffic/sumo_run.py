@@ -29,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass, fields
 
 from ..errors import InputError, RLSError
 from ..output.io.atomic import atomic_write_files
@@ -162,6 +163,26 @@ def check_numbers(duration, rate, step, ped_rate=None, seed=0):
             raise InputError(f"{flag} {v!r}: must be a positive number")
     if not (isinstance(seed, int) and 0 <= seed <= MAX_SEED):
         raise InputError(f"--seed {seed}: SUMO takes seeds from 0 to {MAX_SEED} (a C++ int)")
+
+
+@dataclass(frozen=True)
+class GenerateSettings:
+    """What ``rls traffic generate`` (and a UI panel) asks for: see ``generate``."""
+    net: str
+    out: str
+    duration: float
+    rate: float
+    seed: int
+    step: float = STEP_S
+    pedestrians: str = "auto"   # auto, yes, no
+    ped_rate: float | None = None
+    overwrite: bool = False
+
+
+def generate_traffic(settings, keep=None):
+    """``generate`` with one ``GenerateSettings``: the command's core entry point."""
+    return generate(**{f.name: getattr(settings, f.name) for f in fields(settings)},
+                    keep=keep)
 
 
 def generate(net, out, duration, rate, seed, step=STEP_S, pedestrians="auto", ped_rate=None,
