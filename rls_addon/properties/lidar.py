@@ -47,7 +47,7 @@ def preset_items(self, context):
         for fam, entries in preset_catalog.by_family():
             if items:
                 items.append(None)
-            items.append(("", preset_catalog.FAMILY_LABELS.get(fam, fam), ""))
+            items.append(("", fam.label, ""))
             for e in entries:
                 tag = "built-in" if e.builtin else "user preset"
                 items.append((e.id, e.name, f"{e.source} ({tag})", "NONE" if e.builtin else "USER", n))
