@@ -165,22 +165,6 @@ BACKENDS = Choices("ray-casting backend", [
                          "to BVHTree with a notice where neither is)"),
 ])
 
-FORMATS = Choices("cloud format", [
-    ("pcd_binary", "PCD binary", "PCD v0.7, binary"),
-    ("pcd_binary_compressed", "PCD binary compressed", "PCD v0.7, LZF-compressed binary"),
-    ("pcd_ascii", "PCD ASCII", "PCD v0.7, text"),
-    ("ply_binary", "PLY binary", "PLY, binary little endian"),
-    ("ply_ascii", "PLY ASCII", "PLY, text"),
-    ("las", "LAS 1.4", "ASPRS LAS 1.4 in world coordinates, GPS time, ASPRS classes, "
-                       "ring/label/instance/ghost as extra bytes (needs laspy)"),
-    ("mcap", "ROS 2 bag (MCAP)", "One rosbag2 per run: PointCloud2 on /<sensor>/points, "
-                                 "/tf and /tf_static (needs rosbags)"),
-])
-
-# Files that hold one cloud each, and those a run writes as a whole
-FILE_FORMATS = FORMATS.ids[:-1]
-RUN_FORMATS = ("mcap",)
-
 FRAME_SPACES = Choices("coordinate frame", [
     ("sensor", "Sensor", "Point coordinates in the sensor frame (as the device reports them)"),
     ("world", "World", "Point coordinates in world space"),

@@ -9,7 +9,6 @@ import pytest
 
 from rls_addon.core.errors import InputError, OutputError
 from rls_addon.core.output.io import (
-    FORMAT_EXT,
     FORMATS,
     atomic_write_bytes,
     output_path,
@@ -169,10 +168,10 @@ def test_reading_garbage_is_input_error(tmp_path):
 # ---- output templates -------------------------------------------------------
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("fmt", [f.id for f in FORMATS if f.extension])
 def test_output_path_renders_and_appends_extension(tmp_path, fmt):
     p = output_path(tmp_path, "{scene}/{sensor}/{frame:06d}", scene="Street 1", sensor="Pandar64.L", frame=7, fmt=fmt)
-    assert p == tmp_path / "Street_1" / "Pandar64.L" / f"000007{FORMAT_EXT[fmt]}"
+    assert p == tmp_path / "Street_1" / "Pandar64.L" / f"000007{FORMATS.get(fmt).extension}"
 
 
 def test_output_path_keeps_matching_extension(tmp_path):
