@@ -173,6 +173,8 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
 
 
 _LOAD_CACHE = {}
+# a family added or removed changes what a file validates to
+FAMILIES.subscribe(lambda families: _LOAD_CACHE.clear())
 
 
 def load_preset(path):
