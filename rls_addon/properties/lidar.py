@@ -2,8 +2,10 @@
 with the device preset list its enums show.
 
 Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
-``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
-the core validates with and the command line offers.
+``LidarSettings`` in one place. Enumerations come from ``core.choices`` and the
+registries (the Format list from ``output.io.formats.FORMATS``, the preset list grouped
+by ``device.families.FAMILIES``), the same lists the core validates with and the
+command line offers.
 """
 
 import bpy
