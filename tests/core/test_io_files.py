@@ -163,6 +163,12 @@ def test_reading_garbage_is_input_error(tmp_path):
     truncated.write_bytes(write_cloud(tmp_path / "ok.ply", sample_cloud(10), "ply_binary").read_bytes()[:-5])
     with pytest.raises(InputError):
         read_cloud(truncated)
+    # a compressed PCD cut inside its sizes: struct's error, one InputError
+    blob = write_cloud(tmp_path / "c.pcd", sample_cloud(10), "pcd_binary_compressed").read_bytes()
+    cut = tmp_path / "cut.pcd"
+    cut.write_bytes(blob[:blob.index(b"DATA binary_compressed\n") + 26])
+    with pytest.raises(InputError, match="cut.pcd is not a readable PCD point cloud"):
+        read_cloud(cut)
 
 
 # ---- output templates -------------------------------------------------------

@@ -2,6 +2,7 @@
 (PCD, PLY and any added with ``formats.record_format``)."""
 
 import pathlib
+import struct
 
 from ...errors import InputError, SettingsError
 from .atomic import atomic_write_bytes, parts_writer
@@ -53,7 +54,7 @@ def read_records(path):
     fmt = readable_format(blob, path)
     try:
         return fmt.decode(blob)
-    except (InputError, ValueError, UnicodeDecodeError, IndexError) as exc:
+    except (InputError, ValueError, IndexError, struct.error) as exc:
         kind = fmt.extension.lstrip(".").upper() or fmt.label
         raise InputError(f"{path} is not a readable {kind} point cloud: {exc}") from None
 

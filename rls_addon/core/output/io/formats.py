@@ -19,6 +19,7 @@ recognise))``; ``FORMATS.remove("xyz")`` takes it out again.
 """
 
 import functools
+import struct
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -103,8 +104,12 @@ def write_records(cloud, encode):
 
 
 def count_records(path, decode):
-    """Points in a file of records: all of it read back."""
-    return len(decode(Path(path).read_bytes()))
+    """Points in a file of records: all of it read back (``InputError`` when it does
+    not read)."""
+    try:
+        return len(decode(Path(path).read_bytes()))
+    except (ValueError, IndexError, struct.error) as exc:
+        raise InputError(f"{path} does not read back: {exc}") from None
 
 
 def _is_ply(blob):
