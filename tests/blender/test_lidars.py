@@ -48,3 +48,27 @@ def test_remove_takes_outline_and_preview(scene):
     assert "A" in bpy.data.objects
     assert remove_lidars(scene, ["A", "A"]) == ["A"]
     assert sorted(bpy.data.objects.keys()) == ["B", "B FOV"]
+
+
+@pytest.mark.parametrize("name", ["t_junction", "intersection", "four_lane"])
+def test_every_sample_scene_gets_its_lidar(scene, name):
+    from rls_addon.blender.scenes import add_sample_lidar, build_scene
+
+    build_scene(name, scene)
+    lidar = add_sample_lidar(name, scene)
+    bpy.context.view_layer.update()
+    assert lidar.name == "LiDAR" and lidar.matrix_world.translation.z > 6.0
+
+
+def test_sample_readme_lists_every_scene_make_scenes_writes():
+    """sample_scenes/README.md's table names each scene make_scenes.py writes (it once
+    listed three of four), and each has its LiDAR."""
+    import re
+    from pathlib import Path
+
+    from rls_addon.blender.scenes import SAMPLE_LIDARS, SCENES, SUMO_SCENES
+
+    text = (Path(__file__).resolve().parents[2] / "sample_scenes" / "README.md").read_text()
+    listed = set(re.findall(r"^\| `(\w+)\.blend` \|", text, re.M))
+    assert listed == set(SCENES) | set(SUMO_SCENES)
+    assert set(SAMPLE_LIDARS) == set(SCENES) | set(SUMO_SCENES)
