@@ -55,13 +55,17 @@ class _ScanOperator:
     preview: BoolProperty(name="Preview", default=True,
                           description="Show the points as an object in the scene after "
                                       "every scan")
+    overwrite: BoolProperty(name="Overwrite Files", default=False,
+                            description="Replace files of earlier scans; without it a file "
+                                        "that exists is refused before anything is scanned, "
+                                        "as rls scan refuses it")
 
     _timer = None
     _job = None
 
     def _make_run(self, context):
         return batch.make_run(context, self._sensors(context), self._frames(context),
-                              write=self.write, preview=self.preview)
+                              write=self.write, preview=self.preview, overwrite=self.overwrite)
 
     def execute(self, context):
         try:

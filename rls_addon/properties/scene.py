@@ -19,6 +19,9 @@ class RLS_SceneSettings(bpy.types.PropertyGroup):
                                   description="Scan the scene's frame range")
     range_all_lidars: BoolProperty(name="All LiDARs", default=False,
                                    description="Scan the frame range with every LiDAR in the scene")
+    overwrite: BoolProperty(name="Overwrite Files", default=False,
+                            description="Let the scan buttons replace files of earlier scans "
+                                        "(without it they refuse, as rls scan does)")
     lob: PointerProperty(name="InfraLOB", type=bpy.types.Object, poll=_lob_poll,
                          description="Region of interest for the placement metrics")
     metric_labels: StringProperty(name="Labels", default="road,sidewalk",

@@ -83,10 +83,11 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
         sub = row.row()
         sub.active = s.show_fov
         sub.prop(s, "fov_length", text="")
-        col = layout.column(align=True)
-        col.operator("rls.scan_frame", icon="RENDER_STILL")
-        col.operator("rls.scan_all", icon="RENDERLAYERS")
         rs = context.scene.rls
+        col = layout.column(align=True)
+        col.operator("rls.scan_frame", icon="RENDER_STILL").overwrite = rs.overwrite
+        col.operator("rls.scan_all", icon="RENDERLAYERS").overwrite = rs.overwrite
+        col.prop(rs, "overwrite")
         box = layout.box()
         box.prop(rs, "use_scene_range")
         sub = box.column(align=True)
@@ -99,6 +100,7 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
         op.use_scene_range = rs.use_scene_range
         op.frame_start, op.frame_end, op.frame_step = rs.frame_start, rs.frame_end, rs.frame_step
         op.all_lidars = rs.range_all_lidars
+        op.overwrite = rs.overwrite
         box.operator("rls.batch_command", icon="CONSOLE").all_lidars = rs.range_all_lidars
 
 

@@ -185,7 +185,7 @@ def test_scan_range_cancel_keeps_only_complete_frames(scene, tmp_path):
         json.loads(f.read_text())  # every sidecar complete
     assert scene.frame_current == 1
     assert not batch.cancel_requested()  # the next job starts clean
-    assert bpy.ops.rls.scan_range(all_lidars=True) == {"FINISHED"}
+    assert bpy.ops.rls.scan_range(all_lidars=True, overwrite=True) == {"FINISHED"}
     assert LAST_RUN["frames_done"] == [1, 2, 3, 4, 5, 6]
 
 
@@ -337,7 +337,7 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
     add_lidar_op(out=tmp_path, location=(4, 0, 2))
     ctx = bpy.context
     reports = []
-    fake = SimpleNamespace(_timer=None, write=True, preview=True,
+    fake = SimpleNamespace(_timer=None, write=True, preview=True, overwrite=False,
                            report=lambda kind, msg: reports.append((kind, msg)))
     fake._sensors = lambda c: Op._sensors(fake, c)
     fake._frames = lambda c: Op._frames(fake, c)
@@ -375,3 +375,24 @@ def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
 
     assert bpy.ops.rls.batch_command() == {"FINISHED"}
     assert LAST_RUN["batch_command"].endswith("--workers auto --resume")
+
+
+def test_scan_frame_refuses_to_replace_files_unless_overwrite(scene, tmp_path):
+    """Scan Frame once replaced the files of an earlier scan without a word, where rls
+    scan refuses: it refuses too, before scanning, naming the file and the option."""
+    from rls_addon.operators import LAST_RUN
+
+    labelled_ground()
+    add_lidar_op(out=tmp_path)
+    assert bpy.ops.rls.scan_frame() == {"FINISHED"}
+    cloud = tmp_path / "Scene_LiDAR_000001.pcd"
+    before = cloud.read_bytes()
+    cloud.write_bytes(b"an earlier scan's file")
+    with pytest.raises(RuntimeError, match="already exists .*Overwrite Files"):
+        bpy.ops.rls.scan_frame()
+    assert cloud.read_bytes() == b"an earlier scan's file"
+    with pytest.raises(RuntimeError, match="already exists"):
+        bpy.ops.rls.scan_range(use_scene_range=False, frame_start=1, frame_end=1)
+    assert bpy.ops.rls.scan_frame(overwrite=True) == {"FINISHED"}
+    assert cloud.read_bytes() == before and LAST_RUN["paths"] == [str(cloud)]
+    assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}  # a preview writes nothing

@@ -416,13 +416,13 @@ class ScanRun:
         """Without --overwrite or --resume, an existing file of this run is an error
         before anything is scanned (pieces run again after a failed worker then keep
         what they wrote the first time)."""
-        from ..errors import OutputError
+        from ..errors import OutputExists
 
-        for _, _, files in self._planned():
-            for path in files:
-                if os.path.exists(path):
-                    raise OutputError(f"{path} already exists; pass --overwrite to replace it "
-                                      "or --resume to keep it")
+        existing = [p for _, _, files in self._planned() for p in files if os.path.exists(p)]
+        if existing:
+            more = f" (and {len(existing) - 1} more of this run's files)" if len(existing) > 1 else ""
+            raise OutputExists(f"{existing[0]} already exists{more}; pass --overwrite to replace "
+                               "it or --resume to keep it", existing)
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when
