@@ -209,8 +209,10 @@ class RLS_OT_scan_range(_ScanOperator, bpy.types.Operator):
 
 def batch_command(context, all_lidars=True):
     """The command line that scans this scene's frame range (as the Scan Frame Range
-    box says) outside the UI, over every core (``--workers auto``); needs the saved
-    .blend."""
+    box says) outside the UI: this Blender run in the background on the saved .blend,
+    with the installed extension's ``rls`` command (``blender -b FILE -c rls scan``),
+    which a user who installed the zip can run as it is. ``--resume`` keeps frames a
+    stopped run finished."""
     import shlex
 
     sc = context.scene
@@ -218,20 +220,19 @@ def batch_command(context, all_lidars=True):
     a, b, step = ((sc.frame_start, sc.frame_end, sc.frame_step) if rs.use_scene_range
                   else (rs.frame_start, rs.frame_end, rs.frame_step))
     frames = f"{a}-{b}" + (f":{step}" if step > 1 else "")
-    parts = ["python", "-m", "rls_addon", "scan", bpy.data.filepath or "SCENE.blend",
-             "--frames", frames]
+    parts = [bpy.app.binary_path or "blender", "-b", bpy.data.filepath or "SCENE.blend",
+             "-c", "rls", "scan", "--frames", frames]
     if not all_lidars:
         obj = _active_lidar(context)
         if obj is not None:
             parts += ["--sensor", obj.name]
-    parts += ["--workers", "auto", "--resume"]
+    parts += ["--resume"]
     return " ".join(shlex.quote(p) for p in parts)
 
 
 class RLS_OT_batch_command(bpy.types.Operator):
-    """Copy the command line that scans this frame range in a batch run over every core
-    (or a Dask cluster with --scheduler) to the clipboard; the UI itself scans in
-    Blender's own process"""
+    """Copy the command line that scans this frame range with Blender in the background
+    (blender -b FILE -c rls scan ...) to the clipboard, to run outside the UI"""
 
     bl_idname = "rls.batch_command"
     bl_label = "Copy Batch Command"

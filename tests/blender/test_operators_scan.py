@@ -361,6 +361,12 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
 
 
 def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
+    """What Copy Batch Command gives runs where the zip was installed: Blender in the
+    background with the extension's rls command (it once gave python -m rls_addon, which
+    only a checkout with the bpy module can run); the same frames and LiDAR; it parses."""
+    import shlex
+
+    from rls_addon.cli import build_parser
     from rls_addon.operators.scan import batch_command
 
     labelled_ground()
@@ -369,12 +375,27 @@ def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
     blend = tmp_path / "my scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
     text = batch_command(bpy.context, all_lidars=False)
-    assert text == (f"python -m rls_addon scan '{blend}' --frames 5-40:5 --sensor LiDAR "
-                    "--workers auto --resume")
+    assert text == (f"blender -b '{blend}' -c rls scan --frames 5-40:5 --sensor LiDAR "
+                    "--resume")
+    words = shlex.split(text)
+    args = build_parser().parse_args(words[words.index("rls") + 1:])
+    assert (args.command, args.frames, args.sensor, args.resume) == ("scan", "5-40:5",
+                                                                     ["LiDAR"], True)
+    # and it runs: 'blender' here is the stand-in of tests/cli (Blender as the bpy module)
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    standin = Path(__file__).resolve().parents[1] / "cli" / "blender_standin.py"
+    proc = subprocess.run([sys.executable, str(standin), *words[1:]], capture_output=True,
+                          text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert len(list(tmp_path.glob("*_LiDAR_0000[0-4][05].pcd"))) == 8
     from rls_addon.operators import LAST_RUN
 
     assert bpy.ops.rls.batch_command() == {"FINISHED"}
-    assert LAST_RUN["batch_command"].endswith("--workers auto --resume")
+    assert LAST_RUN["batch_command"].startswith("blender -b ")
+    assert LAST_RUN["batch_command"].endswith("-c rls scan --frames 5-40:5 --resume")
 
 
 def test_scan_frame_refuses_to_replace_files_unless_overwrite(scene, tmp_path):
