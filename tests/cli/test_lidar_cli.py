@@ -65,6 +65,8 @@ def test_add_on_a_mount_facing_the_region_list_scan_remove(scene, tmp_path):
     scan = rls("scan", out, "--sensor", "Pole LiDAR", "--frames", "1", "--out", tmp_path / "scan")
     assert scan.returncode == 0, scan.stderr
     assert json.loads(scan.stdout)["points"] > 1000
+    # the progress line gives the frame's wall time and what it went on
+    assert "s wall (frame " in scan.stderr and ", scan " in scan.stderr, scan.stderr
     table = rls("lidar", "list", out)
     assert "Pole LiDAR" in table.stdout and "Livox Avia" in table.stdout, table.stdout
     gone = tmp_path / "gone.blend"
