@@ -233,12 +233,17 @@ def scan_run(args):
     changes = overrides(args)
     if changes["format"] == "mcap" and changes["frame_space"] is None:
         changes["frame_space"] = "sensor"  # bags hold sensor-frame clouds
-    jobs = []
+    jobs, folders = [], {}
     for obj in sensors:
         settings = read_settings(obj).override(**changes)
         if args.out is None:
+            own = settings.output.directory
             settings = absolute_output(settings)
+            folders.setdefault((settings.output.directory, own), []).append(obj.name)
         jobs.append(sensor_job(obj, settings))
+    for (folder, own), names in folders.items():  # no --out: say where the files go
+        print(f"rls: notice: no --out given: {', '.join(names)} write{'s' if len(names) == 1 else ''} "
+              f"to {folder} (the Output folder '{own}' of the LiDAR panel)", file=sys.stderr)
     frames = parse_frames(args.frames, scene.frame_current)
     source = BlenderScene(scene, edited=False)  # a background Blender: nobody edits it
     writer = make_writer(jobs, scene.name, source.fps, source.frame_start,

@@ -67,6 +67,12 @@ def test_add_on_a_mount_facing_the_region_list_scan_remove(scene, tmp_path):
     assert json.loads(scan.stdout)["points"] > 1000
     # the progress line gives the frame's wall time and what it went on
     assert "s wall (frame " in scan.stderr and ", scan " in scan.stderr, scan.stderr
+    # without --out the files go to the LiDAR's Output folder beside the .blend: it says so
+    own = rls("scan", out, "--sensor", "LiDAR", "--frames", "1")
+    assert own.returncode == 0, own.stderr
+    where = tmp_path / "lidar"
+    assert f"rls: notice: no --out given: LiDAR writes to {where} " in own.stderr, own.stderr
+    assert (where / "Scene_LiDAR_000001.pcd").is_file()
     table = rls("lidar", "list", out)
     assert "Pole LiDAR" in table.stdout and "Livox Avia" in table.stdout, table.stdout
     gone = tmp_path / "gone.blend"
