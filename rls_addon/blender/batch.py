@@ -27,6 +27,11 @@ def cancel_requested():
     return _cancel["requested"]
 
 
+def clear_cancel():
+    """A new run starts with no cancel asked for."""
+    _cancel["requested"] = False
+
+
 def make_run(context, sensors, frames, write=True, preview=True, overwrite=False):
     """A ``ScanRun`` of LiDAR objects ``sensors`` over ``frames`` of the context's scene:
     files as each LiDAR's Output panel says (when ``write``), previews shown after each
@@ -46,7 +51,7 @@ def make_run(context, sensors, frames, write=True, preview=True, overwrite=False
             show_points(scene, obj, result.points, info["frame_space"], info["sensor_to_world"],
                         color_by=lidar_props(obj).preview_color)
 
-    _cancel["requested"] = False
+    clear_cancel()
     source = BlenderScene(scene, context)
     writer = make_writer(jobs, scene.name, source.fps, source.frame_start,
                          overwrite=overwrite) if write else None
@@ -64,5 +69,5 @@ def make_run(context, sensors, frames, write=True, preview=True, overwrite=False
 def end_run(run):
     """Put the scene back at its frame and clear a cancel request (the next run starts
     clean)."""
-    _cancel["requested"] = False
+    clear_cancel()
     run.finish()

@@ -11,41 +11,12 @@ from ..blender.sensor import is_lidar, lidar_objects, lidar_props
 from ..core.errors import RLSError
 from ..properties import COLOR_ITEMS
 from .common import _active_lidar, _poll_active_lidar, _poll_any_lidar, cancelled
+from .running import LAST_RUN, ModalRun
 
 
-# What the last scan operator did (for scripts and tests; reports go to the UI).
-LAST_RUN = {}
-
-
-def _report_run(op, run):
-    for w in run.warnings[:5]:
-        op.report({"WARNING"}, w)
-    if len(run.warnings) > 5:
-        op.report({"WARNING"}, f"... and {len(run.warnings) - 5} more warnings")
-    LAST_RUN.clear()
-    LAST_RUN.update(cancelled=run.cancelled, frames_done=list(run.frames_done),
-                    frames=list(run.frames), steps_done=run.index, steps=run.total,
-                    paths=[str(p) for p in run.paths], points=run.points,
-                    warnings=list(run.warnings))
-    where = f", {len(run.paths)} files written" if run.writer is not None else ""
-    if run.cancelled:
-        op.report({"WARNING"}, f"Scan cancelled: {len(run.frames_done)} of {len(run.frames)} "
-                               f"frames completed{where}")
-        return {"CANCELLED"}
-    if run.total == 1 and run.paths:
-        where = f" to {run.paths[0]}"
-    op.report({"INFO"}, f"{run.points} points from {len(run.sensors)} LiDAR(s) over "
-                        f"{len(run.frames)} frame(s){where}")
-    return {"FINISHED"}
-
-
-class _ScanOperator:
+class _ScanOperator(ModalRun):
     """What the scan operators share: they make one core scan run (``batch.make_run``)
-    of ``_sensors()`` x ``_frames()``. From the UI it runs modal, a step per timer
-    event, with Blender's progress bar and status text; Esc cancels after the step in
-    progress (files already written stay complete; nothing half-written is left).
-    Without a window (``blender -b``, scripts) it runs straight through in
-    ``execute()``."""
+    of ``_sensors()`` x ``_frames()``, modal from the UI (``ModalRun``)."""
 
     bl_options = {"REGISTER", "UNDO"}  # they create or replace preview objects
 
@@ -60,84 +31,9 @@ class _ScanOperator:
                                         "that exists is refused before anything is scanned, "
                                         "as rls scan refuses it")
 
-    _timer = None
-    _job = None
-
     def _make_run(self, context):
         return batch.make_run(context, self._sensors(context), self._frames(context),
                               write=self.write, preview=self.preview, overwrite=self.overwrite)
-
-    def execute(self, context):
-        try:
-            run = self._make_run(context)
-        except RLSError as exc:
-            return cancelled(self, exc)
-        try:
-            run.run(interrupt_cancels=True)
-        except RLSError as exc:
-            return cancelled(self, exc)
-        finally:
-            batch.end_run(run)
-        return _report_run(self, run)
-
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        try:
-            self._job = self._make_run(context)
-        except RLSError as exc:
-            return cancelled(self, exc)
-        wm = context.window_manager
-        wm.progress_begin(0, self._job.total)
-        self._status(context, self._job.status())
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def _status(self, context, text):
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            try:
-                ws.status_text_set(text)
-            except (RuntimeError, AttributeError):
-                pass
-
-    def _end(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        self._status(context, None)
-        batch.end_run(self._job)
-
-    def modal(self, context, event):
-        job = self._job
-        if event.type == "ESC":
-            batch.request_cancel()
-            job.cancelled = True
-        if event.type == "TIMER" or job.cancelled:
-            try:
-                if not job.finished:
-                    job.step()
-            except RLSError as exc:
-                self._end(context)
-                return cancelled(self, exc)
-            except Exception:
-                self._end(context)
-                raise
-            if job.finished:
-                self._end(context)
-                return _report_run(self, job)
-            context.window_manager.progress_update(job.index)
-            self._status(context, job.status())
-            return {"RUNNING_MODAL"}
-        return {"PASS_THROUGH"}
-
-    def cancel(self, context):  # Blender quits or the window closes
-        if self._job is not None:
-            self._job.cancelled = True
-            self._end(context)
 
 
 class RLS_OT_scan_frame(_ScanOperator, bpy.types.Operator):

@@ -270,6 +270,7 @@ def test_modal_path_progress_and_esc(scene, tmp_path):
     reports = []
     fake = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append((kind, msg)))
     fake._end = lambda c: Op._end(fake, c)
+    fake._report = lambda run: Op._report(fake, run)
     fake._status = lambda c, t: Op._status(fake, c, t)
     fake._job = batch.make_run(ctx, [bpy.context.active_object], [1, 2, 3, 4, 5])
     ctx.window_manager.progress_begin(0, fake._job.total)
@@ -342,6 +343,7 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
     fake._sensors = lambda c: Op._sensors(fake, c)
     fake._frames = lambda c: Op._frames(fake, c)
     fake._end = lambda c: Op._end(fake, c)
+    fake._report = lambda run: Op._report(fake, run)
     fake._status = lambda c, t: Op._status(fake, c, t)
     fake._job = Op._make_run(fake, ctx)
     steps = fake._job.total
