@@ -19,6 +19,7 @@ def register():
     except RLSError as exc:
         print(f"rls: warning: {exc}")
     bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
+    bpy.types.TOPBAR_MT_file_import.append(operators.roads.draw_import_menu)
     bpy.types.TOPBAR_MT_file_import.append(operators.traffic.draw_import_menu)
     bpy.types.TOPBAR_MT_file_export.append(operators.dataset.draw_export_menu)
     _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
@@ -42,6 +43,7 @@ def unregister():
         _state["cli"] = None
     bpy.types.TOPBAR_MT_file_export.remove(operators.dataset.draw_export_menu)
     bpy.types.TOPBAR_MT_file_import.remove(operators.traffic.draw_import_menu)
+    bpy.types.TOPBAR_MT_file_import.remove(operators.roads.draw_import_menu)
     bpy.types.VIEW3D_MT_add.remove(ui.draw_add_menu)
     properties.unregister_properties()
     _unregister_classes()

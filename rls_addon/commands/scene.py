@@ -40,8 +40,7 @@ def _say(text):
 
 
 def run(args):
-    from ..core.roads.layout import build_layout
-    from ..core.roads.network import read_network
+    from ..core.roads.layout import network_layout
 
     out = os.path.abspath(args.out)
     if os.path.exists(out) and not args.overwrite:
@@ -49,8 +48,7 @@ def run(args):
     if not os.path.isdir(os.path.dirname(out)):
         raise OutputError(f"cannot write {out}: folder {os.path.dirname(out)} does not exist")
     t0 = time.perf_counter()
-    net = read_network(args.net)
-    layout = build_layout(net, args.junction, args.origin)
+    net, layout = network_layout(args.net, args.junction, args.origin)
     t_read = time.perf_counter() - t0
 
     import bpy

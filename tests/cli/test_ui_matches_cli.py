@@ -24,7 +24,8 @@ add_lidar(bpy.context.scene, LidarMounting(preset="hesai_pandar64", name="North"
 bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 """
 
-# Opens argv[2] (when given, else an empty file), registers RLS and runs argv[3].
+# Opens argv[2] (when given, else an empty file), registers RLS, runs argv[4] (a
+# prelude of definitions) and evaluates argv[3].
 OPERATOR = r"""
 import json, sys, bpy
 sys.path.insert(0, sys.argv[1])
@@ -34,16 +35,19 @@ if sys.argv[2]:
 else:
     bpy.ops.wm.read_factory_settings(use_empty=True)
 rls_addon.ensure_registered()
-result = eval(sys.argv[3], {"bpy": bpy})
+space = {"bpy": bpy, "json": json}
+exec(sys.argv[4], space)
+result = eval(sys.argv[3], space)
 print(json.dumps(sorted(result)))
 """
 
 
-def run_operator(blend, call, cwd=None):
-    """Run ``call`` (e.g. ``bpy.ops.rls.export_dataset(...)``) on ``blend`` in a bpy
-    subprocess; return its CompletedProcess (the operator's result on stdout's last line)."""
-    proc = subprocess.run([sys.executable, "-c", OPERATOR, str(ROOT), str(blend or ""), call],
-                          capture_output=True, text=True, timeout=900, cwd=cwd)
+def run_operator(blend, call, cwd=None, prelude=""):
+    """Evaluate ``call`` (e.g. ``bpy.ops.rls.export_dataset(...)``) on ``blend`` in a bpy
+    subprocess after ``prelude``; return its CompletedProcess (the operator's result on
+    stdout's last line)."""
+    proc = subprocess.run([sys.executable, "-c", OPERATOR, str(ROOT), str(blend or ""), call,
+                           prelude], capture_output=True, text=True, timeout=900, cwd=cwd)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return proc
 
@@ -73,3 +77,100 @@ def test_export_dataset_writes_what_rls_dataset_writes(junction, tmp_path, layou
                                 "frame_end=26)")
     assert json.loads(op.stdout.splitlines()[-1]) == ["FINISHED"]
     same_tree(cli, ui)
+
+
+# Prints a JSON description of scene argv[2] (default: the current one) of the open file:
+# every object (Blender's duplicate suffix left out of names) with its type, collections,
+# semantic label, RLS properties, matrix, mesh vertices, faces and materials; the scene's
+# RLS properties.
+DESCRIBE = r"""
+import json, re
+import numpy as np
+from rls_addon.blender.labels import object_label
+def base(n):
+    return re.sub(r"\.\d{3,}$", "", n)
+def describe(scene):
+    objs = {}
+    for o in scene.objects:
+        d = {"type": o.type, "collections": sorted(base(c.name) for c in o.users_collection),
+             "label": object_label(o),
+             "props": {k: (list(v) if hasattr(v, "__len__") and not isinstance(v, str) else v)
+                       for k, v in o.items() if k.startswith("rls")},
+             "matrix": [list(r) for r in o.matrix_world]}
+        if o.type == "MESH":
+            m = o.data
+            co = np.empty(len(m.vertices) * 3, np.float32)
+            m.vertices.foreach_get("co", co)
+            d["co"] = co.tolist()
+            d["faces"] = [list(p.vertices) for p in m.polygons]
+            d["materials"] = [base(x.name) for x in m.materials if x]
+        objs[base(o.name)] = d
+    props = {k: (list(v) if hasattr(v, "__len__") and not isinstance(v, str) else v)
+             for k, v in scene.items() if k.startswith("rls")}
+    return {"objects": objs, "props": props}
+"""
+
+
+def describe_file(blend):
+    """The description of ``blend``'s scene (its only one)."""
+    proc = run_operator(blend, "print(json.dumps(describe(bpy.context.scene))) or {'FINISHED'}",
+                        prelude=DESCRIBE)
+    return json.loads(proc.stdout.splitlines()[-2])
+
+
+@pytest.fixture(scope="module")
+def grid(tmp_path_factory):
+    from tests.sumo_nets import grid_net
+
+    return grid_net(tmp_path_factory.mktemp("net"))
+
+
+@pytest.mark.parametrize("into", ["empty", "sample"])
+def test_import_network_builds_what_scene_from_net_writes(grid, junction, tmp_path, into):
+    """Into an empty file, and into a file that already holds the sample intersection
+    (its Road, Sidewalk, Poles collections and InfraLOB: the new scene takes none of
+    them, and they keep their objects)."""
+    out = tmp_path / "from_net.blend"
+    proc = rls("scene", "from-net", grid, "--out", out, "--origin", "junction")
+    assert proc.returncode == 0, proc.stderr
+    cli = describe_file(out)
+    call = (f"bpy.ops.rls.import_sumo_network(filepath={str(grid)!r}, origin='junction')")
+    check = ("[print(json.dumps({'new': describe(bpy.data.scenes['grid']), "
+             "'others': {s.name: len(s.objects) for s in bpy.data.scenes if s.name != 'grid'}, "
+             "'current': bpy.context.scene.name})), r][1]")
+    op = run_operator(junction if into == "sample" else None,
+                      f"(lambda r: {check})({call})", prelude=DESCRIBE)
+    assert json.loads(op.stdout.splitlines()[-1]) == ["FINISHED"]
+    got = json.loads(op.stdout.splitlines()[-2])
+    assert got["new"] == cli
+    if into == "sample":
+        before = describe_file(junction)
+        assert got["others"] == {"intersection": len(before["objects"])}
+
+
+@pytest.mark.slow  # about 14 s here: SUMO twice, two scenes written, an import
+def test_generate_traffic_writes_what_traffic_generate_writes(grid, tmp_path):
+    """The same files for the same seed, and imported into a from-net scene the same
+    objects as rls traffic import puts there."""
+    cli = tmp_path / "cli"
+    cli.mkdir()
+    args = ("--duration", "20", "--rate", "720", "--seed", "5")
+    proc = rls("traffic", "generate", grid, *args, "--out", cli / "fcd.xml")
+    assert proc.returncode == 0, proc.stderr
+    scene = tmp_path / "grid.blend"
+    assert rls("scene", "from-net", grid, "--out", scene).returncode == 0
+    with_cars = tmp_path / "with_cars.blend"
+    proc = rls("traffic", "import", scene, "--fcd", cli / "fcd.xml", "--out", with_cars)
+    assert proc.returncode == 0, proc.stderr
+    ui = tmp_path / "ui"
+    ui.mkdir()
+    call = (f"bpy.ops.rls.generate_sumo_traffic(filepath={str(grid)!r}, "
+            f"fcd={str(ui / 'fcd.xml')!r}, duration=20, rate=720, seed=5)")
+    op = run_operator(scene, f"(lambda r: [print(json.dumps(describe(bpy.context.scene))), r][1])"
+                             f"({call})", prelude=DESCRIBE)
+    assert json.loads(op.stdout.splitlines()[-1]) == ["FINISHED"]
+    same_tree(cli, ui)  # fcd.xml, fcd.vtypes.xml, fcd.rou.xml
+    got = json.loads(op.stdout.splitlines()[-2])
+    want = describe_file(with_cars)
+    assert got == want
+    assert sum(o["label"] == 11 for o in want["objects"].values()) >= 3  # 720 an hour for 20 s: 4
