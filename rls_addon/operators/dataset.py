@@ -115,6 +115,8 @@ class RLS_OT_export_dataset(ModalRun, bpy.types.Operator):
         for notice in getattr(self._writer, "notices", []):
             self.report({"INFO"}, notice)
         if result == {"FINISHED"}:
+            if self.layout == "kitti":  # what Detect and Evaluate runs over next
+                bpy.context.scene.rls.evaluation.dataset = str(self._writer.root)
             self.report({"INFO"}, f"Dataset written to {self._writer.root}")
         return result
 

@@ -1,10 +1,11 @@
 """The scene's properties (``Scene.rls``): the frame range to scan, the InfraLOB metric
-settings and the last metrics computed."""
+settings and the last metrics computed; Detect and Evaluate's (``evaluation.py``)."""
 
 import bpy
 from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..blender.region import is_lob
+from .evaluation import RLS_EvaluationSettings
 
 
 def _lob_poll(self, obj):
@@ -51,3 +52,5 @@ class RLS_SceneSettings(bpy.types.PropertyGroup):
                                    description="The LiDARs whose points were counted")
     metric_image: PointerProperty(name="Density Map", type=bpy.types.Image,
                                   description="Image of points per square metre in the InfraLOB")
+    evaluation: PointerProperty(type=RLS_EvaluationSettings, name="Detect and Evaluate",
+                                description="RLS's detector over a dataset, scored")

@@ -3,6 +3,7 @@ data: no scanning, no file I/O, no preset loading (the preset list is an in-memo
 refreshed by the preset operators)."""
 
 from .add_menu import FAMILY_MENUS, VIEW3D_MT_rls_add, draw_add_menu
+from .evaluate import SCENE_PT_rls_evaluate
 from .label import OBJECT_PT_rls_label
 from .lidar import (OBJECT_PT_rls_lidar, OBJECT_PT_rls_lidar_motion, OBJECT_PT_rls_lidar_output,
                     OBJECT_PT_rls_lidar_preview, OBJECT_PT_rls_lidar_range, RLS_PT_device_presets)
@@ -19,9 +20,11 @@ CLASSES = FAMILY_MENUS + (
     OBJECT_PT_rls_lidar_metrics,
     OBJECT_PT_rls_infralob,
     OBJECT_PT_rls_label,
+    SCENE_PT_rls_evaluate,
 )
 
 __all__ = ["CLASSES", "FAMILY_MENUS", "draw_add_menu", "VIEW3D_MT_rls_add", "RLS_PT_device_presets",
            "OBJECT_PT_rls_lidar", "OBJECT_PT_rls_lidar_range", "OBJECT_PT_rls_lidar_motion",
            "OBJECT_PT_rls_lidar_output", "OBJECT_PT_rls_lidar_preview",
-           "OBJECT_PT_rls_lidar_metrics", "OBJECT_PT_rls_infralob", "OBJECT_PT_rls_label"]
+           "OBJECT_PT_rls_lidar_metrics", "OBJECT_PT_rls_infralob", "OBJECT_PT_rls_label",
+           "SCENE_PT_rls_evaluate"]

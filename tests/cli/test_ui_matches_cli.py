@@ -174,3 +174,32 @@ def test_generate_traffic_writes_what_traffic_generate_writes(grid, tmp_path):
     want = describe_file(with_cars)
     assert got == want
     assert sum(o["label"] == 11 for o in want["objects"].values()) >= 3  # 720 an hour for 20 s: 4
+
+
+def test_detect_and_evaluate_gives_what_detect_then_evaluate_give(junction, tmp_path):
+    """The panel's button on a kitti dataset of both LiDARs: the detection files of
+    'rls detect' of both sensor folders, and the result of 'rls evaluate' of them in the
+    InfraLOB (all but the paths it names)."""
+    data = tmp_path / "data"
+    proc = rls("dataset", junction, "--layout", "kitti", "--frames", "1-30:3", "--out", data)
+    assert proc.returncode == 0, proc.stderr
+    cli = tmp_path / "cli_det"
+    proc = rls("detect", data / "LiDAR", data / "North", "--out", cli)
+    assert proc.returncode == 0, proc.stderr
+    result = tmp_path / "cli.json"
+    proc = rls("evaluate", "--truth", data, "--detections", cli, "--dataset", data / "LiDAR",
+               "--lob", f"{junction}:InfraLOB", "--out", result)
+    assert proc.returncode == 0, proc.stderr
+    ui = tmp_path / "ui_det"
+    setup = (f"ev = bpy.context.scene.rls.evaluation\nev.dataset = {str(data)!r}\n"
+             f"ev.detections = {str(ui)!r}\n")
+    op = run_operator(junction, "bpy.ops.rls.detect_evaluate()", prelude=setup)
+    assert json.loads(op.stdout.splitlines()[-1]) == ["FINISHED"]
+    ui_json = ui / "evaluation.json"
+    files = sorted(p.name for p in cli.iterdir())
+    assert files and sorted(p.name for p in ui.iterdir()) == sorted(files + [ui_json.name])
+    assert all(filecmp.cmp(cli / f, ui / f, shallow=False) for f in files)
+    want, got = json.loads(result.read_text()), json.loads(ui_json.read_text())
+    assert want.pop("inputs")["region"] == got.pop("inputs")["region"] == "InfraLOB in junction.blend"
+    assert got == want
+    assert want["ground_truth"]["counted"] > 0
