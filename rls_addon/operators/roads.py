@@ -10,7 +10,7 @@ from bpy.props import EnumProperty, StringProperty
 
 from ..core.errors import RLSError
 from ..core.roads.layout import ORIGINS
-from .common import cancelled
+from .common import cancelled, status_text
 
 _ORIGIN_TEXT = {
     "net": ("Network", "The scene's (0, 0) is the network's: scene x, y = SUMO's x, y"),
@@ -50,14 +50,6 @@ class RLS_OT_import_sumo_network(bpy.types.Operator):
         context.window_manager.fileselect_add(self)
         return {"RUNNING_MODAL"}
 
-    def _status(self, context, text):
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            try:
-                ws.status_text_set(text)
-            except (RuntimeError, AttributeError):
-                pass
-
     def execute(self, context):
         from ..blender.roads import build_roads
         from ..core.roads.layout import network_layout
@@ -72,12 +64,12 @@ class RLS_OT_import_sumo_network(bpy.types.Operator):
         scene = bpy.data.scenes.new(scene_name_for(path))
         try:
             info = build_roads(scene, layout,
-                               progress=lambda text: self._status(context, f"SUMO network: {text}"))
+                               progress=lambda text: status_text(context, f"SUMO network: {text}"))
         except RLSError as exc:
             bpy.data.scenes.remove(scene)
             return cancelled(self, exc)
         finally:
-            self._status(context, None)
+            status_text(context, None)
         if context.window is not None:
             context.window.scene = scene
         self.report({"INFO"}, f"Scene '{scene.name}': junction {info['junction']}, "

@@ -6,7 +6,7 @@ import bpy
 
 from ..blender import batch
 from ..core.errors import RLSError
-from .common import cancelled
+from .common import cancelled, status_text
 
 
 # What the last run of an operator did (for scripts and tests; reports go to the UI).
@@ -90,12 +90,7 @@ class ModalRun:
         return {"RUNNING_MODAL"}
 
     def _status(self, context, text):
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            try:
-                ws.status_text_set(text)
-            except (RuntimeError, AttributeError):
-                pass
+        status_text(context, text)
 
     def _end(self, context):
         wm = context.window_manager

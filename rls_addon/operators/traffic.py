@@ -12,7 +12,7 @@ from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorPro
                        IntProperty, StringProperty)
 
 from ..core.errors import RLSError
-from .common import cancelled
+from .common import cancelled, status_text
 
 
 class RLS_OT_import_sumo_traffic(bpy.types.Operator):
@@ -131,9 +131,7 @@ class RLS_OT_generate_sumo_traffic(bpy.types.Operator):
             return cancelled(self, "Choose a SUMO network file (.net.xml)")
         net = bpy.path.abspath(self.filepath)
         out = bpy.path.abspath(self.fcd) if self.fcd else fcd_path_for(net)
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            ws.status_text_set(f"Running SUMO over {os.path.basename(net)} ...")
+        status_text(context, f"Running SUMO over {os.path.basename(net)} ...")
         try:
             # rounded: float32 properties would hand SUMO 0.10000000149 for 0.1
             info = generate(net, out, round(self.duration, 6), round(self.rate, 6), self.seed,
@@ -142,8 +140,7 @@ class RLS_OT_generate_sumo_traffic(bpy.types.Operator):
         except RLSError as exc:
             return cancelled(self, exc)
         finally:
-            if ws is not None:
-                ws.status_text_set(None)
+            status_text(context, None)
         self.report({"INFO"}, f"SUMO traffic: {info['vehicles']} vehicles, {info['persons']} "
                               f"persons over {self.duration:g} s written to {out}")
         if not self.import_traffic:
