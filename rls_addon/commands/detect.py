@@ -14,9 +14,6 @@ in the first dataset's label frame (``x y z dx dy dz heading Class score``), the
 """
 
 import sys
-from pathlib import Path
-
-from ..core.errors import OutputError
 
 
 def add_parser(sub):
@@ -35,27 +32,22 @@ def add_parser(sub):
 
 
 def run(args):
-    from ..core.evaluate.detect_dataset import detect_datasets, write_dataset_detections
-    from .scan import parse_frames
+    from ..core.evaluate.runs import DetectSettings, check_detection_folder, run_detection
+    from ..core.scan.frames import parse_frames
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} is a file, not a folder")
-    if out.is_dir() and any(out.glob("*.txt")) and not args.overwrite:
-        raise OutputError(f"{out} already holds detection files: use --overwrite to replace "
-                          "them, or choose another folder")
-    frames = parse_frames(args.background_frames, None) if args.background_frames else None
+    check_detection_folder(args.out, args.overwrite)
+    frames = (parse_frames(args.background_frames, None, "--background-frames")
+              if args.background_frames else None)
 
     def progress(i, n, frame):
         print(f"[{i}/{n}] frame {frame}", file=sys.stderr, flush=True)
 
-    boxes, done, timing = detect_datasets(args.datasets, frames, args.noise_sigma, progress)
-    paths = write_dataset_detections(out, boxes, args.datasets, done, overwrite=True)
+    found = run_detection(DetectSettings(tuple(args.datasets), args.out, frames,
+                                         args.noise_sigma, args.overwrite), progress)
+    timing, counts = found["timing"], found["counts"]
     per_frame = sorted(timing["detect_s"])[len(timing["detect_s"]) // 2] * 1000
-    counts = {name: int((boxes.label == lid).sum())
-              for name, lid in (("vehicle", 11), ("pedestrian", 12), ("cyclist", 18))}
-    print(f"{len(boxes)} detections in {len(done)} frames of {', '.join(timing['sensors'])} "
-          f"({', '.join(f'{v} {k}' for k, v in counts.items())}); background learned in "
-          f"{timing['learn_s']:.1f} s, {per_frame:.1f} ms a frame (median)\n"
-          f"Detections: {out} ({len(paths)} files)")
+    print(f"{len(found['boxes'])} detections in {len(found['frames'])} frames of "
+          f"{', '.join(timing['sensors'])} ({', '.join(f'{v} {k}' for k, v in counts.items())}); "
+          f"background learned in {timing['learn_s']:.1f} s, {per_frame:.1f} ms a frame "
+          f"(median)\nDetections: {args.out} ({len(found['paths'])} files)")
     return 0

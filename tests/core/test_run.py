@@ -320,3 +320,28 @@ def test_the_disk_budget_waits_for_files_written_behind_the_scan(tmp_path, monke
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     for name in written:  # each complete, with its sidecar
         assert (tmp_path / name.replace(".pcd", ".json")).is_file()
+
+
+def test_a_steps_wall_time_and_its_parts(tmp_path):
+    """The progress line once gave only the scan's own seconds (0.06 s of a 0.28 s
+    frame): a step also says its wall time and what it went on. A frame change made to
+    take at least 50 ms shows there, in the wall time and not in the scan's."""
+    import time
+
+    from rls_addon.core.scan.run import STEP_PARTS
+
+    scene = street()
+    slow_set = scene.set_frame
+
+    def set_frame(frame):
+        time.sleep(0.05)
+        slow_set(frame)
+
+    scene.set_frame = set_frame
+    steps = []
+    run_of(scene, [job("pole", tmp_path)], [2, 3], tmp_path, progress=steps.append).run()
+    for s in steps:
+        assert tuple(s.parts) == STEP_PARTS
+        assert s.parts["frame"] >= 0.05 and s.parts["scan"] == s.seconds
+        assert sum(s.parts.values()) == pytest.approx(s.wall_s, abs=1e-9)
+        assert s.wall_s >= s.seconds + 0.05
