@@ -136,6 +136,14 @@ def distance_bins_of(distance_bins):
     return list(zip(edges, edges[1:]))
 
 
+def in_bin(distance, low, high):
+    """(N,) bool: ``distance`` (m) lies in the bin ``[low, high)``: a box exactly on an
+    edge belongs to the bin that starts there. The one place the rule is written (the
+    evaluation's bins here and ``scoring``'s, from the nearest sensor, both use it)."""
+    distance = np.asarray(distance, np.float64)
+    return (distance >= low) & (distance < high)
+
+
 def _bins(distance_bins, sensor_xy):
     """``distance_bins_of``, with the sensor's position the distances are measured from."""
     bins = distance_bins_of(distance_bins)
@@ -237,8 +245,7 @@ def evaluate(ground_truth, detections, gt_ignore=None, det_ignore=None,
         gt_range = np.hypot(gt.box[:, 0] - sensor[0], gt.box[:, 1] - sensor[1])
         det_range = np.hypot(det.box[:, 0] - sensor[0], det.box[:, 1] - sensor[1])
         for low, high in bins:
-            gt_in = (gt_range >= low) & (gt_range < high)
-            det_in = (det_range >= low) & (det_range < high)
+            gt_in, det_in = in_bin(gt_range, low, high), in_bin(det_range, low, high)
             scopes.append(((low, high), gt_in, det_in))
 
     results = {c: {"label": int(c), "all": {}, "bins": []} for c in class_ids}

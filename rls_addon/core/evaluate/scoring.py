@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError, RegionError
 from ..labels import DEFAULT_LABELS
 from ..metrics.polygon import as_polygon, points_in_polygon, shoelace_area
-from .average_precision import DEFAULT_THRESHOLDS, distance_bins_of, evaluate
+from .average_precision import DEFAULT_THRESHOLDS, distance_bins_of, evaluate, in_bin
 from .detections import CLASS_IDS, Boxes, class_id
 from .ground_truth_files import GroundTruth
 from .matching import FP, IGNORED, TP, check_threshold, match, pair_overlaps
@@ -308,8 +308,7 @@ def _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins,
     for name in result["classes"]:
         result["classes"][name]["bins"] = []
     for low, high in bins:
-        g_in = (gt_range >= low) & (gt_range < high)
-        d_in = (det_range >= low) & (det_range < high)
+        g_in, d_in = in_bin(gt_range, low, high), in_bin(det_range, low, high)
         g_ignore, d_ignore = gt_ignore | ~g_in, det_ignore | ~d_in
         part = evaluate(gt, det, g_ignore, d_ignore, thresholds, kinds, class_ids)
         status = {(kind, t): match(det, gt, t, kind, g_ignore, d_ignore,

@@ -192,6 +192,24 @@ def test_distance_bins_from_the_frames_sensor():
                                                        pytest.approx(math.hypot(10, 25))]
 
 
+def test_a_box_on_a_bin_edge_belongs_to_the_bin_that_starts_there():
+    # Bins are [lo, hi): a car centred exactly 30 m from the sensor is in 30-inf, not in
+    # 0-30, both in score's bins (from the frame's nearest sensor) and in evaluate's
+    # (from a given sensor position). The rule is one function (average_precision.in_bin);
+    # written as (lo, hi] anywhere, this fails.
+    from rls_addon.core.evaluate.average_precision import evaluate
+
+    gt = truth([(1, 1, CAR, car(30, 0), 50)], at=(0.0, 0.0, 6.0))
+    det = dets([(1, CAR, car(30, 0), 0.9)])
+    r = score(gt, det, distance_bins=(0, 30, math.inf), iou_thresholds=(0.5,), kinds="bev")
+    near, far = (b["bev"]["0.5"] for b in r["classes"]["vehicle"]["bins"])
+    assert (near["gt"], near["tp"], far["gt"], far["tp"]) == (0, 0, 1, 1)
+    e = evaluate(gt.boxes, det, iou_thresholds=(0.5,), kinds="bev", classes=[CAR],
+                 distance_bins=(0, 30, math.inf), sensor_xy=(0.0, 0.0))
+    near, far = (b["bev"]["0.5"] for b in e["classes"]["vehicle"]["bins"])
+    assert (near["gt"], near["tp"], far["gt"], far["tp"]) == (0, 0, 1, 1)
+
+
 def test_ground_truth_written_by_rls_as_detections_scores_one(tmp_path):
     sensor = pose(1.0, 2.0, 5.0, yaw=2.0, pitch=math.radians(8))
     root = kitti_dataset(tmp_path / "ds", sensor, frames=(1, 2))
