@@ -16,7 +16,7 @@ import numpy as np
 from ..device.presets import get_preset
 from ..errors import InputError, RLSError
 from .detections import Boxes
-from .detector import RoadsideDetector
+from .detector import RoadsideDetector, detect_frame, learn_sensors
 from .kitti_meta import KittiMeta
 
 DEFAULT_NOISE_SIGMA_M = 0.02  # when the dataset's meta does not give the device's
@@ -75,15 +75,16 @@ def detect_datasets(roots, background_frames=None, noise_sigma=None, progress=No
         sigma = max(noise_sigma_of(m) for m in metas) if noise_sigma is None else noise_sigma
         detector = RoadsideDetector(noise_sigma=float(sigma))
     t0 = time.perf_counter()
-    detector.learn({n: [frame_points(m, f) for f in learn] for n, m in zip(names, metas)},
-                   {n: m.sensor_pose(learn[0]) for n, m in zip(names, metas)})
+    learned = learn_sensors(detector,
+                            {n: [frame_points(m, f) for f in learn] for n, m in zip(names, metas)},
+                            {n: m.sensor_pose(learn[0]) for n, m in zip(names, metas)})
     learn_s = time.perf_counter() - t0
     found, seconds = [], []
     for i, f in enumerate(frames):
         points = {n: frame_points(m, f) for n, m in zip(names, metas)}
         t = time.perf_counter()
-        found.append(detector.detect(points, {n: m.sensor_pose(f) for n, m in zip(names, metas)},
-                                     frame=f))
+        found.append(detect_frame(detector, learned, points,
+                                  {n: m.sensor_pose(f) for n, m in zip(names, metas)}, frame=f))
         seconds.append(time.perf_counter() - t)
         if progress is not None:
             progress(i + 1, len(frames), f)

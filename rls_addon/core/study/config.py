@@ -56,6 +56,9 @@ class StudyConfig:
     # on a box for it to count
     evaluate_frames: tuple = ()
     evaluate_min_points: int = 5
+    # The detector (``evaluate.detector.protocol``); None: RLS's roadside detector with
+    # the device's range noise
+    detector: object = None
     # The device's rotation rate (a mode or a unit's measured rate) and lidar mode
     # (``device.modes.with_modes``); None: the preset's
     rotation_hz: float = None

@@ -9,7 +9,7 @@ its mesh's box in its own axes, scale applied). Per candidate (``evaluate_candid
 the frames' scans (with the traffic) give the detector's background, learned from those
 frames, each frame's foreground, and each object's returns (ghosts left out). A
 placement of one or more candidates (``placement_score``) fuses its members' detectors
-and foregrounds (early fusion, ``RoadsideDetector.union``) and is scored by
+and foregrounds (early fusion: ``detector.detect`` of their views) and is scored by
 ``evaluate.scoring.score`` against one ground truth for every placement: a box counts
 when its centre is in the region and the study's candidates together put at least
 ``min_points`` returns on it (``reference_points``). A placement is not let off the
@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..evaluate.detections import CLASS_IDS, Boxes
-from ..evaluate.detector import RoadsideDetector
 from ..evaluate.ground_truth_files import GroundTruth
 from ..evaluate.scoring import score
 from ..output.ground_truth import box_frame
@@ -69,27 +68,23 @@ class CandidateEvaluation:
 
     name: str
     pose: np.ndarray
-    detector: RoadsideDetector
-    foreground: dict   # frame -> (world xyz (M, 3), range-image pixel (M,))
+    learned: object    # what the detector learned of it (its background)
+    views: dict        # frame -> the detector's view of its frame (the foreground)
     points: dict       # frame -> (N,) returns on each of the frame's ground-truth boxes
     detect_s: float = 0.0
 
 
-def evaluate_candidate(name, pose, frame_points, truths, noise_sigma):
+def evaluate_candidate(detector, name, pose, frame_points, truths):
     """``CandidateEvaluation`` of candidate ``name`` at ``pose`` (4x4, still) from its
     scans ``frame_points`` {frame: (world xyz (N, 3), instance (N,), ghost (N,))} and
-    the frames' ``truths`` {frame: FrameTruth}."""
+    the frames' ``truths`` {frame: FrameTruth}, by ``detector`` (the protocol)."""
     to_sensor = np.linalg.inv(pose)
     local = {f: xyz @ to_sensor[:3, :3].T + to_sensor[:3, 3]
              for f, (xyz, _, _) in frame_points.items()}
     frames = sorted(frame_points)
-    det = RoadsideDetector(noise_sigma=noise_sigma).learn({name: [local[f] for f in frames]},
-                                                          {name: pose})
+    learned = detector.learn(name, [local[f] for f in frames], pose)
     t = time.perf_counter()
-    foreground = {}
-    for f in frames:
-        xyz, _, pixel = det.foreground({name: local[f]}, {name: pose})
-        foreground[f] = (xyz, pixel)
+    views = {f: detector.view(learned, local[f], pose) for f in frames}
     detect_s = (time.perf_counter() - t) / max(len(frames), 1)
     points = {}
     for f in frames:
@@ -105,7 +100,7 @@ def evaluate_candidate(name, pose, frame_points, truths, noise_sigma):
             on = ids[order][at] == seen
             np.add.at(counts, order[at[on]], 1)
         points[f] = counts
-    return CandidateEvaluation(name, np.asarray(pose, np.float64), det, foreground, points,
+    return CandidateEvaluation(name, np.asarray(pose, np.float64), learned, views, points,
                                detect_s)
 
 
@@ -116,23 +111,13 @@ def reference_points(evaluations, truths):
             if evaluations else np.zeros(len(truths[f].instance), np.int64) for f in truths}
 
 
-def placement_score(members, truths, polygon, min_points, reference,
+def placement_score(detector, members, truths, polygon, min_points, reference,
                     iou_thresholds=IOU_THRESHOLDS):
     """``scoring.score``'s record of the placement of ``members`` (CandidateEvaluation s):
-    their detectors and each frame's foregrounds fused, scored against the boxes that
-    ``reference`` ({frame: returns per box}, ``reference_points``) counts."""
-    det = members[0].detector.union([m.detector for m in members[1:]])
-    origins = np.array([m.pose[:3, 3] for m in members])
-    columns = np.array([m.detector.backgrounds[m.name].model.grid.columns for m in members],
-                       np.int64)
+    each frame's views of the members fused by ``detector``, scored against the boxes
+    that ``reference`` ({frame: returns per box}, ``reference_points``) counts."""
     frames = sorted(truths)
-    found = []
-    for f in frames:
-        xyz = np.concatenate([m.foreground[f][0] for m in members])
-        pixel = np.concatenate([m.foreground[f][1] for m in members])
-        which = np.concatenate([np.full(len(m.foreground[f][0]), k, np.int64)
-                                for k, m in enumerate(members)])
-        found.append(det.boxes_of(xyz, which, origins, f, pixel, columns))
+    found = [detector.detect([(m.learned, m.views[f]) for m in members], f) for f in frames]
     boxes = Boxes.concat([Boxes(truths[f].boxes.frame, truths[f].boxes.box,
                                 truths[f].boxes.label, 1.0, reference[f]) for f in frames])
     instance = np.concatenate([truths[f].instance for f in frames]) if frames \
@@ -182,7 +167,8 @@ class StudyEvaluation:
         truths, polygon = scanner.truths, scanner.polygon
         ref = reference_points(evaluations, truths)
         mp = int(cfg.evaluate_min_points)
-        records = [placement_score([e], truths, polygon, mp, ref) for e in evaluations]
+        det = scanner.detector
+        records = [placement_score(det, [e], truths, polygon, mp, ref) for e in evaluations]
         sets = {}
         wanted = []
         for k, s in sorted(searches.items()):
@@ -192,8 +178,8 @@ class StudyEvaluation:
         for members in wanted:
             members = tuple(int(i) for i in members)
             if len(members) > 1 and members not in sets:
-                rec = placement_score([evaluations[i] for i in members], truths, polygon, mp,
-                                      ref)
+                rec = placement_score(det, [evaluations[i] for i in members], truths,
+                                      polygon, mp, ref)
                 sets[members] = (headline(rec), rec)
         scored = {**{(i,): (headline(r), r) for i, r in enumerate(records)}, **sets}
         best = {}

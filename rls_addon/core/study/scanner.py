@@ -29,6 +29,7 @@ from ..world.bodies import RigidBodies
 from .placement import DiskLayout
 from .candidates import candidate_spots, make_candidates
 from .config import TRAFFIC_LABELS
+from ..evaluate.detector import RoadsideDetector
 from .evaluation import CandidateEvaluation, evaluate_candidate, frame_truth
 
 
@@ -95,6 +96,10 @@ class StudyScanner:
         if cfg.traffic_frames:
             self._traffic(scene)
             scene.set_frame(self.frame)
+        self.detector = cfg.detector
+        if self.detector is None and cfg.evaluate_frames:
+            self.detector = RoadsideDetector(
+                noise_sigma=device_values(preset, self.settings).noise_sigma_m)
 
     def _traffic(self, scene):
         """Per traffic frame: the traffic as still bodies, and the vehicle-frames to score
@@ -187,9 +192,8 @@ class StudyScanner:
                                        p["instance"], p["ghost"])
         evaluation = None
         if frame_points:
-            evaluation = evaluate_candidate(
-                cand.name, cand.pose, frame_points, self.truths,
-                device_values(self.preset, self.settings).noise_sigma_m)
+            evaluation = evaluate_candidate(self.detector, cand.name, cand.pose, frame_points,
+                                            self.truths)
         return CandidateScan(cand.index, n_points, counts, scan_points, rays,
                              time.perf_counter() - t, seen, evaluation)
 
