@@ -8,6 +8,7 @@ import sys
 from ..core.choices import BACKENDS, MOTION
 from ..core.output.datasets import LAYOUTS
 from ..core.errors import SceneError
+from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import _print_step, interrupted_at, open_scene, parse_frames
 
@@ -55,6 +56,10 @@ def add_parser(sub):
     kitti.add_argument("--split-seed", type=int, default=0)
     kitti.add_argument("--val-frames", default=None,
                        help="frames A-B for validation instead of a random share")
+    p.add_argument("--background-sweeps", type=int, default=BACKGROUND_SWEEPS, metavar="N",
+                   help="sweeps of the scene with every road user hidden stored per still "
+                        "LiDAR under background/ (what 'rls detect' learns its background "
+                        f"from; default {BACKGROUND_SWEEPS}, 0: none)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="keep complete frames of an earlier run, scan the rest")
@@ -101,6 +106,7 @@ def dataset_run(args):
     from ..blender.sensor import find_lidar, lidar_objects, read_settings, sensor_job
     from ..blender.source import BlenderScene
     from ..core.labels import label_ids, label_name
+    from ..core.scan.background_sweeps import background_runs
     from ..core.scan.run import ScanRun
 
     scene = open_scene(args.blend, args.prepare_blender)
@@ -116,21 +122,53 @@ def dataset_run(args):
                "ghosting": None if args.ghosting is None else args.ghosting == "on",
                "sweep_start_deg": args.sweep_start, "rotation_hz": args.rotation_hz,
                "lidar_mode": args.lidar_mode}
+    if args.background_sweeps < 0:
+        raise SceneError(f"--background-sweeps must be 0 or more, got {args.background_sweeps}")
     jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
     writer = dataset_writer(args, scene, sensors, set(classes))
+    writer.class_types = scene_class_types(scene)
     frames = parse_frames(args.frames, scene.frame_current)
-    return ScanRun(BlenderScene(scene), jobs, frames, writer=writer, progress=_print_step), writer
+    source = BlenderScene(scene)
+    # the background sweeps' runs are made first: their files are checked too before
+    # anything is scanned
+    background = background_runs(source, jobs, frames[0], args.background_sweeps,
+                                 writer.background_writer, progress=_print_sweep,
+                                 labels=[label_name(c) for c in classes])
+    run = ScanRun(source, jobs, frames, writer=writer, progress=_print_step)
+    return run, writer, background
+
+
+def scene_class_types(scene):
+    """{class name: [{"size": [l, w, h], "objects": n}, ...]}: the scene's own types of
+    road users (``priors.scene_types``), the commonest first, for dataset.json."""
+    from ..blender.labels import road_user_sizes
+    from ..core.evaluate.detector.priors import scene_types
+    from ..core.labels import label_name
+
+    types = scene_types(*road_user_sizes(scene))
+    return {label_name(k): [{"size": list(r[:3]), "objects": r[3]} for r in rows]
+            for k, rows in sorted(types.items())}
+
+
+def _print_sweep(step):
+    print(f"[background] {step.sensor}: a sweep of the scene without road users, "
+          f"{step.points} points in {step.seconds:.2f} s", file=sys.stderr, flush=True)
+    for w in step.warnings:
+        print(f"rls: warning: {w}", file=sys.stderr)
 
 
 def run(args):
     from ..core.errors import interrupt_exit_code
     from .distribute import run_scan, scene_file
 
+    from ..core.scan.background_sweeps import run_all
+
     job = None
     try:
-        job, writer = dataset_run(args)
-        for notice in job.notices:
+        job, writer, (sweeps, hidden, sweep_notices) = dataset_run(args)
+        for notice in job.notices + sweep_notices:
             print(f"rls: notice: {notice}", file=sys.stderr)
+        run_all(sweeps)
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
@@ -140,6 +178,9 @@ def run(args):
     for notice in writer.notices:
         print(f"rls: notice: {notice}", file=sys.stderr)
     summary = job.summary()
-    summary.update(layout=args.layout, dataset=str(args.out))
+    summary.update(layout=args.layout, dataset=str(args.out), background=None if not sweeps else {
+        "sweeps": len(sweeps), "sensors": [j.name for j in sweeps[0].sensors],
+        "scene_frame": sweeps[0].frames[0], "hidden_objects": len(hidden.hidden),
+        "what": "sweeps of the scene with every road user hidden, under background/"})
     print(json.dumps(summary, indent=2))
     return 0

@@ -206,6 +206,7 @@ def summary(result, header):
 
 
 def run(args):
+    from ..core.evaluate.detect_dataset import read_about
     from ..core.evaluate.readers import detect_format, read_detection_files
     from ..core.evaluate.scoring import frames_text, score
 
@@ -223,7 +224,8 @@ def run(args):
     result["notices"] = files.notices + result["notices"]
     result["inputs"] = {"truth": [str(p) for p in args.truth],
                         "detections": str(args.detections), "format": fmt,
-                        "dataset": str(dataset), "region": region_name}
+                        "dataset": str(dataset), "region": region_name,
+                        "detector": read_about(args.detections)}
     for notice in result["notices"]:
         print(f"rls: notice: {notice}", file=sys.stderr)
     g, d = result["ground_truth"], result["detections"]
@@ -236,6 +238,11 @@ def run(args):
         f"outside the region and {g['ignored_few_points']} with fewer points (don't-care)",
         f"detections ({fmt}): {d['boxes']}, {d['outside_region']} centred outside the "
         "region (dropped unless they find a counted box)"]
+    about = result["inputs"]["detector"]
+    if about and isinstance(about.get("background"), dict):
+        header.append(f"detector: {about.get('detector')}; background: "
+                      f"{about['background'].get('label')} "
+                      f"({about['background'].get('what')})")
     text = json.dumps(result, indent=1, allow_nan=False)
     if args.out:
         from ..core.output.io.atomic import atomic_write_bytes

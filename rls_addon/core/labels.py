@@ -71,6 +71,10 @@ ALIASES = {
 
 NAME_TO_ID = {name: i for i, name in DEFAULT_LABELS.items()}
 
+# Road users: the classes with ground-truth boxes, which a placement study leaves out of
+# its traffic-free scans and a deployed unit's background never holds.
+ROAD_USERS = ("vehicle", "pedestrian", "cyclist")
+
 
 def _norm(name):
     return str(name).strip().lower().replace(" ", "_").replace("-", "_")

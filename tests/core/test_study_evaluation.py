@@ -101,3 +101,66 @@ def test_evaluation_frames_must_be_traffic_frames():
     with pytest.raises(SceneError, match="not among the traffic frames"):
         StudyConfig(traffic_frames=(1, 2), evaluate_frames=(2, 3))
     assert StudyConfig(evaluate_frames=(3, 4)).traffic_frames == (3, 4)
+
+
+class QueueScene(TrafficStudyScene):
+    """The traffic scene without its truck, and a queue of two cars standing at a red
+    light through every frame between pole A and the cars crossing the region."""
+
+    def __init__(self, queue=True):
+        super().__init__(truck=False)
+        self.queue = queue
+
+    def traffic(self, frames, labels):
+        from rls_addon.core.scene.source import SceneRead
+
+        out = super().traffic(frames, labels)
+        if not self.queue:
+            return out
+        return {f: SceneRead(read.instances + [
+            self._object(f"queued {i}", (-2.25, -0.9, 0.0), (2.25, 0.9, 1.5), 11,
+                         (-6.0 + 5.5 * i, -6.5, 0.0)) for i in range(2)], read.materials)
+                for f, read in out.items()}
+
+
+def queue_study(queue, background="empty"):
+    cfg = StudyConfig(device="generic_uniform32", k=(1,), disks=200, noise=False,
+                      dropout=False, evaluate_frames=(1, 2, 3, 4),
+                      evaluate_background=background, background_sweeps=2)
+    return run_study(QueueScene(queue), cfg, factory=factory)
+
+
+def found(record):
+    """(frame, instance) of every vehicle found at BEV IoU 0.5."""
+    return {(m["frame"], m["best"]["bev"]["instance"]) for m in record["matches"]
+            if m["class"] == "vehicle" and m["status"]["bev"]["0.5"] == "tp"}
+
+
+def found_instances(record):
+    return {i for _, i in found(record)}
+
+
+@pytest.mark.slow  # three small studies with their traffic and detector
+def test_a_standing_queue_in_front_of_a_candidate_is_seen_and_lowers_its_ap():
+    """The default background (the scene swept with every road user hidden) holds no
+    car, so pole A finds the queue standing in front of it through every frame and loses
+    the cars it hides: its AP drops because it sees the queue. Learned from the frames
+    (a deployed unit over a short clip), the queue is background and vanishes: nobody
+    finds it."""
+    from rls_addon.core.scene.instances import instance_id
+
+    queued = {instance_id(f"queued {i}") for i in range(2)}
+    with_queue, clear = queue_study(True), queue_study(False)
+    names = [c.name for c in with_queue.candidates]
+    a = names.index("pole A")
+    ap, rec = with_queue.evaluation.candidates[a]
+    ap_clear, rec_clear = clear.evaluation.candidates[a]
+    assert queued <= found_instances(rec)  # pole A sees the standing cars
+    moving = {(f, i) for f, i in found(rec) if i not in queued}
+    assert moving < found(rec_clear)  # and loses crossing cars they hide
+    assert ap < ap_clear
+    assert with_queue.evaluation.background["kind"] == "empty"
+    learned = queue_study(True, "frames")
+    assert not queued & set().union(*(found_instances(r) for _, r in
+                                      learned.evaluation.candidates))
+    assert learned.evaluation.background["kind"] == "frames"

@@ -8,13 +8,16 @@ changed)."""
 
 import dataclasses
 
+from ..choices import BACKGROUNDS
 from ..errors import SceneError
+from ..labels import ROAD_USERS
+from ..scan.background_sweeps import BACKGROUND_SWEEPS
 from ..metrics.infra import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
 from ..metrics.visibility import THRESHOLDS
 from .placement import DEFAULT_EXHAUSTIVE_LIMIT
 
 
-TRAFFIC_LABELS = ("vehicle", "pedestrian", "cyclist")
+TRAFFIC_LABELS = ROAD_USERS
 
 
 @dataclasses.dataclass
@@ -57,8 +60,13 @@ class StudyConfig:
     evaluate_frames: tuple = ()
     evaluate_min_points: int = 5
     # The detector (``evaluate.detector.protocol``); None: RLS's roadside detector with
-    # the device's range noise
+    # the device's range noise and the scene's own types of road users
     detector: object = None
+    # Its background (``choices.BACKGROUNDS``): 'empty', each candidate's sweeps of the
+    # scene with every road user hidden (``background_sweeps`` of them, as a deployed
+    # unit has), or 'frames', learned from the evaluation frames themselves
+    evaluate_background: str = "empty"
+    background_sweeps: int = BACKGROUND_SWEEPS
     # The device's rotation rate (a mode or a unit's measured rate) and lidar mode
     # (``device.modes.with_modes``); None: the preset's
     rotation_hz: float = None
@@ -73,3 +81,7 @@ class StudyConfig:
                              "frames: evaluate a subset of --traffic, or leave --traffic out")
         if self.evaluate_frames and int(self.evaluate_min_points) < 0:
             raise SceneError("the points a box needs to count must be 0 or more")
+        BACKGROUNDS.check(self.evaluate_background)
+        if self.evaluate_background == "empty" and int(self.background_sweeps) < 1:
+            raise SceneError(f"the empty scene's background needs at least one sweep, got "
+                             f"{self.background_sweeps}")

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..evaluate.detections import CLASS_IDS, Boxes
+from ..evaluate.detector.priors import scene_types
 from ..evaluate.ground_truth_files import GroundTruth
 from ..evaluate.scoring import score
 from ..output.ground_truth import box_frame
@@ -74,17 +75,36 @@ class CandidateEvaluation:
     detect_s: float = 0.0
 
 
-def evaluate_candidate(detector, name, pose, frame_points, truths):
+def truth_types(truths):
+    """The scene's types of road users (``priors.scene_types``) among the evaluation
+    frames' ground truth ({frame: FrameTruth}), or None without any."""
+    if not truths:
+        return None
+    parts = list(truths.values())
+    labels = np.concatenate([t.boxes.label for t in parts])
+    if not len(labels):
+        return None
+    return scene_types(labels, np.concatenate([t.instance for t in parts]),
+                       np.concatenate([t.boxes.box[:, 3:6] for t in parts]))
+
+
+def evaluate_candidate(detector, name, pose, frame_points, truths, sweeps=None):
     """``CandidateEvaluation`` of candidate ``name`` at ``pose`` (4x4, still) from its
     scans ``frame_points`` {frame: (world xyz (N, 3), instance (N,), ghost (N,))} and
-    the frames' ``truths`` {frame: FrameTruth}, by ``detector`` (the protocol)."""
+    the frames' ``truths`` {frame: FrameTruth}, by ``detector`` (the protocol). Its
+    background is learned from ``sweeps`` (world xyz arrays: the scene without road
+    users), or from the frames themselves when None."""
     to_sensor = np.linalg.inv(pose)
-    local = {f: xyz @ to_sensor[:3, :3].T + to_sensor[:3, 3]
-             for f, (xyz, _, _) in frame_points.items()}
+
+    def local(xyz):
+        return xyz @ to_sensor[:3, :3].T + to_sensor[:3, 3]
+
     frames = sorted(frame_points)
-    learned = detector.learn(name, [local[f] for f in frames], pose)
+    if sweeps is None:
+        sweeps = [frame_points[f][0] for f in frames]
+    learned = detector.learn(name, [local(xyz) for xyz in sweeps], pose)
     t = time.perf_counter()
-    views = {f: detector.view(learned, local[f], pose) for f in frames}
+    views = {f: detector.view(learned, local(frame_points[f][0]), pose) for f in frames}
     detect_s = (time.perf_counter() - t) / max(len(frames), 1)
     points = {}
     for f in frames:
@@ -149,7 +169,8 @@ class StudyEvaluation:
     correlation  {metric name: correlation.correlation record} of AP with InfraD,
                  InfraNUC and each visibility share, over every placement scored
     placements   the rows the correlation ran over: name, members, AP and metrics
-    frames, min_points, detect_ms (the detector's foreground per frame and candidate)"""
+    frames, min_points, detect_ms (the detector's foreground per frame and candidate)
+    detector     its name; background: what it learned (``background_record``)"""
 
     frames: list
     min_points: int
@@ -159,6 +180,8 @@ class StudyEvaluation:
     correlation: dict
     placements: list
     detect_ms: float
+    detector: str = ""
+    background: dict = None
 
     @classmethod
     def of(cls, cfg, scanner, cands, evaluations, searches, visibility):
@@ -201,7 +224,8 @@ class StudyEvaluation:
                 for name, v in metric_of.items()}
         ms = 1000.0 * float(np.mean([e.detect_s for e in evaluations])) if evaluations else 0.0
         return cls(sorted(truths), mp, [(headline(r), r) for r in records], sets, best, corr,
-                   rows, ms)
+                   rows, ms, getattr(det, "name", type(det).__name__),
+                   background_record(cfg, scanner.frame))
 
     def ap_of(self, members):
         """The headline AP of a scored placement (a candidate or a reported set)."""
@@ -217,7 +241,8 @@ class StudyEvaluation:
             "ground_truth": ("boxes of vehicles, pedestrians and cyclists centred in the "
                              f"region on which the candidates together put >= "
                              f"{self.min_points} returns; the same for every placement"),
-            "detector": "RLS's roadside detector (rls detect), early fusion over a set",
+            "detector": f"{self.detector}, early fusion over a set",
+            "background": self.background,
             "detect_ms_per_frame": round(self.detect_ms, 2),
             "candidates": [{"candidate": names[i], "ap": ap, "result": strip(rec)}
                            for i, (ap, rec) in enumerate(self.candidates)],
@@ -229,6 +254,24 @@ class StudyEvaluation:
             "placements": self.placements,
             "correlation": self.correlation,
         }
+
+
+def background_record(cfg, frame):
+    """What the study's detector learned its background from (study.json, stderr)."""
+    from ..choices import BACKGROUNDS
+
+    kind = cfg.evaluate_background
+    if kind == "empty":
+        return {"kind": kind, "label": BACKGROUNDS.label(kind),
+                "sweeps": int(cfg.background_sweeps), "scene_frame": int(frame),
+                "what": f"each candidate's {int(cfg.background_sweeps)} sweeps of the scene "
+                        f"at frame {int(frame)} with every road user hidden (vehicles, "
+                        "pedestrians, cyclists, parked ones included), the device's noise "
+                        "in each: what a deployed unit's background holds"}
+    return {"kind": kind, "label": BACKGROUNDS.label(kind),
+            "frames": [int(f) for f in cfg.evaluate_frames],
+            "what": "learned from the evaluation frames themselves, traffic and all: "
+                    "vehicles standing through most of them become background"}
 
 
 def _metrics(members, cands, searches, visibility):

@@ -125,7 +125,8 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
         evaluation = StudyEvaluation.of(cfg, scanner, cands, evaluations, searches, vis)
         scanner.notices.append(f"evaluation: {len(cands)} candidates and "
                                f"{len(evaluation.sets)} sets scored by detection in "
-                               f"{time.perf_counter() - t_eval:.1f} s")
+                               f"{time.perf_counter() - t_eval:.1f} s; the detector's "
+                               f"background: {evaluation.background['what']}")
     t_maps = time.perf_counter()
     result = StudyResult(cfg, scene.name, scanner.frame,
                          {"id": preset.id, "name": preset.name, "source": preset.source},

@@ -3,10 +3,11 @@
 The heading comes from the clustering (the L-shape fit of the cluster's columns,
 ``box_fit``); the extents are the points' own along it; the top is the highest point and
 the bottom the lowest, or the ground when the lower part is hidden (more than 0.5 m
-above it). The class is by size (``priors.classify``). A vehicle or cyclist whose
-visible extent is partial is grown to its class's size prior away from the sensors that
-saw it (the far side is hidden by the object itself), or towards a sensor that saw it
-behind another cluster (the occluder hides the near side). Each box's confidence is
+above it). The class is by size (``priors.classify``). A box whose visible extent is
+partial is grown to the size of its class's type that holds it (``priors.target_size``:
+the class's prior, or the scene's own types) away from the sensors that saw it (the far
+side is hidden by the object itself), or towards a sensor that saw it behind another
+cluster (the occluder hides the near side). Each box's confidence is
 ``confidence.confidence``."""
 
 import numpy as np
@@ -14,7 +15,7 @@ import numpy as np
 from ..detections import Boxes
 from .box_fit import rectangles_along, wrap_half_turn
 from .confidence import confidence
-from .priors import PEDESTRIAN, classify
+from .priors import classify, target_size
 
 
 def boxes(xyz, which, groups, yaw, origins, frame, ground, priors):
@@ -41,19 +42,16 @@ def boxes(xyz, which, groups, yaw, origins, frame, ground, priors):
     box = np.zeros((n, 7))
     area_share = np.ones(n)
     for k in np.flatnonzero(keep):
-        prior = priors[label[k]]
         cx, cy, L, W, yk = rect[k]
+        size = target_size(priors[label[k]], L, W)
         eyes = origins[seen_by[k, :len(origins)], :2]
-        if label[k] != PEDESTRIAN:
-            cx, cy, L, W = grow(cx, cy, L, W, yk, prior.size[0], prior.size[1], eyes,
-                                behind[k, seen_by[k, :len(origins)]])
-        else:
-            L, W = max(L, prior.size[0] * 0.6), max(W, prior.size[1] * 0.6)
-        area_share[k] = min(1.0, rect[k, 2] * rect[k, 3] / (prior.size[0] * prior.size[1]))
+        cx, cy, L, W = grow(cx, cy, L, W, yk, max(size[:2]), min(size[:2]), eyes,
+                            behind[k, seen_by[k, :len(origins)]])
+        area_share[k] = min(1.0, rect[k, 2] * rect[k, 3] / (size[0] * size[1]))
         # bottom: the lowest point, or the ground when the lower part is hidden
         bottom = low[k]
         if bottom - floor[k] > 0.5:
-            bottom = max(floor[k], top[k] - prior.size[2])
+            bottom = max(floor[k], top[k] - size[2])
         h = max(top[k] - bottom, 0.3)
         box[k] = (cx, cy, bottom + h / 2, L, W, h, wrap_half_turn(yk))
     score = confidence(sizes, area_share)

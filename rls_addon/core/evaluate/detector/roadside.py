@@ -30,7 +30,7 @@ The steps, a module each:
    fusion), DBSCAN on 0.2 m columns, oversized clusters split, fragments merged.
 4. Boxing (``boxing.py``, ``box_fit.py``, ``priors.py``): the L-shape heading, extents
    from the points, class by size, partial views grown to the class's size prior
-   (pedestrians and cyclists at the scene's own sizes when known: ``sizes``).
+   (at the scene's own types of road users when known: ``types``).
 5. Confidence (``confidence.py``): the points and the share of the prior they cover.
 
 Same input, same boxes, bit for bit. scipy and scikit-learn are imported when first
@@ -45,7 +45,7 @@ from . import clustering
 from .boxing import boxes as box_groups
 from .foreground import SensorBackground, SensorView, foreground, learn_background
 from .ground import GroundGrid
-from .priors import with_sizes
+from .priors import with_types
 
 
 @dataclass
@@ -76,8 +76,9 @@ class RoadsideDetector:
     split_width      a cluster wider than this is more than one vehicle: it is split
     criterion        the heading search's: 'closeness' (L-shape) or 'area'
     pose_tolerance   (m, rad) how far a detection pose may be from the learned one
-    sizes            {label id: (length, width, height)} of the scene's own pedestrians
-                     and cyclists (``priors.class_sizes``); None: the built-in priors
+    types            the scene's own types of road users (``priors.scene_types``: {label
+                     id: ((length, width, height, objects), ...)}); None: the built-in
+                     priors
     """
     noise_sigma: float = 0.02
     min_margin: float = 0.3
@@ -104,7 +105,7 @@ class RoadsideDetector:
     split_width: float = 3.0
     criterion: str = "closeness"
     pose_tolerance: tuple = (0.05, 0.005)
-    sizes: dict = None
+    types: dict = None
     _grounds: dict = field(default_factory=dict, repr=False, compare=False)
 
     name = "RLS roadside detector (range-image background, DBSCAN, L-shape boxes)"
@@ -115,8 +116,8 @@ class RoadsideDetector:
 
     @property
     def priors(self):
-        """{label: ClassPrior}: the built-in priors with the scene's ``sizes``."""
-        return with_sizes(self.sizes)
+        """{label: ClassPrior}: the built-in priors with the scene's ``types``."""
+        return with_types(self.types)
 
     def __getstate__(self):  # the ground cache stays behind when sent to a worker
         state = dict(self.__dict__)
