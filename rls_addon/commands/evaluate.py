@@ -197,6 +197,16 @@ def summary(result, header):
     if rows:
         lines += ["", f"{'class':<11}{'range':<11}{'IoU':<10}{'AP_R40':>8}{'AP_VOC':>8}"
                       f"{'tp':>7}{'fp':>7}{'gt':>7}"] + rows
+    motion = []
+    for name, c in result["classes"].items():
+        for key in keys:
+            by = c["all"][kinds[0]][key].get("by_motion", {})
+            parts = [f"{what} {r['tp']}/{r['gt']}" + (f" ({r['recall']:.2f})" if r["gt"] else "")
+                     for what, r in by.items() if r["gt"]]
+            if parts:
+                motion.append(f"{name:<11}{kinds[0].upper():<4}{key:<6}{'; '.join(parts)}")
+    if motion:
+        lines += ["", "counted boxes found, standing (under 0.1 m/s) and moving:"] + motion
     if quiet:
         lines.append(f"no counted ground truth and no detections: {', '.join(quiet)} "
                      "(AP undefined)")

@@ -69,6 +69,11 @@ class MergedTruth:
     frames: list
     sensors: list             # S names
     positions: dict = field(default_factory=dict)  # frame -> (S, 3) sensor positions
+    speed: np.ndarray = None  # (G,) horizontal speed of each box, m/s (NaN: unknown)
+
+    def __post_init__(self):
+        if self.speed is None:
+            self.speed = np.full(len(self.boxes), np.nan)
 
     def distance(self, boxes):
         """(N,) horizontal distance (m) from each box centre to the nearest sensor of
@@ -128,13 +133,15 @@ def merge_ground_truth(truth):
     if len(truths) == 1:
         t = truths[0]
         return MergedTruth(t.boxes, np.asarray(t.instance, np.int64),
-                           t.boxes.points[:, None].copy(), frames, names, positions)
+                           t.boxes.points[:, None].copy(), frames, names, positions,
+                           np.asarray(t.speed, np.float64))
     for name, t in zip(names, truths):
         if len(t.boxes) and (np.asarray(t.instance) == 0).any():
             raise InputError(f"the ground truth of {name} has boxes without an instance id; "
                              "boxes of several sensors are merged by instance: write the "
                              "dataset again with this version of RLS")
     every = Boxes.concat([t.boxes for t in truths])
+    speed = np.concatenate([np.asarray(t.speed, np.float64) for t in truths])
     instance = np.concatenate([np.asarray(t.instance, np.int64) for t in truths])
     sensor = np.concatenate([np.full(len(t.boxes), k) for k, t in enumerate(truths)])
     if not len(every):
@@ -150,7 +157,8 @@ def merge_ground_truth(truth):
     first = order[np.searchsorted(inverse[order], np.arange(len(keys)))]
     boxes = every.take(first)
     boxes.points = by_sensor.sum(axis=1)
-    return MergedTruth(boxes, instance[first], by_sensor, frames, names, positions)
+    return MergedTruth(boxes, instance[first], by_sensor, frames, names, positions,
+                       speed[first])
 
 
 def _region(region):
@@ -262,6 +270,7 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
     d_rows = np.isin(det_all.label, class_ids)
     gt, det = merged.boxes.take(g_rows), det_all.take(d_rows)
     instance, by_sensor = merged.instance[g_rows], merged.points_by_sensor[g_rows]
+    speed = merged.speed[g_rows]
     gt_in = np.ones(len(gt), bool) if poly is None else points_in_polygon(gt.box[:, :2], poly)
     det_in = np.ones(len(det), bool) if poly is None \
         else points_in_polygon(det.box[:, :2], poly)
@@ -279,6 +288,7 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
               thresholds, class_ids, overlaps)
     matchings = {(kind, t): match(det, gt, t, kind, gt_ignore, det_ignore, overlaps[kind])
                  for kind in kinds for t in thresholds}
+    _add_motion(result, gt, counted, speed, matchings, class_ids)
     result["distance_bins"] = [[lo, None if math.isinf(hi) else hi] for lo, hi in bins]
     result["distance_from"] = ("horizontal distance from the box centre to the frame's "
                                "sensor at its sweep start (with several sensors: the "
@@ -326,6 +336,29 @@ def _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins,
             entry = {"range_m": [low, None if math.isinf(high) else high]}
             entry.update(records)
             result["classes"][name]["bins"].append(entry)
+
+
+STANDING_MPS = 0.1  # SUMO's halting speed (SUMO_const_haltingSpeed, utils/common/StdDefs.h)
+
+
+def _add_motion(result, gt, counted, speed, matchings, class_ids):
+    """Per class, kind and threshold: the counted boxes standing (horizontal speed below
+    ``STANDING_MPS``) and moving, each with how many were found (``by_motion``); boxes
+    whose speed the ground truth does not give are ``unknown``."""
+    state = np.where(np.isnan(speed), "unknown",
+                     np.where(speed < STANDING_MPS, "standing", "moving"))
+    for c in class_ids:
+        name = DEFAULT_LABELS[c]
+        mine = counted & (gt.label == c)
+        for (kind, t), m in matchings.items():
+            by = {}
+            for what in ("standing", "moving", "unknown"):
+                rows = mine & (state == what)
+                n, hit = int(rows.sum()), int((rows & (m.gt_det >= 0)).sum())
+                if n or what != "unknown":
+                    by[what] = {"gt": n, "tp": hit, "missed": n - hit,
+                                "recall": hit / n if n else None}
+            result["classes"][name]["all"][kind][f"{t:g}"]["by_motion"] = by
 
 
 def _per_frame(merged, scored, gt, det, counted, by_sensor, matchings, class_ids,
@@ -406,5 +439,5 @@ def _matches(gt, det, det_in, det_range, instance, overlaps, matchings):
     return out
 
 
-__all__ = ["CONVENTIONS", "DEFAULT_MIN_POINTS", "MergedTruth", "frames_text",
+__all__ = ["CONVENTIONS", "DEFAULT_MIN_POINTS", "MergedTruth", "STANDING_MPS", "frames_text",
            "merge_ground_truth", "score"]
