@@ -10,7 +10,7 @@ from rls_addon.core.evaluate.detections import Boxes
 from rls_addon.core.evaluate.detector import RoadsideDetector, detect_frame, learn_sensors
 from rls_addon.core.evaluate.detector.background import BackgroundModel
 from rls_addon.core.evaluate.detector.clustering import cluster, columns
-from rls_addon.core.evaluate.detector.priors import PEDESTRIAN, VEHICLE
+from rls_addon.core.evaluate.detector.priors import CYCLIST, PEDESTRIAN, VEHICLE
 from rls_addon.core.points import empty_points
 
 from .synthetic import Solid, car, frames, pose, scan
@@ -336,3 +336,39 @@ def test_a_sensor_that_moved_since_learning_is_refused():
     det = learned()
     with pytest.raises(InputError, match="still sensors"):
         det.detect([scan(POLE, STATIC)], [pose(0.5, 0.0, 6.0)])
+
+
+SUMO_PEOPLE = {PEDESTRIAN: ((0.21, 0.48, 1.72, 5),), CYCLIST: ((1.6, 0.65, 1.7, 2),)}
+
+
+def test_people_walking_abreast_are_two_pedestrians_and_a_cyclist_one():
+    """SUMO's pedestrians walk in stripes 0.64 m apart: two abreast leave 0.16 m between
+    their shoulders, which clustering bridges; the gap along the cluster splits them. A
+    cyclist's points leave no such gap: it stays one. Both at the scene's own sizes."""
+    det = learned(types=SUMO_PEOPLE)
+    a = Solid(12.0, 3.0, 0.21, 0.48, 0.0, 0.0, 1.72)
+    b = Solid(12.0, 3.64, 0.21, 0.48, 0.0, 0.0, 1.72)
+    bike = Solid(14.0, -4.0, 1.6, 0.65, 0.3, 0.0, 1.7)
+    boxes = det.detect([scan(POLE, STATIC + (a, b, bike), seed=3)], [POLE])
+    peds = boxes.box[boxes.label == PEDESTRIAN]
+    assert len(peds) == 2 and (boxes.label == CYCLIST).sum() == 1
+    for placed in (a, b):
+        k = int(np.argmin(np.hypot(*(peds[:, :2] - placed.box[:2]).T)))
+        assert np.hypot(*(peds[k, :2] - placed.box[:2])) < 0.12
+        assert sorted(peds[k, 3:5]) == pytest.approx([0.21, 0.48], abs=0.08)
+    cyc = boxes.box[boxes.label == CYCLIST][0]
+    assert np.hypot(*(cyc[:2] - bike.box[:2])) < 0.3
+    # the same pair with the built-in priors: a pedestrian's bound (1.3 m) holds both
+    assert (learned().detect([scan(POLE, STATIC + (a, b), seed=3)], [POLE]).label
+            == PEDESTRIAN).sum() == 1
+
+
+def test_boxes_of_little_evidence_are_not_reported():
+    """A far car's low side seen as a sliver by a few dozen returns: grown to a car, its
+    points cover a twentieth of the footprint, below the confidence a box needs
+    (min_score 0.4): no box; with min_score 0 there is one."""
+    sliver = Solid(38.0, 10.0, 2.8, 0.1, 0.0, 0.3, 0.85)
+    frame = scan(POLE, STATIC + (sliver,), seed=4)
+    assert len(learned().detect([frame], [POLE])) == 0
+    kept = learned(min_score=0.0).detect([frame], [POLE])
+    assert len(kept) == 1 and kept.label[0] == VEHICLE and kept.score[0] < 0.4

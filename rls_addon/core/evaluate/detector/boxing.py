@@ -4,8 +4,9 @@ The heading comes from the clustering (the L-shape fit of the cluster's columns,
 ``box_fit``); the extents are the points' own along it; the top is the highest point and
 the bottom the lowest, or the ground when the lower part is hidden (more than 0.5 m
 above it). The class is by size (``priors.classify``). A box whose visible extent is
-partial is grown to the size of its class's type that holds it (``priors.target_size``:
-the class's prior, or the scene's own types) away from the sensors that saw it (the far
+partial is grown to the size of the class's type it most likely shows
+(``priors.target_size``: the class's prior, or one of the scene's own types) away from
+the sensors that saw it (the far
 side is hidden by the object itself), or towards a sensor that saw it behind another
 cluster (the occluder hides the near side). Each box's confidence is
 ``confidence.confidence``."""
@@ -18,11 +19,12 @@ from .confidence import confidence
 from .priors import classify, target_size
 
 
-def boxes(xyz, which, groups, yaw, origins, frame, ground, priors):
+def boxes(xyz, which, groups, yaw, origins, frame, ground, priors, min_score=0.0):
     """``Boxes`` (world frame, all in ``frame``) of the point ``groups`` (index arrays
     into ``xyz`` (M, 3), seen by sensors ``which`` (M,), index into ``origins`` (S, 3))
     with headings ``yaw`` (G,), over ``ground`` (a ``GroundGrid``), classed and grown by
-    ``priors`` ({label: ClassPrior}). Groups of no class give no box."""
+    ``priors`` ({label: ClassPrior}). Groups of no class, and boxes whose confidence is
+    below ``min_score``, give no box."""
     n = len(groups)
     sizes = np.array([len(g) for g in groups], np.int64)
     idx = np.concatenate(groups)
@@ -43,7 +45,7 @@ def boxes(xyz, which, groups, yaw, origins, frame, ground, priors):
     area_share = np.ones(n)
     for k in np.flatnonzero(keep):
         cx, cy, L, W, yk = rect[k]
-        size = target_size(priors[label[k]], L, W)
+        size = target_size(priors[label[k]], L, W, height[k])
         eyes = origins[seen_by[k, :len(origins)], :2]
         cx, cy, L, W = grow(cx, cy, L, W, yk, max(size[:2]), min(size[:2]), eyes,
                             behind[k, seen_by[k, :len(origins)]])
@@ -55,7 +57,7 @@ def boxes(xyz, which, groups, yaw, origins, frame, ground, priors):
         h = max(top[k] - bottom, 0.3)
         box[k] = (cx, cy, bottom + h / 2, L, W, h, wrap_half_turn(yk))
     score = confidence(sizes, area_share)
-    sel = np.flatnonzero(keep)
+    sel = np.flatnonzero(keep & (score >= min_score))
     return Boxes(np.full(len(sel), frame), box[sel], label[sel], score[sel])
 
 

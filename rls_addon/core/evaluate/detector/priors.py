@@ -8,9 +8,9 @@ The built-in priors are typical sizes (a 4.5 x 1.8 m car, a 1.8 x 0.7 m cyclist,
 known (``scene_types``: the distinct sizes of each class's objects, commonest first, as
 SUMO's vTypes give them; a learned detector's anchors are its training set's sizes in
 the same way), ``with_types`` takes them: each class's prior is its commonest type, a
-partial view is grown to the smallest of its class's types that holds it
-(``target_size``), and the pedestrian and cyclist bounds shrink to their largest type
-plus ``SIZE_MARGIN`` (never beyond the built-in ones), so a motorcycle is a vehicle."""
+box is grown to the type it most likely shows (``target_size``), and the pedestrian and
+cyclist bounds shrink to their largest type plus ``SIZE_MARGIN`` (never beyond the
+built-in ones), so a motorcycle is a vehicle."""
 
 from dataclasses import dataclass
 
@@ -25,8 +25,9 @@ SIZE_MARGIN = 0.3  # m: how much larger than its type a view of an object may me
 @dataclass(frozen=True)
 class ClassPrior:
     """A class's typical size (length, width, height in m) that partial views are grown
-    to, the largest length and width one object of the class can have, and the sizes of
-    all its types (``types``, the typical one first; empty: the typical one only)."""
+    to, the largest length and width one object of the class can have, and all its types
+    (``types``: (length, width, height, objects), the typical one first; empty: the
+    typical one only)."""
     label: int
     size: tuple
     max_length: float
@@ -34,8 +35,9 @@ class ClassPrior:
     types: tuple = ()
 
     @property
-    def sizes(self):
-        return self.types or (self.size,)
+    def kinds(self):
+        """((length, width, height, objects), ...) of the class's types."""
+        return self.types or ((*self.size, 1),)
 
 
 PRIORS = {
@@ -74,30 +76,50 @@ def with_types(types, priors=None, margin=SIZE_MARGIN):
         label = int(label)
         if label not in out:
             continue
-        sizes = [tuple(float(v) for v in r[:3]) for r in rows]
-        sizes = [s for s in sizes if len(s) == 3 and all(np.isfinite(s)) and min(s) > 0]
-        if not sizes:
+        kinds = [(*(float(v) for v in r[:3]), int(r[3]) if len(r) > 3 else 1) for r in rows]
+        kinds = [k for k in kinds if all(np.isfinite(k[:3])) and min(k[:3]) > 0]
+        if not kinds:
             continue
         p = out[label]
-        long_side = max(max(s[:2]) for s in sizes)
-        short_side = max(min(s[:2]) for s in sizes)
+        long_side = max(max(k[:2]) for k in kinds)
+        short_side = max(min(k[:2]) for k in kinds)
         max_length, max_width = p.max_length, p.max_width
         if label != VEHICLE:  # vehicles keep their bound: trailers, long buses, merges
             max_length = min(max_length, long_side + margin)
             max_width = min(max_width, short_side + margin)
-        out[label] = ClassPrior(label, sizes[0], max_length, max_width, tuple(sizes))
+        out[label] = ClassPrior(label, kinds[0][:3], max_length, max_width, tuple(kinds))
     return out
 
 
-def target_size(prior, length, width, margin=SIZE_MARGIN):
-    """(length, width, height) a view ``length`` x ``width`` (length >= width) of the
-    class is grown to: the smallest of its types by footprint that holds it (each side
-    at least the view's less ``margin``), else its largest."""
-    sizes = sorted(prior.sizes, key=lambda s: (s[0] * s[1], s))
-    for s in sizes:
-        if max(s[:2]) >= length - margin and min(s[:2]) >= width - margin:
-            return s
-    return sizes[-1]
+def target_size(prior, length, width, height, margin=SIZE_MARGIN):
+    """(length, width, height) a view ``length`` x ``width`` (length >= width),
+    ``height`` tall, of the class is grown to (never shrunk: the box keeps the view where
+    it is larger). A type holds the view when each of its sides is at least the view's
+    less ``margin``; the view shows it whole when, beyond that, the view is no more than
+    ``margin`` short of it in any side.
+
+    - A view some type shows whole is that type (the smallest such): a full motorcycle.
+    - A view as large as the class's commonest type (each side at least its less the
+      margin) is kept as it is: a car that caught a pedestrian's edge is no truck.
+    - Otherwise the view is partial and is the commonest type that holds it (a car seen
+      in part from afar is a car, not the motorcycle its visible part would fit), else
+      the largest type."""
+    kinds = sorted(prior.kinds, key=lambda k: (k[0] * k[1], k[:3]))
+
+    def sides(k):
+        return max(k[:2]), min(k[:2]), k[2]
+
+    view = (length, width, height)
+    holding = [k for k in kinds if all(t >= v - margin for t, v in zip(sides(k), view))]
+    whole = [k for k in holding if all(v >= t - margin for t, v in zip(sides(k), view))]
+    if whole:
+        return whole[0][:3]
+    common = max(kinds, key=lambda k: k[3])
+    if all(v >= t - margin for t, v in zip(sides(common)[:2], view[:2])):
+        return view
+    if holding:
+        return max(holding, key=lambda k: k[3])[:3]  # the first of the commonest
+    return kinds[-1][:3]
 
 
 def classify(length, width, height, priors=PRIORS):

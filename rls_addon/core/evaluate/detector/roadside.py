@@ -74,6 +74,10 @@ class RoadsideDetector:
                      they are at most merge_gap apart (merge_reach when they touch in a
                      sensor's range image and both are merge_min_part long)
     split_width      a cluster wider than this is more than one vehicle: it is split
+    person_gap       a cyclist-sized cluster whose points leave a gap this wide along its
+                     length between pedestrian-sized sides is people side by side
+    min_score        boxes of less confidence (``confidence.py``) are not reported: 0.4
+                     asks 14 returns over a whole footprint, or 40 over a fifth of it
     criterion        the heading search's: 'closeness' (L-shape) or 'area'
     pose_tolerance   (m, rad) how far a detection pose may be from the learned one
     types            the scene's own types of road users (``priors.scene_types``: {label
@@ -103,6 +107,8 @@ class RoadsideDetector:
     merge_gap: float = 1.5
     merge_reach: float = 4.0
     split_width: float = 3.0
+    person_gap: float = 0.1
+    min_score: float = 0.4
     criterion: str = "closeness"
     pose_tolerance: tuple = (0.05, 0.005)
     types: dict = None
@@ -175,7 +181,7 @@ class RoadsideDetector:
         if not groups:
             return Boxes.empty()
         return box_groups(xyz, which, groups, yaw, np.asarray(origins, np.float64), frame,
-                          ground, self.priors)
+                          ground, self.priors, self.min_score)
 
 
 __all__ = ["RoadsideDetector", "SensorBackground", "SensorView"]
