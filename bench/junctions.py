@@ -7,8 +7,10 @@ were tuned here.
   per arm (150 m arms), traffic lights at the centre (junction A0).
 - ``skew``: ``tests/fixtures/osm/signal_junction.osm``, a hand-written OpenStreetMap
   junction (a six-lane primary road crossed at 70 degrees by a four-lane secondary one,
-  signals at the crossing node), converted by ``netconvert`` as docs/roads.md says; held
-  out: no detector parameter was chosen by looking at it.
+  signals at the crossing node), converted by ``netconvert`` as docs/roads.md says.
+- ``tee``: ``tests/fixtures/osm/signal_tee.osm``, a hand-written signalised T-junction
+  (four lanes and two); held out: built after the detector's rules were chosen on the
+  other two and the sample scenes, and measured once.
 
 Each is made as a user makes a scene: the network, ``rls scene from-net --junction
 --origin junction``, ``rls traffic generate`` (random trips at ``rate`` vehicles per hour,
@@ -33,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-OSM = ROOT / "tests" / "fixtures" / "osm" / "signal_junction.osm"
+OSM = ROOT / "tests" / "fixtures" / "osm"
 OSM_OPTIONS = ("--osm.sidewalks", "--osm.crossings", "--sidewalks.guess", "--crossings.guess",
                "--junctions.corner-detail", "5", "--default.sidewalk-width", "2",
                "--default.crossing-width", "4")
@@ -50,23 +52,28 @@ class Junction:
     begin: float        # the window imported: [begin, end] seconds of the run
     end: float
     seed: int = 1
+    osm: str = None     # an OpenStreetMap file of tests/fixtures/osm (else netgenerate's)
+    held_out: bool = False  # no detector parameter was chosen by looking at it
 
     def network(self, folder):
         """The SUMO network file, made in ``folder``."""
         out = Path(folder) / f"{self.name}.net.xml"
-        if self.name == "cross3":
+        if self.osm is None:
             sumo_tool("netgenerate", "--grid", "--grid.x-number", "1", "--grid.y-number", "1",
                       "--grid.attach-length", "150", "--default.lanenumber", "3",
                       "--tls.set", "A0", "--sidewalks.guess", "--crossings.guess", "-o", out)
         else:
-            sumo_tool("netconvert", "--osm-files", OSM, *OSM_OPTIONS, "-o", out)
+            sumo_tool("netconvert", "--osm-files", OSM / self.osm, *OSM_OPTIONS, "-o", out)
         return out
 
 
 JUNCTIONS = {
     "cross3": Junction("cross3", "A0", "Pole SW A0", rate=3600, duration=240, begin=150,
                        end=180),
-    "skew": Junction("skew", "1", "Pole SW 1", rate=3600, duration=240, begin=150, end=180),
+    "skew": Junction("skew", "1", "Pole SW 1", rate=3600, duration=240, begin=150, end=180,
+                     osm="signal_junction.osm"),
+    "tee": Junction("tee", "1", "Pole SW 1", rate=3600, duration=240, begin=150, end=180,
+                    osm="signal_tee.osm", held_out=True),
 }
 
 MOUNT = r"""

@@ -50,6 +50,10 @@ CONVENTIONS = {
     "ap_r40": "KITTI's AP at 40 recall points (Simonelli et al. 2019, 'Disentangling "
               "Monocular 3D Object Detection'; KITTI's benchmark since 2019): the mean "
               "over r = 1/40 ... 1 of the best precision at recall >= r",
+    "ap_r40_kitti": "KITTI's official AP_R40 as OpenPCDet's kitti_object_eval_python "
+                    "computes it (eval.py): box-by-box matching at IoU > threshold, the "
+                    "curve sampled at the true positives' scores, recall points past the "
+                    "last one left 0 (fewer than 40 counted boxes leave some at 0)",
     "ap_voc": "VOC 2010 all-point AP as OpenCOOD's voc_ap computes it "
               "(opencood/utils/eval_utils.py): the area under the precision envelope",
     "matching": "greedy by descending score, frame by frame and class by class, at "
@@ -237,12 +241,14 @@ def _no_truth_error(gt, in_region, region, min_points, class_ids):
 
 
 def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes=None,
-          iou_thresholds=DEFAULT_THRESHOLDS, kinds=IOU_KINDS, distance_bins=None):
+          iou_thresholds=DEFAULT_THRESHOLDS, kinds=IOU_KINDS, distance_bins=None,
+          kitti=True):
     """Score ``detections`` (``Boxes`` or ``readers.DetectionFiles``, world frame)
     against ``truth`` (a ``GroundTruth`` or a list of them, one per sensor) in
     ``region`` ((M, 2) world x-y polygon; None: everywhere). See the module docstring.
     ``InputError`` for frames the ground truth lacks, boxes that are no boxes, unknown
-    classes, a degenerate region, or no counted ground truth at all."""
+    classes, a degenerate region, or no counted ground truth at all. ``kitti``: each
+    record also holds KITTI's official AP_R40 (``kitti_official``; off, it is None)."""
     merged = merge_ground_truth(truth)
     poly = _region(region)
     min_points = _min_points(min_points)
@@ -280,12 +286,13 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
         raise _no_truth_error(gt, gt_in, poly, min_points, class_ids)
     gt_ignore, det_ignore = ~counted, ~det_in
 
-    result = evaluate(gt, det, gt_ignore, det_ignore, thresholds, kinds, class_ids)
+    result = evaluate(gt, det, gt_ignore, det_ignore, thresholds, kinds, class_ids,
+                      kitti=kitti)
     result["conventions"] = CONVENTIONS
     gt_range, det_range = merged.distance(gt), merged.distance(det)
     overlaps = {kind: pair_overlaps(det, gt, kind) for kind in kinds}
     _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins, kinds,
-              thresholds, class_ids, overlaps)
+              thresholds, class_ids, overlaps, kitti)
     matchings = {(kind, t): match(det, gt, t, kind, gt_ignore, det_ignore, overlaps[kind])
                  for kind in kinds for t in thresholds}
     _add_motion(result, gt, counted, speed, matchings, class_ids)
@@ -313,14 +320,15 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
 
 
 def _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins, kinds,
-              thresholds, class_ids, overlaps):
+              thresholds, class_ids, overlaps, kitti=True):
     """Each class's ``bins`` as ``evaluate`` gives them, with distances per frame."""
     for name in result["classes"]:
         result["classes"][name]["bins"] = []
     for low, high in bins:
         g_in, d_in = in_bin(gt_range, low, high), in_bin(det_range, low, high)
         g_ignore, d_ignore = gt_ignore | ~g_in, det_ignore | ~d_in
-        part = evaluate(gt, det, g_ignore, d_ignore, thresholds, kinds, class_ids)
+        part = evaluate(gt, det, g_ignore, d_ignore, thresholds, kinds, class_ids,
+                        kitti=kitti)
         status = {(kind, t): match(det, gt, t, kind, g_ignore, d_ignore,
                                    overlaps[kind]).status
                   for kind in kinds for t in thresholds}

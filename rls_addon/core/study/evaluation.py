@@ -145,7 +145,7 @@ def placement_score(detector, members, truths, polygon, min_points, reference,
     truth = GroundTruth(boxes, frames, {f: members[0].pose for f in frames},
                         np.full(len(boxes), np.nan), instance, members[0].name)
     return score(truth, Boxes.concat(found), region=polygon, min_points=min_points,
-                 iou_thresholds=iou_thresholds)
+                 iou_thresholds=iou_thresholds, kitti=False)
 
 
 def headline(record):
