@@ -132,6 +132,10 @@ def add_parser(sub):
     p.add_argument("--background-sweeps", type=int, default=BACKGROUND_SWEEPS, metavar="N",
                    help=f"with --background empty: sweeps per candidate (default "
                         f"{BACKGROUND_SWEEPS})")
+    p.add_argument("--evaluate-sets", type=int, default=20, metavar="N",
+                   help="with --evaluate and k > 1: sets of each k scored beyond the "
+                        "reported ones (drawn from those the search looked at), for the "
+                        "correlation within k (default 20)")
     p.add_argument("--min-points", type=int, default=5,
                    help="with --evaluate: the returns the candidates together must put on "
                         "a box for it to count (default 5)")
@@ -164,7 +168,8 @@ def config_from_args(args):
         traffic_frames=tuple(parse_frames(args.traffic, 0)) if args.traffic else (),
         evaluate_frames=tuple(parse_frames(args.evaluate, 0)) if args.evaluate else (),
         evaluate_min_points=args.min_points, evaluate_background=args.background,
-        background_sweeps=args.background_sweeps, rotation_hz=args.rotation_hz,
+        background_sweeps=args.background_sweeps, evaluate_sets=args.evaluate_sets,
+        rotation_hz=args.rotation_hz,
         lidar_mode=args.lidar_mode,
         visibility_labels=tuple(label_name(i) for i in label_ids(args.visibility_labels)))
 

@@ -67,6 +67,9 @@ class StudyConfig:
     # unit has), or 'frames', learned from the evaluation frames themselves
     evaluate_background: str = "empty"
     background_sweeps: int = BACKGROUND_SWEEPS
+    # Sets of each k > 1 scored by detection beyond the reported ones (drawn from those
+    # the search looked at), for the correlation within k
+    evaluate_sets: int = 20
     # The device's rotation rate (a mode or a unit's measured rate) and lidar mode
     # (``device.modes.with_modes``); None: the preset's
     rotation_hz: float = None
@@ -82,6 +85,9 @@ class StudyConfig:
         if self.evaluate_frames and int(self.evaluate_min_points) < 0:
             raise SceneError("the points a box needs to count must be 0 or more")
         BACKGROUNDS.check(self.evaluate_background)
+        if int(self.evaluate_sets) < 0:
+            raise SceneError(f"the sets to score beyond the reported ones must be 0 or "
+                             f"more, got {self.evaluate_sets}")
         if self.evaluate_background == "empty" and int(self.background_sweeps) < 1:
             raise SceneError(f"the empty scene's background needs at least one sweep, got "
                              f"{self.background_sweeps}")

@@ -31,7 +31,7 @@ from .candidates import candidate_spots, make_candidates
 from .config import TRAFFIC_LABELS
 from ..evaluate.detector import RoadsideDetector
 from ..scan.background_sweeps import road_user_ids, sweep_seed
-from .evaluation import CandidateEvaluation, evaluate_candidate, frame_truth, truth_types
+from .detection import CandidateEvaluation, evaluate_candidate, frame_truth, truth_types
 
 
 @dataclasses.dataclass
