@@ -372,3 +372,42 @@ def test_boxes_of_little_evidence_are_not_reported():
     assert len(learned().detect([frame], [POLE])) == 0
     kept = learned(min_score=0.0).detect([frame], [POLE])
     assert len(kept) == 1 and kept.label[0] == VEHICLE and kept.score[0] < 0.4
+
+
+SUMO_VEHICLES = {VEHICLE: ((4.6, 1.8, 1.5, 14), (2.2, 0.9, 1.5, 2), (6.5, 2.16, 2.86, 2),
+                           (12.0, 2.5, 3.4, 1))}
+
+
+def test_a_queue_standing_bumper_to_bumper_is_cars():
+    """Cars 0.4 m apart at a red light cluster as one long vehicle; with the scene's
+    types no type shows that whole, and the gap along it cuts it into cars. Without the
+    scene's types (a truck's cab and trailer could pass for a queue) it stays one."""
+    first, second = car(16.0, 4.0, length=4.6), car(21.0, 4.0, length=4.6)
+    frame = scan(POLE, STATIC + (first, second), seed=6)
+    boxes = learned(types=SUMO_VEHICLES).detect([frame], [POLE])
+    assert len(boxes) == 2 and (boxes.label == VEHICLE).all()
+    for placed in (first, second):
+        k = int(np.argmin(np.hypot(*(boxes.box[:, :2] - placed.box[:2]).T)))
+        assert_matches(boxes.box[k], placed.box, centre_tol=0.3)
+    assert len(learned().detect([frame], [POLE])) == 1
+
+
+def test_a_vehicle_its_type_shows_whole_is_never_cut_at_a_gap():
+    """A van's roof with a 0.4 m strip missing (a pole's shadow) leaves the same gap as
+    a queue, but its type shows it whole: it stays one; two cars' roofs 0.4 m apart are
+    cut."""
+    from rls_addon.core.evaluate.detector.clustering import split_at_gaps
+
+    det = RoadsideDetector(types=SUMO_VEHICLES)
+
+    def roof(x0, x1, width=2.16, height=2.86):
+        xs, ys = np.meshgrid(np.arange(x0, x1, 0.05), np.arange(-width / 2, width / 2, 0.05))
+        pts = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, height)], 1)
+        return np.vstack([pts, [[x0, 0.0, 0.0]]])  # its foot on the ground: its height
+
+    van = np.vstack([roof(0.0, 3.0), roof(3.4, 6.5)])
+    groups, _ = split_at_gaps(det, van, [np.arange(len(van))], [0.0])
+    assert len(groups) == 1
+    cars = np.vstack([roof(0.0, 4.6, 1.8, 1.5), roof(5.0, 9.6, 1.8, 1.5)])
+    groups, _ = split_at_gaps(det, cars, [np.arange(len(cars))], [0.0])
+    assert sorted(len(g) for g in groups) == [len(cars) // 2, len(cars) - len(cars) // 2]

@@ -45,51 +45,73 @@ def objects(p, xyz, which, pixel=None, image_columns=None):
         of_column[g] = k
     of_point = of_column[inverse]
     pidx = np.flatnonzero(of_point >= 0)
-    return split_people(p, xyz, [pidx[g] for g in groups_of(of_point[pidx])], rect[:, 4])
+    return split_at_gaps(p, xyz, [pidx[g] for g in groups_of(of_point[pidx])], rect[:, 4])
 
 
-def split_people(p, xyz, groups, yaw):
-    """(point groups, headings) with people walking or waiting side by side apart.
-    SUMO's pedestrians walk in stripes 0.64 m apart: two abreast leave a 0.16 m gap
-    between their shoulders, which DBSCAN's 0.6 m on 0.2 m columns bridges into one
-    cyclist-sized cluster. A group no longer than the largest cyclist and no wider than
-    one whose points, along its length, leave a gap of at least ``person_gap`` with
-    each side no longer than the largest pedestrian and of ``min_points`` points or
-    more, is cut at its widest such gap, and each side again. A bicycle and its rider
-    leave no such gap along their length. The parts keep the group's heading."""
-    from .priors import CYCLIST, PEDESTRIAN
+def split_at_gaps(p, xyz, groups, yaw):
+    """(point groups, headings) with groups that are several objects cut apart where
+    their points, along the group's length, leave a gap (the widest qualifying gap, then
+    each side again; the parts keep the group's heading):
 
-    ped, cyc = p.priors[PEDESTRIAN], p.priors[CYCLIST]
+    - People abreast. SUMO's pedestrians walk in stripes 0.64 m apart: two abreast leave
+      0.16 m between their shoulders, which DBSCAN's 0.6 m on 0.2 m columns bridges into
+      one cyclist-sized cluster. A group no longer than the largest cyclist and no wider
+      is cut at a gap of at least ``person_gap`` whose sides are no longer than the
+      largest pedestrian (a bicycle and its rider leave no such gap).
+    - A queue. Cars standing at a red light can stop 0.4 m apart, which clustering
+      bridges into one long vehicle. With the scene's types known, a group no type of
+      vehicle shows whole and longer than the commonest one is cut at a gap of at least
+      ``queue_gap`` whose sides are ``merge_min_part`` long or more (a bus, a van or a
+      truck shows its type whole and is never cut; without the scene's types, a truck's
+      cab and trailer could be taken for a queue: nothing is cut).
+
+    Every side holds ``min_points`` returns or more."""
+    from .priors import CYCLIST, PEDESTRIAN, SIZE_MARGIN, VEHICLE, target_size
+
+    ped, cyc, veh = p.priors[PEDESTRIAN], p.priors[CYCLIST], p.priors[VEHICLE]
+    common = max(veh.kinds, key=lambda k: k[3])
     out_groups, out_yaw = [], []
     work = list(zip(groups, yaw))
     while work:
         g, y = work.pop(0)
         u = xyz[g, 0] * np.cos(y) + xyz[g, 1] * np.sin(y)
         v = -xyz[g, 0] * np.sin(y) + xyz[g, 1] * np.cos(y)
-        long_u = np.ptp(u) >= np.ptp(v)
-        along, across = (u, v) if long_u else (v, u)
-        if len(g) < 2 * p.min_points or np.ptp(along) > cyc.max_length \
-                or np.ptp(across) > cyc.max_width or np.ptp(along) <= ped.max_length:
+        along, across = (u, v) if np.ptp(u) >= np.ptp(v) else (v, u)
+        length, width = np.ptp(along), np.ptp(across)
+        rule = None
+        if len(g) >= 2 * p.min_points:
+            if ped.max_length < length <= cyc.max_length and width <= cyc.max_width:
+                rule = (p.person_gap, 0.0, ped.max_length, max(ped.max_length, cyc.max_length))
+            elif veh.types and length > max(common[:2]) + SIZE_MARGIN \
+                    and width <= veh.max_width:
+                height = np.ptp(xyz[g, 2])
+                if target_size(veh, length, width, height) == (length, width, height):
+                    rule = (p.queue_gap, p.merge_min_part, np.inf, np.inf)
+        cut = None if rule is None else _widest_gap(along, p.min_points, *rule)
+        if cut is None:
             out_groups.append(g)
             out_yaw.append(y)
             continue
         order = np.argsort(along, kind="stable")
-        a = along[order]
-        gaps = np.diff(a)
-        n_low = np.arange(1, len(a))  # points on the low side of each gap
-        ok = (gaps >= p.person_gap) & (n_low >= p.min_points) & \
-             (len(a) - n_low >= p.min_points) & (a[n_low - 1] - a[0] <= ped.max_length) & \
-             (a[-1] - a[n_low] <= max(ped.max_length, cyc.max_length))
-        if not ok.any():
-            out_groups.append(g)
-            out_yaw.append(y)
-            continue
-        cut = int(np.flatnonzero(ok)[np.argmax(gaps[ok])])
-        low, high = np.sort(g[order[:cut + 1]]), np.sort(g[order[cut + 1:]])
-        out_groups.append(low)
+        out_groups.append(np.sort(g[order[:cut + 1]]))
         out_yaw.append(y)
-        work.insert(0, (high, y))  # the rest may hold another person
+        work.insert(0, (np.sort(g[order[cut + 1:]]), y))  # the rest may hold another
     return out_groups, np.asarray(out_yaw, np.float64)
+
+
+def _widest_gap(along, min_points, min_gap, min_side, max_low, max_high):
+    """The index (in ``along``'s sorted order) after which the widest gap of at least
+    ``min_gap`` lies whose low side is ``min_side`` to ``max_low`` long, whose high
+    side is ``min_side`` to ``max_high`` long, each of ``min_points`` or more; None."""
+    a = np.sort(along, kind="stable")
+    gaps = np.diff(a)
+    n_low = np.arange(1, len(a))
+    low, high = a[n_low - 1] - a[0], a[-1] - a[n_low]
+    ok = (gaps >= min_gap) & (n_low >= min_points) & (len(a) - n_low >= min_points) & \
+         (low >= min_side) & (low <= max_low) & (high >= min_side) & (high <= max_high)
+    if not ok.any():
+        return None
+    return int(np.flatnonzero(ok)[np.argmax(gaps[ok])])
 
 
 def columns(p, xyz):

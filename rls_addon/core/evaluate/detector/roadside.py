@@ -76,6 +76,8 @@ class RoadsideDetector:
     split_width      a cluster wider than this is more than one vehicle: it is split
     person_gap       a cyclist-sized cluster whose points leave a gap this wide along its
                      length between pedestrian-sized sides is people side by side
+    queue_gap        ... a vehicle cluster no type shows whole, between parts of
+                     merge_min_part or more: a queue (``clustering.split_at_gaps``)
     min_score        boxes of less confidence (``confidence.py``) are not reported: 0.4
                      asks 14 returns over a whole footprint, or 40 over a fifth of it
     criterion        the heading search's: 'closeness' (L-shape) or 'area'
@@ -108,6 +110,7 @@ class RoadsideDetector:
     merge_reach: float = 4.0
     split_width: float = 3.0
     person_gap: float = 0.1
+    queue_gap: float = 0.25
     min_score: float = 0.4
     criterion: str = "closeness"
     pose_tolerance: tuple = (0.05, 0.005)
