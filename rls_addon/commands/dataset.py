@@ -181,6 +181,7 @@ def run(args):
     summary.update(layout=args.layout, dataset=str(args.out), background=None if not sweeps else {
         "sweeps": len(sweeps), "sensors": [j.name for j in sweeps[0].sensors],
         "scene_frame": sweeps[0].frames[0], "hidden_objects": len(hidden.hidden),
+        "seconds": [round(s.seconds, 4) for run in sweeps for s in run.outputs],
         "what": "sweeps of the scene with every road user hidden, under background/"})
     print(json.dumps(summary, indent=2))
     return 0
