@@ -45,7 +45,9 @@ def boxes(xyz, which, groups, yaw, origins, frame, ground, priors, min_score=0.0
     area_share = np.ones(n)
     for k in np.flatnonzero(keep):
         cx, cy, L, W, yk = rect[k]
-        size = target_size(priors[label[k]], L, W, height[k])
+        # the type is judged by what the points span (a body on wheels starts above the
+        # ground: its types' heights are the body's)
+        size = target_size(priors[label[k]], L, W, top[k] - low[k])
         eyes = origins[seen_by[k, :len(origins)], :2]
         cx, cy, L, W = grow(cx, cy, L, W, yk, max(size[:2]), min(size[:2]), eyes,
                             behind[k, seen_by[k, :len(origins)]])
