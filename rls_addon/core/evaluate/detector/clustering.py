@@ -66,7 +66,7 @@ def split_at_gaps(p, xyz, groups, yaw):
       cab and trailer could be taken for a queue: nothing is cut).
 
     Every side holds ``min_points`` returns or more."""
-    from .priors import CYCLIST, PEDESTRIAN, SIZE_MARGIN, VEHICLE, target_size
+    from .priors import CYCLIST, PEDESTRIAN, SIZE_MARGIN, VEHICLE, shown_whole
 
     ped, cyc, veh = p.priors[PEDESTRIAN], p.priors[CYCLIST], p.priors[VEHICLE]
     common = max(veh.kinds, key=lambda k: k[3])
@@ -84,8 +84,7 @@ def split_at_gaps(p, xyz, groups, yaw):
                 rule = (p.person_gap, 0.0, ped.max_length, max(ped.max_length, cyc.max_length))
             elif veh.types and length > max(common[:2]) + SIZE_MARGIN \
                     and width <= veh.max_width:
-                height = np.ptp(xyz[g, 2])
-                if target_size(veh, length, width, height) == (length, width, height):
+                if shown_whole(veh, length, width, np.ptp(xyz[g, 2])) is None:
                     rule = (p.queue_gap, p.merge_min_part, np.inf, np.inf)
         cut = None if rule is None else _widest_gap(along, p.min_points, *rule)
         if cut is None:

@@ -99,27 +99,39 @@ def target_size(prior, length, width, height, margin=SIZE_MARGIN):
     ``margin`` short of it in any side.
 
     - A view some type shows whole is that type (the smallest such): a full motorcycle.
-    - A view as large as the class's commonest type (each side at least its less the
-      margin) is kept as it is: a car that caught a pedestrian's edge is no truck.
+    - A view about as large as the class's commonest type (its footprint at least the
+      type's less the margin) is that type, or the view where larger: a car that caught
+      a pedestrian's edge is no truck.
     - Otherwise the view is partial and is the commonest type that holds it (a car seen
       in part from afar is a car, not the motorcycle its visible part would fit), else
       the largest type."""
     kinds = sorted(prior.kinds, key=lambda k: (k[0] * k[1], k[:3]))
-
-    def sides(k):
-        return max(k[:2]), min(k[:2]), k[2]
-
     view = (length, width, height)
-    holding = [k for k in kinds if all(t >= v - margin for t, v in zip(sides(k), view))]
-    whole = [k for k in holding if all(v >= t - margin for t, v in zip(sides(k), view))]
-    if whole:
-        return whole[0][:3]
+    holding = [k for k in kinds if all(t >= v - margin for t, v in zip(_sides(k), view))]
+    whole = shown_whole(prior, length, width, height, margin)
+    if whole is not None:
+        return whole
     common = max(kinds, key=lambda k: k[3])
-    if all(v >= t - margin for t, v in zip(sides(common)[:2], view[:2])):
-        return view
+    if all(v >= t - margin for t, v in zip(_sides(common)[:2], view[:2])):
+        return tuple(max(t, v) for t, v in zip(_sides(common), view))
     if holding:
         return max(holding, key=lambda k: k[3])[:3]  # the first of the commonest
     return kinds[-1][:3]
+
+
+def _sides(kind):
+    """(long side, short side, height) of a type."""
+    return max(kind[:2]), min(kind[:2]), kind[2]
+
+
+def shown_whole(prior, length, width, height, margin=SIZE_MARGIN):
+    """The smallest of the class's types a view shows whole (each of the type's sides
+    within ``margin`` of the view's, either way), as (length, width, height), or None."""
+    view = (length, width, height)
+    for k in sorted(prior.kinds, key=lambda k: (k[0] * k[1], k[:3])):
+        if all(abs(t - v) <= margin for t, v in zip(_sides(k), view)):
+            return tuple(k[:3])
+    return None
 
 
 def classify(length, width, height, priors=PRIORS):
