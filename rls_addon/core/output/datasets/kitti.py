@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import RLSError
-from ...labels import label_name
 from ..io.atomic import atomic_write_bytes
 from ..io.paths import sanitize_name
 from .common import (
+    BackgroundSweepWriter,
     Split,
     check_root,
     ensure_dir,
@@ -272,16 +272,9 @@ class KittiWriter:
                         "as the frames'"}
 
 
-class KittiBackground:
+class KittiBackground(BackgroundSweepWriter):
     """A ``run.Writer`` of one background sweep into the sensor roots of a
-    ``KittiWriter`` (see ``KittiWriter.background_writer``). Sweeps are scanned again on
-    ``--resume`` (a handful of scans), replacing what was there."""
-
-    shardable = False
-
-    def __init__(self, dataset, sweep, hidden):
-        self.dataset, self.sweep, self.hidden = dataset, int(sweep), hidden
-        self.overwrite = dataset.overwrite or dataset.resume
+    ``KittiWriter`` (see ``KittiWriter.background_writer``)."""
 
     def _root(self, sensor):
         return self.dataset.sensor_root(sensor) / "background"
@@ -292,28 +285,13 @@ class KittiBackground:
     def _meta(self, sensor):
         return self._root(sensor) / "meta" / f"{frame_id(self.sweep)}.json"
 
-    def planned_files(self, sensor, output, frame):
-        return [self.path(sensor, output, frame), self._meta(sensor)]
-
-    def incomplete(self, sensor, output, frame):
-        path = self.path(sensor, output, frame)
-        return [path] if path.exists() and not self._meta(sensor).exists() else []
-
-    def check(self, sensor, output, frame):
-        self.dataset.check(sensor, output, frame)
-
-    def existing(self, sensor, output, frame, settings=None):
-        return None
-
     def write(self, sensor, output, frame, points, info):
         arr, frame_to_world = self.dataset._points(sensor, points, info)
         path = self.path(sensor, output, frame)
         self.dataset._write_points(path, arr, self.overwrite)
         write_json(self._meta(sensor), {
             "scene": self.dataset.scene_name, "sensor": sensor, "sweep": self.sweep,
-            "scene_frame": frame, "points": int(len(points)),
-            "hidden_labels": sorted(label_name(i) for i in self.hidden.label_ids),
-            "hidden_objects": len(self.hidden.hidden),
+            "scene_frame": frame, "points": int(len(points)), **self.hidden_record(),
             "frame_to_world": frame_to_world.tolist(),
             "label_frame": "level" if self.dataset.level else "sensor",
             "intensity_scale": self.dataset.scale, "objects": [],
@@ -321,15 +299,6 @@ class KittiBackground:
             "sensor_poses": info.get("sensor_poses"), "device": info.get("device"),
             "settings": scan_settings(info, **self.dataset._layout())}, self.overwrite)
         return path
-
-    def finish(self, run):
-        """Nothing beyond the sweep's files (dataset.json describes them)."""
-
-    def abort(self):
-        """A sweep's files are complete or its meta is missing (scanned again)."""
-
-    def flush(self):
-        """Files are written in place."""
 
 
 def read_labels(path):

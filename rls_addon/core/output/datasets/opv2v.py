@@ -34,12 +34,12 @@ import numpy as np
 
 from .carla import carla_pose, to_carla_points
 from ...errors import RLSError
-from ...labels import label_name
 from ...scene.instances import instance_id
 from ..io import pcd
 from ..io.atomic import atomic_write_bytes
 from ..io.paths import sanitize_name
 from .common import (
+    BackgroundSweepWriter,
     check_root,
     ensure_dir,
     frame_id,
@@ -242,19 +242,13 @@ class Opv2vWriter:
             True)
 
 
-class Opv2vBackground:
+class Opv2vBackground(BackgroundSweepWriter):
     """A ``run.Writer`` of one background sweep (``scan.background_sweeps``) into each
     agent's folder: ``background/NNNNNN.pcd`` (the points as the frames') and
     ``background/NNNNNN.yaml`` (``lidar_pose`` and under ``rls`` the sweep, the scene
     frame scanned and the labels hidden). OpenCOOD lists the ``.yaml`` files of an
     agent's folder and the agent folders of a scenario: a folder inside an agent's is
-    neither. Sweeps are scanned again on ``--resume``."""
-
-    shardable = False
-
-    def __init__(self, dataset, sweep, hidden):
-        self.dataset, self.sweep, self.hidden = dataset, int(sweep), hidden
-        self.overwrite = dataset.overwrite or dataset.resume
+    neither."""
 
     def _dir(self, sensor):
         return self.dataset._dir(sensor) / "background"
@@ -262,21 +256,8 @@ class Opv2vBackground:
     def path(self, sensor, output, frame):
         return self._dir(sensor) / f"{frame_id(self.sweep)}.pcd"
 
-    def _yaml(self, sensor):
+    def _meta(self, sensor):
         return self._dir(sensor) / f"{frame_id(self.sweep)}.yaml"
-
-    def planned_files(self, sensor, output, frame):
-        return [self.path(sensor, output, frame), self._yaml(sensor)]
-
-    def incomplete(self, sensor, output, frame):
-        path = self.path(sensor, output, frame)
-        return [path] if path.exists() and not self._yaml(sensor).exists() else []
-
-    def check(self, sensor, output, frame):
-        self.dataset.check(sensor, output, frame)
-
-    def existing(self, sensor, output, frame, settings=None):
-        return None
 
     def write(self, sensor, output, frame, points, info):
         if info.get("frame_space") != "sensor":
@@ -288,22 +269,12 @@ class Opv2vBackground:
                 "rls": {"scene": self.dataset.scene_name, "sensor": sensor,
                         "agent": self.dataset.agents[sensor], "sweep": self.sweep,
                         "scene_frame": frame, "points": int(len(points)),
-                        "hidden_labels": sorted(label_name(i) for i in self.hidden.label_ids),
-                        "hidden_objects": len(self.hidden.hidden),
+                        **self.hidden_record(),
                         "device": info.get("device", {}).get("id"),
                         "settings": scan_settings(info)}}
-        write_text(self._yaml(sensor), _yaml_module().safe_dump(body, sort_keys=False),
+        write_text(self._meta(sensor), _yaml_module().safe_dump(body, sort_keys=False),
                    self.overwrite)
         return path
-
-    def finish(self, run):
-        """Nothing beyond the sweep's files."""
-
-    def abort(self):
-        """A sweep's files are complete or its YAML is missing (scanned again)."""
-
-    def flush(self):
-        """Files are written in place."""
 
 
 def agents_for(sensors, carriers):
