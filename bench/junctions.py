@@ -16,7 +16,7 @@ Each is made as a user makes a scene: the network, ``rls scene from-net --juncti
 --origin junction``, ``rls traffic generate`` (random trips at ``rate`` vehicles per hour,
 with pedestrians), ``rls traffic import`` of a window of the run, and a Hesai Pandar64 on
 a corner pole pitched 15 degrees down into the junction (as issue 37's trials). The scene
-runs at SUMO's step (10 frames a second).
+runs at SUMO's step (10 frames a second), as ``rls scene from-net`` makes it.
 
     .venv/bin/python -m bench.junctions [--quick] [--keep DIR]   (prints JSON, then markdown)
 """
@@ -39,7 +39,6 @@ OSM = ROOT / "tests" / "fixtures" / "osm"
 OSM_OPTIONS = ("--osm.sidewalks", "--osm.crossings", "--sidewalks.guess", "--crossings.guess",
                "--junctions.corner-detail", "5", "--default.sidewalk-width", "2",
                "--default.crossing-width", "4")
-FPS = 10  # SUMO's 0.1 s step
 
 
 @dataclass(frozen=True)
@@ -85,7 +84,6 @@ bpy.ops.wm.open_mainfile(filepath=sys.argv[2])
 import numpy as np
 from rls_addon.blender.scenes.build import mount_position
 scene = bpy.context.scene
-scene.render.fps, scene.render.fps_base = int(sys.argv[5]), 1.0
 region = bpy.data.objects["InfraLOB"]
 corners = np.array([tuple(region.matrix_world @ v.co) for v in region.data.vertices])
 cx, cy = corners[:, :2].mean(0)
@@ -123,7 +121,7 @@ def run_rls(*args, timeout=7200):
     return proc.stdout, proc.stderr, time.perf_counter() - t
 
 
-def set_up(spec, folder, fps=FPS, mounts=None):
+def set_up(spec, folder, mounts=None):
     """The junction's scene with its traffic and LiDAR(s) on ``mounts`` (default: its
     mount), as ``folder/<name>.blend``."""
     folder = Path(folder)
@@ -131,20 +129,16 @@ def set_up(spec, folder, fps=FPS, mounts=None):
     net = spec.network(folder)
     roads = folder / f"{spec.name}_roads.blend"
     run_rls("scene", "from-net", net, "--junction", spec.junction, "--origin", "junction",
-            "--out", roads, "--overwrite")
-    # the scene at SUMO's step (scenes from a network may keep Blender's 24 fps)
-    ten = folder / f"{spec.name}_roads10.blend"
-    subprocess.run([sys.executable, "-c", MOUNT, str(ROOT), str(roads), str(ten), "",
-                    str(fps)], check=True, capture_output=True, timeout=600)
+            "--out", roads, "--overwrite")  # at SUMO's step: 10 frames a second
     fcd = folder / f"{spec.name}.fcd.xml"
     run_rls("traffic", "generate", net, "--duration", spec.duration, "--rate", spec.rate,
             "--seed", spec.seed, "--out", fcd, "--overwrite")
     traffic = folder / f"{spec.name}_traffic.blend"
-    run_rls("traffic", "import", ten, "--fcd", fcd, "--begin", spec.begin, "--end", spec.end,
-            "--out", traffic, "--overwrite")
+    run_rls("traffic", "import", roads, "--fcd", fcd, "--begin", spec.begin, "--end",
+            spec.end, "--out", traffic, "--overwrite")
     blend = folder / f"{spec.name}.blend"
     subprocess.run([sys.executable, "-c", MOUNT, str(ROOT), str(traffic), str(blend),
-                    ",".join(mounts or [spec.mount]), str(fps)],
+                    ",".join(mounts or [spec.mount])],
                    check=True, capture_output=True, timeout=600)
     return blend
 
