@@ -207,6 +207,6 @@ def test_ap_chart_colours_placements_by_k_names_them_and_keeps_ap_on_0_1():
     assert legend[1].startswith("k = 2 (3 placements): r = +1.00")
     assert legend[2].startswith("all 7 placements: r = ")
     names = sorted(t.get_text() for t in ax.texts)
-    assert len(names) == 7 and "pole 0 p15 + pole 3 p0" in names
+    assert len(names) == 7 and "pole 0 p15 + pole 3 p0" in names  # none crowd here
     colours = {tuple(c.get_facecolor()[0]) for c in ax.collections}
     assert len(colours) == 2

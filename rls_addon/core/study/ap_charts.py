@@ -25,6 +25,20 @@ def short_name(sensors):
     return " + ".join(out)
 
 
+def _uncrowded(x, y, ok, near=(0.06, 0.025)):
+    """Indices of the points to name: by falling AP (the best placements first), each
+    unless a point already named lies within ``near`` (shares of the x and y spans)."""
+    if not ok.any():
+        return []
+    span_x = max(np.ptp(x[ok]), 1e-12)
+    named = []
+    for i in sorted(np.flatnonzero(ok), key=lambda i: (-y[i], x[i])):
+        if all(abs(x[i] - x[j]) > near[0] * span_x or abs(y[i] - y[j]) > near[1]
+               for j in named):
+            named.append(int(i))
+    return named
+
+
 def _coefficients(res):
     if res is None or res.get("pearson") is None:
         return "no correlation" + (f" ({res['reason']})" if res and res.get("reason") else "")
@@ -63,10 +77,14 @@ def ap_chart_figure(rows, metric, pooled, by_k, scene):
             a, b = np.polyfit(x[sel], y[sel], 1)
             xs = np.linspace(x[sel].min(), x[sel].max(), 20)
             ax.plot(xs, a * xs + b, color=colour, lw=1.0, alpha=0.7)
-        for i in np.flatnonzero(sel):
-            ax.annotate(short_name(rows[i]["sensors"]), (x[i], y[i]), fontsize=5.5,
-                        xytext=(3, 2), textcoords="offset points", color="#333333")
+    named = _uncrowded(x, y, ok)
+    for i in named:
+        ax.annotate(short_name(rows[i]["sensors"]), (x[i], y[i]), fontsize=5.5,
+                    xytext=(3, 2), textcoords="offset points", color="#333333")
     ax.plot([], [], " ", label=f"all {int(ok.sum())} placements: {_coefficients(pooled)}")
+    if len(named) < ok.sum():
+        ax.plot([], [], " ", label=f"({int(ok.sum()) - len(named)} names left out where "
+                                   "points crowd: study.json lists every placement)")
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel(METRICS[metric])
     ax.set_ylabel(AP_LABEL)
