@@ -8,6 +8,7 @@ import sys
 from ..core.choices import BACKENDS, MOTION
 from ..core.output.datasets import LAYOUTS
 from ..core.errors import SceneError
+from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import _print_step, interrupted_at, open_scene, parse_frames
 
@@ -55,6 +56,10 @@ def add_parser(sub):
     kitti.add_argument("--split-seed", type=int, default=0)
     kitti.add_argument("--val-frames", default=None,
                        help="frames A-B for validation instead of a random share")
+    p.add_argument("--background-sweeps", type=int, default=BACKGROUND_SWEEPS, metavar="N",
+                   help="sweeps of the scene with every road user hidden stored per still "
+                        "LiDAR under background/ (what 'rls detect' learns its background "
+                        f"from; default {BACKGROUND_SWEEPS}, 0: none)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="keep complete frames of an earlier run, scan the rest")
@@ -79,7 +84,8 @@ def dataset_settings(args, current_frame):
         lidar_mode=args.lidar_mode, intensity=args.intensity,
         points_format=args.points_format, level=args.level, min_points=args.min_points,
         val_share=args.val_share, split_seed=args.split_seed, val_frames=val,
-        overwrite=args.overwrite, resume=args.resume)
+        background_sweeps=args.background_sweeps, overwrite=args.overwrite,
+        resume=args.resume)
 
 
 def dataset_run(args):
@@ -87,20 +93,31 @@ def dataset_run(args):
 
     if args.substeps is not None and args.substeps < 0:  # before Blender is loaded
         raise SceneError(f"--substeps must be >= 0, got {args.substeps}")
+    if args.background_sweeps < 0:
+        raise SceneError(f"--background-sweeps must be 0 or more, got {args.background_sweeps}")
     scene = open_scene(args.blend, args.prepare_blender)
     return blender_dataset_run(scene, dataset_settings(args, scene.frame_current),
-                               progress=_print_step)
+                               progress=_print_step, sweep_progress=_print_sweep)
+
+
+def _print_sweep(step):
+    print(f"[background] {step.sensor}: a sweep of the scene without road users, "
+          f"{step.points} points in {step.seconds:.2f} s", file=sys.stderr, flush=True)
+    for w in step.warnings:
+        print(f"rls: warning: {w}", file=sys.stderr)
 
 
 def run(args):
     from ..core.errors import interrupt_exit_code
+    from ..core.scan.background_sweeps import run_all
     from .distribute import run_scan, scene_file
 
     job = None
     try:
-        job, writer = dataset_run(args)
-        for notice in job.notices:
+        job, writer, (sweeps, hidden, sweep_notices) = dataset_run(args)
+        for notice in job.notices + sweep_notices:
             print(f"rls: notice: {notice}", file=sys.stderr)
+        run_all(sweeps)
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
@@ -110,6 +127,10 @@ def run(args):
     for notice in writer.notices:
         print(f"rls: notice: {notice}", file=sys.stderr)
     summary = job.summary()
-    summary.update(layout=args.layout, dataset=str(args.out))
+    summary.update(layout=args.layout, dataset=str(args.out), background=None if not sweeps else {
+        "sweeps": len(sweeps), "sensors": [j.name for j in sweeps[0].sensors],
+        "scene_frame": sweeps[0].frames[0], "hidden_objects": len(hidden.hidden),
+        "seconds": [round(s.seconds, 4) for run in sweeps for s in run.outputs],
+        "what": "sweeps of the scene with every road user hidden, under background/"})
     print(json.dumps(summary, indent=2))
     return 0

@@ -130,16 +130,27 @@ def summary(result, header):
                 for key in keys:
                     r = rec[kind][key]
                     rows.append(f"{name:<11}{scope:<11}{kind.upper():<4}{key:<6}"
-                                f"{_ap(r['ap_r40']):>8}{_ap(r['ap_voc']):>8}"
-                                f"{r['tp']:>7}{r['fp']:>7}{r['gt']:>7}")
+                                f"{_ap(r['ap_r40']):>8}{_ap(r.get('ap_r40_kitti')):>8}"
+                                f"{_ap(r['ap_voc']):>8}{r['tp']:>7}{r['fp']:>7}{r['gt']:>7}")
     if rows:
-        lines += ["", f"{'class':<11}{'range':<11}{'IoU':<10}{'AP_R40':>8}{'AP_VOC':>8}"
-                      f"{'tp':>7}{'fp':>7}{'gt':>7}"] + rows
+        lines += ["", f"{'class':<11}{'range':<11}{'IoU':<10}{'AP_R40':>8}{'KITTI':>8}"
+                      f"{'AP_VOC':>8}{'tp':>7}{'fp':>7}{'gt':>7}"] + rows
+    motion = []
+    for name, c in result["classes"].items():
+        for key in keys:
+            by = c["all"][kinds[0]][key].get("by_motion", {})
+            parts = [f"{what} {r['tp']}/{r['gt']}" + (f" ({r['recall']:.2f})" if r["gt"] else "")
+                     for what, r in by.items() if r["gt"]]
+            if parts:
+                motion.append(f"{name:<11}{kinds[0].upper():<4}{key:<6}{'; '.join(parts)}")
+    if motion:
+        lines += ["", "counted boxes found, standing (under 0.1 m/s) and moving:"] + motion
     if quiet:
         lines.append(f"no counted ground truth and no detections: {', '.join(quiet)} "
                      "(AP undefined)")
-    lines.append("AP_R40: KITTI's 40 recall points; AP_VOC: VOC all-point as OpenCOOD; "
-                 "fractions of 1; '-': no counted ground truth")
+    lines.append("AP_R40: KITTI's 40 recall points (Simonelli et al.); KITTI: the same as "
+                 "OpenPCDet's kitti_object_eval_python computes it; AP_VOC: VOC all-point "
+                 "as OpenCOOD; fractions of 1; '-': no counted ground truth")
     return "\n".join(lines)
 
 
@@ -171,6 +182,11 @@ def run(args):
         f"outside the region and {g['ignored_few_points']} with fewer points (don't-care)",
         f"detections ({fmt}): {d['boxes']}, {d['outside_region']} centred outside the "
         "region (dropped unless they find a counted box)"]
+    about = result["inputs"]["detector"]
+    if about and isinstance(about.get("background"), dict):
+        header.append(f"detector: {about.get('detector')}; background: "
+                      f"{about['background'].get('label')} "
+                      f"({about['background'].get('what')})")
     if args.out:
         from ..core.evaluate.runs import result_json
         from ..core.output.io.atomic import atomic_write_bytes

@@ -75,6 +75,10 @@ ALIASES = {
 
 NAME_TO_ID = {name: i for i, name in DEFAULT_LABELS.items()}
 
+# Road users: the classes with ground-truth boxes, which a placement study leaves out of
+# its traffic-free scans and a deployed unit's background never holds.
+ROAD_USERS = ("vehicle", "pedestrian", "cyclist")
+
 
 # Blender's name for a second datablock of a taken name: "Road.001"
 DUPLICATE_SUFFIX = re.compile(r"\.\d{3,}$")

@@ -12,7 +12,8 @@ from ..blender.sensor import is_lidar
 from ..core.errors import OutputExists, RLSError
 from ..core.output.datasets import LAYOUTS
 from ..core.output.datasets.settings import DEFAULT_CLASSES, DatasetSettings
-from .common import _poll_any_lidar
+from ..core.scan.background_sweeps import run_all
+from .common import _poll_any_lidar, status_text
 from .running import ModalRun, report_run
 
 
@@ -100,14 +101,21 @@ class RLS_OT_export_dataset(ModalRun, bpy.types.Operator):
     def _make_run(self, context):
         batch.clear_cancel()
         try:
-            run, self._writer = dataset_run(context.scene, self.settings(context),
-                                            cancelled=batch.cancel_requested)
+            run, self._writer, (sweeps, _, notices) = dataset_run(
+                context.scene, self.settings(context), cancelled=batch.cancel_requested)
         except OutputExists as exc:
             raise RLSError(f"{exc.paths[0]} already exists (an earlier export's): tick "
                            "Resume to keep its complete frames or Overwrite to replace "
                            "them, or choose another folder") from None
-        for notice in run.notices:
+        for notice in run.notices + notices:
             self.report({"INFO"}, notice)
+        if sweeps:  # a few scans of the scene without road users, before the frames
+            status_text(context, f"Export: {len(sweeps)} background sweeps of the scene "
+                                 "without road users")
+            try:
+                run_all(sweeps)
+            finally:
+                status_text(context, None)
         return run
 
     def _report(self, run):

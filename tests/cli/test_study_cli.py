@@ -168,6 +168,23 @@ def test_study_evaluate_scores_placements_by_detection(sample_blends, tmp_path):
     line = one_line_error(rls("study", sample_blends["t_junction"], "--traffic", "1-5",
                               "--evaluate", "10", "--out", tmp_path / "bad"))
     assert "not among the traffic frames" in line
+    # the background used is said, and the evaluated vehicle-frames are too few: said
+    assert ev["background"]["kind"] == "empty" and ev["background"]["sweeps"] == 5
+    assert "background: each candidate's 5 sweeps of the scene" in proc.stderr
+    assert f"hold {ev['vehicle_frames']} counted vehicle-frames" in proc.stderr
+    assert set(ev["correlation_by_k"]) == {"1", "2"}
+
+
+def test_one_evaluation_frame_scores_what_it_sees(sample_blends, tmp_path):
+    """Issue 38/37: --evaluate 5 (one frame) made each candidate learn that very frame
+    as its background and every placement scored 0. The empty scene's sweeps are the
+    background now: the frame's vehicles are found."""
+    out = tmp_path / "one"
+    proc = rls("study", sample_blends["t_junction"], "--k", "1", "--mount", "TL NE",
+               "--mount", "TL SW", "--pitch", "10", "--evaluate", "30", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    ev = json.loads((out / "study.json").read_text())["evaluation"]
+    assert max(c["ap"] for c in ev["candidates"]) > 0.5
 
 
 def test_study_rotation_hz_is_recorded(sample_blends, tmp_path):

@@ -23,9 +23,11 @@ DETECTED = (("vehicle", 11), ("pedestrian", 12), ("cyclist", 18))
 class DetectSettings:
     datasets: tuple                  # kitti sensor roots, fused early
     out: str                         # the folder of detection files
-    background_frames: tuple = None  # frames to learn the background from (None: all)
+    background_frames: tuple = None  # with background "frames": the frames (None: all)
     noise_sigma: float = None        # the device's range noise (None: its preset's)
     overwrite: bool = False
+    background: str = "empty"        # choices.BACKGROUNDS: the dataset's sweeps of the
+                                     # scene without road users, or the frames themselves
 
 
 def check_detection_folder(out, overwrite):
@@ -40,18 +42,24 @@ def check_detection_folder(out, overwrite):
 
 
 def run_detection(settings, progress=None):
-    """Detect every frame the datasets share and write the boxes; returns a dict:
-    boxes, frames, timing (``detect_datasets``'), paths and counts per class."""
+    """Detect every frame the datasets share and write the boxes with ``detector.json``
+    (the detector and the background it learned); returns a dict: boxes, frames, timing
+    (``detect_datasets``'), paths, counts per class and about (detector.json's)."""
     from .detect_dataset import detect_datasets, write_dataset_detections
 
     check_detection_folder(settings.out, settings.overwrite)
     roots = list(settings.datasets)
-    boxes, done, timing = detect_datasets(roots, settings.background_frames,
-                                          settings.noise_sigma, progress)
-    paths = write_dataset_detections(Path(settings.out), boxes, roots, done, overwrite=True)
+    boxes, done, timing = detect_datasets(roots, settings.background,
+                                          settings.background_frames, settings.noise_sigma,
+                                          progress)
+    about = {"detector": timing["detector"], "background": timing["background"],
+             "size_priors": timing["types"], "sensors": timing["sensors"],
+             "datasets": [str(d) for d in roots], "frames": done}
+    paths = write_dataset_detections(Path(settings.out), boxes, roots, done, overwrite=True,
+                                     about=about)
     counts = {name: int((boxes.label == lid).sum()) for name, lid in DETECTED}
     return {"boxes": boxes, "frames": done, "timing": timing, "paths": paths,
-            "counts": counts}
+            "counts": counts, "about": about}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -132,6 +140,7 @@ def _dataset(settings, fmt, roots, n_truth):
 def evaluate(settings):
     """The scoring of ``settings.detections`` against the ground truth (``score``'s
     result with its notices and inputs)."""
+    from .detect_dataset import read_about
     from .readers import detect_format, read_detection_files
     from .scoring import score
 
@@ -147,7 +156,8 @@ def evaluate(settings):
     result["notices"] = files.notices + result["notices"]
     result["inputs"] = {"truth": [str(p) for p in settings.truth],
                         "detections": str(settings.detections), "format": fmt,
-                        "dataset": str(dataset), "region": settings.region_name}
+                        "dataset": str(dataset), "region": settings.region_name,
+                        "detector": read_about(settings.detections)}
     return result
 
 

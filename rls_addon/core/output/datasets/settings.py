@@ -11,6 +11,9 @@ from . import LAYOUTS
 
 INTENSITY_SCALES = {"0-1": 1.0, "0-255": 255.0}
 DEFAULT_CLASSES = "vehicle,pedestrian,cyclist"
+# sweeps of the scene with every road user hidden stored per still LiDAR (background/):
+# what RLS's detector learns its background from (core/scan/background_sweeps.py)
+BACKGROUND_SWEEPS = 5
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +40,7 @@ class DatasetSettings:
     val_share: float = 0.2
     split_seed: int = 0
     val_frames: tuple = None         # (first, last) frames for validation
+    background_sweeps: int = BACKGROUND_SWEEPS
     overwrite: bool = False
     resume: bool = False
 
@@ -46,6 +50,9 @@ class DatasetSettings:
             raise SceneError("no frames to export (the frame range is empty)")
         if self.substeps is not None and self.substeps < 0:
             raise SceneError(f"--substeps must be >= 0, got {self.substeps}")
+        if self.background_sweeps < 0:
+            raise SceneError("--background-sweeps must be 0 or more, got "
+                             f"{self.background_sweeps}")
         if self.intensity not in INTENSITY_SCALES:
             raise SceneError(f"intensity scale must be one of {', '.join(INTENSITY_SCALES)}, "
                              f"got {self.intensity!r}")
