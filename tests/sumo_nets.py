@@ -5,7 +5,7 @@ import os
 import subprocess
 from pathlib import Path
 
-import pytest
+from tests.core.external_tools import require_module
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 OSM_FIXTURE = FIXTURES / "osm" / "crossing.osm"
@@ -20,7 +20,7 @@ OSM_OPTIONS = ("--osm.sidewalks", "--osm.crossings", "--sidewalks.guess", "--cro
 
 
 def sumo_home():
-    sumo = pytest.importorskip("sumo")
+    sumo = require_module("sumo", "eclipse-sumo==1.28.0")
     return sumo.SUMO_HOME
 
 
