@@ -29,6 +29,14 @@ def open_blend(path, error=SceneError):
         print(f"rls: warning: {warning}", file=sys.stderr)
 
 
+def factory_reset():
+    """Blender's factory settings with an empty scene (as ``rls scene from-net`` and
+    ``rls demo`` start from). Blender unregisters and registers its add-ons on the way:
+    a stop signal waits for it."""
+    with held():
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
 def newer_file_warning(path, file_version, app_file_version):
     """The warning for a file saved by a newer Blender than this one (None otherwise):
     Blender reads it, but data that version added is dropped or misread."""

@@ -53,12 +53,11 @@ def run(args):
     layout = build_layout(net, args.junction, args.origin)
     t_read = time.perf_counter() - t0
 
-    import bpy
-
-    from ..blender.files import save_blend
+    from ..blender import bpy  # loaded with stop signals held
+    from ..blender.files import factory_reset, save_blend
     from ..blender.roads import build_roads
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    factory_reset()
     args.prepare_blender()
     _say(f"{len(net.lanes)} lanes, {len(net.junctions)} junctions read in {t_read:.2f} s; "
          f"junction {layout.junction.id}")
