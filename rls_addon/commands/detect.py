@@ -13,10 +13,13 @@ in the first dataset's label frame (``x y z dx dy dz heading Class score``), the
 ``rls evaluate --detections`` reads. It is not a learned detector: see docs/evaluate.md.
 """
 
+import math
 import sys
 from pathlib import Path
 
-from ..core.errors import OutputError
+from ..core.errors import InputError, OutputError
+
+MAX_NOISE_SIGMA_M = 1.0  # the presets' range noise is 0-3 cm; a metre is no LiDAR's
 
 
 def add_parser(sub):
@@ -29,15 +32,27 @@ def add_parser(sub):
     p.add_argument("--background-frames", metavar="A-B[:STEP]",
                    help="frames to learn the background from (default: every frame)")
     p.add_argument("--noise-sigma", type=float, metavar="M",
-                   help="the device's range noise in m (default: its preset's)")
+                   help="the device's range noise in m, 0 to 1 (default: its preset's)")
     p.add_argument("--overwrite", action="store_true", help="replace existing detection files")
     p.set_defaults(func=run)
+
+
+def check_noise_sigma(value):
+    """``--noise-sigma``: None (the preset's) or a range noise in [0, 1] m. NaN and a
+    negative value were taken and changed nothing (the margin is the larger of a
+    minimum and 5 sigma)."""
+    if value is None:
+        return
+    if not math.isfinite(value) or not 0.0 <= value <= MAX_NOISE_SIGMA_M:
+        raise InputError(f"--noise-sigma must be the device's range noise in metres, from 0 "
+                         f"to {MAX_NOISE_SIGMA_M:g} (the presets': 0 to 0.03), got {value!r}")
 
 
 def run(args):
     from ..core.evaluate.detect_dataset import detect_datasets, write_dataset_detections
     from .scan import parse_frames
 
+    check_noise_sigma(args.noise_sigma)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {out} is a file, not a folder")
@@ -45,6 +60,9 @@ def run(args):
         raise OutputError(f"{out} already holds detection files: use --overwrite to replace "
                           "them, or choose another folder")
     frames = parse_frames(args.background_frames, None) if args.background_frames else None
+    from ..core.evaluate.kitti_meta import KittiMeta, one_scene
+
+    one_scene([(str(d), KittiMeta.open(d)) for d in args.datasets])  # fused: one scene
 
     def progress(i, n, frame):
         print(f"[{i}/{n}] frame {frame}", file=sys.stderr, flush=True)

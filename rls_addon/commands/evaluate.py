@@ -158,6 +158,17 @@ def _dataset(args, fmt, roots, n_truth):
                      "the detector read")
 
 
+def _one_scene(roots, dataset, fmt):
+    """The kitti datasets given (ground truth, and the one the detector ran on) must
+    name one scene (their dataset.json)."""
+    from ..core.evaluate.kitti_meta import KittiMeta, one_scene
+
+    given = [(f"--truth {r}", KittiMeta.open(r)) for r in roots]
+    if fmt != "opencood" and Path(dataset) not in roots:
+        given.append((f"--dataset {dataset}", KittiMeta.open(dataset)))
+    one_scene(given)
+
+
 def _region(args):
     """(polygon or None, a description of it)."""
     if args.lob:
@@ -217,6 +228,7 @@ def run(args):
     truths, roots = read_truths(args.truth)
     fmt = detect_format(args.detections) if args.format == "auto" else args.format
     dataset = _dataset(args, fmt, roots, len(truths))
+    _one_scene(roots, dataset, fmt)
     files = read_detection_files(args.detections, fmt, dataset, args.scenario)
     result = score(truths, files, region=polygon, min_points=args.min_points,
                    classes=classes, iou_thresholds=thresholds, distance_bins=bins)

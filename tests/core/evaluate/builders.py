@@ -68,11 +68,11 @@ def info(sensor_pose, objects, knots=None):
     return out
 
 
-def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False):
-    """An RLS kitti dataset of sensor 'lidar' under ``root``: per frame the objects
-    moved 1 m along x per frame; ``moving``: the sensor drives 1.5 m along its sweep.
-    Returns the sensor root."""
-    writer = KittiWriter(root, "scene", level=level)
+def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False, scene="scene"):
+    """An RLS kitti dataset of sensor 'lidar' of scene ``scene`` under ``root``: per
+    frame the objects moved 1 m along x per frame; ``moving``: the sensor drives 1.5 m
+    along its sweep. Returns the sensor root."""
+    writer = KittiWriter(root, scene, level=level)
     for f in frames:
         start = np.asarray(sensor_pose, float)
         knots = None
