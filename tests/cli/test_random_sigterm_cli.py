@@ -82,11 +82,14 @@ def test_random_sigterms_leave_complete_files_and_resume_to_the_same_bytes(demo_
         assert tries <= 3 * KILLS_PER_CASE, (case, stops)
         again = ["--resume"] if resumable else ["--overwrite"]
         code, stderr = stopped_run(command(case, blend, out) + again, rng.uniform(0.3, took))
-        # -15: the command had ended and given the signal back to the system's default
-        # (the process was on its way out): as finished
-        assert code in (0, 143, -signal.SIGTERM), (case, code, stderr[-2000:])
-        assert_complete(case, out)
-        if code != 143:  # finished before the signal: start again from nothing
+        # -15: the signal came in Python's own start, before RLS's first line (only a
+        # machine slowed to a crawl takes 0.3 s there): nothing ran, nothing was said
+        assert code in (0, 143) or (code == -signal.SIGTERM and not stderr.strip()), \
+            (case, code, stderr[-2000:])
+        assert_complete(case, out)  # a stop during start-up may have made no folder
+        if code == -signal.SIGTERM:
+            continue
+        if code == 0:  # finished before the signal: start again from nothing
             shutil.rmtree(out)
             continue
         stops += 1
