@@ -18,21 +18,11 @@ import sys
 import pytest
 
 from tests.core.external_tools import missing
-from tests.sumo_nets import grid_net
+from tests.sumo_nets import ONE_CAR_FCD, grid_net
 
 from .conftest import ROOT, rls
 
 TMPFS_KIB = 200
-FCD = """<?xml version="1.0" encoding="UTF-8"?>
-<fcd-export>
-    <timestep time="0.00">
-        <vehicle id="a" x="60.00" y="70.00" angle="0.00" type="DEFAULT_VEHTYPE" speed="10" pos="5" lane="e_0" slope="0.00"/>
-    </timestep>
-    <timestep time="1.00">
-        <vehicle id="a" x="60.00" y="80.00" angle="0.00" type="DEFAULT_VEHTYPE" speed="10" pos="15" lane="e_0" slope="0.00"/>
-    </timestep>
-</fcd-export>
-"""
 # inside the namespace: the tmpfs on $1, the command, then what it left in $1 into $2
 SCRIPT = ('mount -t tmpfs -o size={kib}k rls-test "$1" || exit 90; dir=$1; listing=$2; '
           'shift 2; "$@"; rc=$?; ls -A "$dir" > "$listing"; exit $rc')
@@ -93,7 +83,7 @@ def test_from_net_and_traffic_import_onto_a_full_disk(net, tmp_path):
     scene = tmp_path / "scene.blend"  # the same scene on a disk with room
     assert rls("scene", "from-net", net, "--out", scene).returncode == 0
     fcd = tmp_path / "fcd.xml"
-    fcd.write_text(FCD)
+    fcd.write_text(ONE_CAR_FCD)
     proc, left = on_full_disk(tmp_path / "b", "traffic", "import", scene, "--fcd", fcd, "--out",
                               "{out}/traffic.blend")
     assert proc.returncode == 1 and left == [], (proc.returncode, left, proc.stderr)

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.sumo_nets import grid_net
+from tests.sumo_nets import ONE_CAR_FCD, grid_net
 
 from .conftest import ROOT, assert_complete, rls
 
@@ -37,16 +37,6 @@ pytestmark = pytest.mark.slow
 
 TRIALS = 50
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
-FCD = """<?xml version="1.0" encoding="UTF-8"?>
-<fcd-export>
-    <timestep time="0.00">
-        <vehicle id="a" x="60.00" y="70.00" angle="0.00" type="DEFAULT_VEHTYPE" speed="10" pos="5" lane="e_0" slope="0.00"/>
-    </timestep>
-    <timestep time="1.00">
-        <vehicle id="a" x="60.00" y="80.00" angle="0.00" type="DEFAULT_VEHTYPE" speed="10" pos="15" lane="e_0" slope="0.00"/>
-    </timestep>
-</fcd-export>
-"""
 # the modules rls_addon/__main__.py imports before its handlers are in place
 START_MODULES = ("rls_addon/__main__.py", "rls_addon/__init__.py", "rls_addon/core/__init__.py",
                  "rls_addon/core/signals.py", "rls_addon/core/errors.py")
@@ -59,7 +49,7 @@ def inputs(demo_run, tmp_path_factory):
     scene = folder / "scene.blend"
     assert rls("scene", "from-net", net, "--out", scene).returncode == 0
     fcd = folder / "fcd.xml"
-    fcd.write_text(FCD)
+    fcd.write_text(ONE_CAR_FCD)
     return {"blend": demo_run[0] / "intersection.blend", "net": net, "scene": scene,
             "fcd": fcd}
 
