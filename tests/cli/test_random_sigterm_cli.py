@@ -6,7 +6,6 @@ command's own uninterrupted duration, so they fall while the scene opens, while 
 cluster starts, mid-scan and mid-write."""
 
 import hashlib
-import json
 import os
 import random
 import shutil
