@@ -27,8 +27,8 @@ def add_parser(sub):
 
 
 def run(args):
-    import bpy
-
+    from ..blender import bpy  # loaded with stop signals held
+    from ..blender.files import factory_reset
     from ..blender.quiet import blender_output_silenced
     from ..blender.scenes import SAMPLE_LIDARS, add_sample_lidar, build_scene
     from ..blender.sensor import read_settings, sensor_job
@@ -40,7 +40,7 @@ def run(args):
 
     preset = get_preset(args.device)
     check_output_dir(args.out)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    factory_reset()
     args.prepare_blender()
     scene = bpy.context.scene
     build_scene(DEMO_SCENE, scene)
@@ -99,15 +99,15 @@ def _has_matplotlib():
 def run_demo_study(out_dir, device, prepare_blender):
     """The paper's scenario A in small: the sample T-junction, its five corner and
     bar-side mounts, 1 to 3 sensors; report under ``out_dir/study``."""
-    import bpy
-
+    from ..blender import bpy
+    from ..blender.files import factory_reset
     from ..blender.quiet import blender_output_silenced
     from ..blender.scenes import build_scene
     from ..blender.study import run_study
     from ..core.study.config import StudyConfig
     from ..core.study.report import write_report
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    factory_reset()
     prepare_blender()
     build_scene("t_junction", bpy.context.scene)
     study_dir = os.path.join(out_dir, "study")

@@ -36,7 +36,7 @@ def add_parser(sub):
                    help="with --background frames: the frames to learn from (default: "
                         "every frame; given alone, it implies --background frames)")
     p.add_argument("--noise-sigma", type=float, metavar="M",
-                   help="the device's range noise in m (default: its preset's)")
+                   help="the device's range noise in m, 0 to 1 (default: its preset's)")
     p.add_argument("--overwrite", action="store_true", help="replace existing detection files")
     p.set_defaults(func=run)
 

@@ -76,7 +76,7 @@ def polygon_from_blend(spec):
     from ..core.signals import held
 
     with held():  # a stop signal waits for Blender to be loaded (as in open_scene)
-        import bpy  # only here: everything else in this command works without Blender
+        from ..blender import bpy  # only here: the rest of this command needs no Blender
 
         from ..blender.files import open_blend
         from ..blender.region import lob_polygon_world

@@ -160,7 +160,7 @@ def open_scene(path, prepare_blender):
     from ..core.signals import held
 
     with held():
-        import bpy
+        from ..blender import bpy
 
         if path is not None:
             from ..blender.files import open_blend

@@ -65,7 +65,7 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
     out = tmp_path / "kitti"
     frames = f"{FRAMES[0]}-{FRAMES[1]}"
     proc = rls("dataset", junction, "--layout", "kitti", "--frames", frames, "--out", out,
-               "--level", "--seed", "3")
+               "--level", "--seed", "3", "--val-share", "0.5", "--split-seed", "2")
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert summary["scanned"] == 2 * (FRAMES[1] - FRAMES[0] + 1)
@@ -81,6 +81,9 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
         assert listed == [f"{f:06d}" for f in range(FRAMES[0], FRAMES[1] + 1)]
         info = json.loads((root / "dataset.json").read_text())
         assert info["class_names"] == ["Vehicle", "Pedestrian", "Cyclist"]
+        # --split-seed reaches the split (seed 0 draws 26 and 28 of these four frames)
+        assert info["split"] == {"val_share": 0.5, "seed": 2, "val_frames": None}
+        assert (root / "ImageSets" / "val.txt").read_text().split() == ["000028", "000029"]
         checked, seen = 0, set()
         for f in range(FRAMES[0], FRAMES[1] + 1):
             pts = np.load(root / "points" / f"{f:06d}.npy")

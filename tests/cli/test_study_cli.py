@@ -8,6 +8,7 @@ import sys
 import pytest
 
 from .conftest import ROOT, one_line_error, rls
+from tests.core.external_tools import require_module
 
 
 @pytest.fixture(scope="session")
@@ -46,7 +47,7 @@ def test_study_writes_tables_and_charts(sample_blends, tmp_path):
     assert {"Car east", "Car turning", "Car west", "Truck parked 3"} < set(hidden)
     assert {n.split()[0] for n in hidden} == {"Car", "Van", "Truck", "Pedestrian", "Cyclist"}
     assert report["placements"]["2"]["best_density"]["units"] == "points per square metre"
-    pytest.importorskip("matplotlib")
+    require_module("matplotlib", "matplotlib==3.11.2")
     for name in ("pareto.png", "density_k1.png", "density_k2.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # a second run refuses to replace the report, then replaces it with --overwrite
@@ -139,7 +140,7 @@ def test_study_with_traffic_sees_a_parked_truck_the_traffic_free_metrics_miss(sa
     assert report["visibility"]["frames"] == [20, 25, 30, 35, 40]
     assert any(d["candidate"] == "TL NE" for d in report["visibility"]["rank_disagreements"])
     assert set(summary_of(proc)["best_by_visibility"]) == {"1", "2"}
-    pytest.importorskip("matplotlib")
+    require_module("matplotlib", "matplotlib==3.11.2")
     assert (out / "visibility.png").read_bytes()[:4] == b"\x89PNG"
 
 

@@ -9,6 +9,7 @@ so the command line and the *Detect and Evaluate* panel run the same:
 
 import dataclasses
 import json
+import math
 from pathlib import Path
 
 from ..errors import InputError, OutputError
@@ -17,6 +18,7 @@ DEFAULT_CLASSES = ("vehicle", "pedestrian", "cyclist")
 DEFAULT_IOU = (0.3, 0.5, 0.7)
 # kitti label ids of the classes the detector finds (core/labels.py)
 DETECTED = (("vehicle", 11), ("pedestrian", 12), ("cyclist", 18))
+MAX_NOISE_SIGMA_M = 1.0  # the presets' range noise is 0-3 cm; a metre is no LiDAR's
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,6 +30,20 @@ class DetectSettings:
     overwrite: bool = False
     background: str = "empty"        # choices.BACKGROUNDS: the dataset's sweeps of the
                                      # scene without road users, or the frames themselves
+
+    def __post_init__(self):
+        check_noise_sigma(self.noise_sigma)
+
+
+def check_noise_sigma(value):
+    """``--noise-sigma``: None (the preset's) or a range noise in [0, 1] m. NaN and a
+    negative value were taken and changed nothing (the margin is the larger of a
+    minimum and 5 sigma)."""
+    if value is None:
+        return
+    if not math.isfinite(value) or not 0.0 <= value <= MAX_NOISE_SIGMA_M:
+        raise InputError(f"--noise-sigma must be the device's range noise in metres, from 0 "
+                         f"to {MAX_NOISE_SIGMA_M:g} (the presets': 0 to 0.03), got {value!r}")
 
 
 def check_detection_folder(out, overwrite):
@@ -46,9 +62,11 @@ def run_detection(settings, progress=None):
     (the detector and the background it learned); returns a dict: boxes, frames, timing
     (``detect_datasets``'), paths, counts per class and about (detector.json's)."""
     from .detect_dataset import detect_datasets, write_dataset_detections
+    from .kitti_meta import KittiMeta, one_scene
 
     check_detection_folder(settings.out, settings.overwrite)
     roots = list(settings.datasets)
+    one_scene([(str(d), KittiMeta.open(d)) for d in roots])  # fused: one scene
     boxes, done, timing = detect_datasets(roots, settings.background,
                                           settings.background_frames, settings.noise_sigma,
                                           progress)
@@ -137,6 +155,17 @@ def _dataset(settings, fmt, roots, n_truth):
                      "the detector read")
 
 
+def _one_scene(roots, dataset, fmt):
+    """The kitti datasets given (ground truth, and the one the detector ran on) must
+    name one scene (their dataset.json)."""
+    from .kitti_meta import KittiMeta, one_scene
+
+    given = [(f"--truth {r}", KittiMeta.open(r)) for r in roots]
+    if fmt != "opencood" and Path(dataset) not in roots:
+        given.append((f"--dataset {dataset}", KittiMeta.open(dataset)))
+    one_scene(given)
+
+
 def evaluate(settings):
     """The scoring of ``settings.detections`` against the ground truth (``score``'s
     result with its notices and inputs)."""
@@ -147,6 +176,7 @@ def evaluate(settings):
     truths, roots = read_truths(settings.truth)
     fmt = detect_format(settings.detections) if settings.format == "auto" else settings.format
     dataset = _dataset(settings, fmt, roots, len(truths))
+    _one_scene(roots, dataset, fmt)
     files = read_detection_files(settings.detections, fmt, dataset, settings.scenario)
     region = None if settings.region is None else [list(map(float, v)) for v in settings.region]
     result = score(truths, files, region=region, min_points=settings.min_points,

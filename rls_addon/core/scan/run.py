@@ -77,6 +77,11 @@ class Writer(Protocol):
         """The point count of an earlier output to keep (resuming), else None; a writer
         that can compares ``settings`` (``session.settings_record``) with its files'."""
 
+    def kept_labels(self, sensor: str, output, frame: int) -> dict:
+        """Optional: the ``labels`` (instance id -> object and label) an output kept by
+        ``existing`` was written with, so that a resumed run's instance table holds the
+        objects of the frames it kept, as an uninterrupted run's does."""
+
     def write(self, sensor: str, output, frame: int, points, info: dict): ...
 
     def finish(self, run) -> None:
@@ -194,6 +199,8 @@ class ScanRun:
             if kept is None:
                 told = self._stale_notice(job, frame)
         if kept is not None:
+            if hasattr(self.writer, "kept_labels"):
+                self._add_labels(self.writer.kept_labels(job.name, out, frame))
             self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
                                         str(self.writer.path(job.name, out, frame)), True))
             self.resumed += 1
@@ -213,8 +220,7 @@ class ScanRun:
                                     object_classes=classes)
         info["frame_rate_hz"] = self.source.fps
         info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
-        for iid, o in info["labels"].items():
-            self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
+        self._add_labels(info["labels"])
         t_scanned = time.perf_counter()
         path = None
         if self.writer is not None:
@@ -236,6 +242,10 @@ class ScanRun:
                                     len(result.points), result.seconds, path, False,
                                     warnings=warnings, wall_s=t_end - t_step, parts=parts))
         return not self.finished
+
+    def _add_labels(self, labels):
+        for iid, o in labels.items():
+            self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
 
     def _disk_budget(self):
         """The run's ``DiskBudget``: per sensor, the scans whose files are not there yet

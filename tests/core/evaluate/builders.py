@@ -74,11 +74,13 @@ class _Hidden:
     hidden = {"car", "walker"}
 
 
-def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False, sweeps=0):
-    """An RLS kitti dataset of sensor 'lidar' under ``root``: per frame the objects
-    moved 1 m along x per frame; ``moving``: the sensor drives 1.5 m along its sweep;
-    ``sweeps`` background sweeps (the points, no objects). Returns the sensor root."""
-    writer = KittiWriter(root, "scene", level=level)
+def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False, sweeps=0,
+                  scene="scene"):
+    """An RLS kitti dataset of sensor 'lidar' of scene ``scene`` under ``root``: per
+    frame the objects moved 1 m along x per frame; ``moving``: the sensor drives 1.5 m
+    along its sweep; ``sweeps`` background sweeps (the points, no objects). Returns the
+    sensor root."""
+    writer = KittiWriter(root, scene, level=level)
     for k in range(sweeps):
         writer.background_writer(k, _Hidden()).write(
             "lidar", None, frames[0], points(), info(np.asarray(sensor_pose, float), []))
