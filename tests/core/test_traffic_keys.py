@@ -30,3 +30,20 @@ def test_a_source_that_does_not_say_has_no_span():
             return (1, 60)
 
     assert source_span(Quiet()) is None and source_span(Keyed()) == (1, 60)
+
+
+def test_a_source_without_its_road_users_has_no_traffic_span():
+    """Background sweeps scan the scene with every road user hidden: the traffic's span
+    no longer applies to it (the dataset's first frame may lie before the first key),
+    while hiding only some labels keeps the source's span."""
+    from rls_addon.core.labels import ROAD_USERS, label_id
+    from rls_addon.core.scene.hidden import WithoutLabels
+
+    class Keyed:
+        def traffic_span(self):
+            return (3, 21)
+
+    everyone = {label_id(n) for n in ROAD_USERS}
+    assert source_span(WithoutLabels(Keyed(), everyone)) is None
+    some = {label_id(sorted(ROAD_USERS)[0])}
+    assert source_span(WithoutLabels(Keyed(), some)) == (3, 21)

@@ -2,6 +2,7 @@
 given labels left out of what the core reads. What a background sweep scans (the scene
 without its road users, as a deployed roadside unit sees the junction when it is empty)."""
 
+from ..labels import ROAD_USERS, label_id
 from .source import SceneRead
 
 
@@ -17,6 +18,14 @@ class WithoutLabels:
 
     def __getattr__(self, name):
         return getattr(self._source, name)
+
+    def traffic_span(self):
+        """The span of the road users' keys that are still in the scene: None when every
+        road user is hidden (nothing keyed is left to stand frozen), else the source's."""
+        if {label_id(n) for n in ROAD_USERS} <= self.label_ids:
+            return None
+        span = getattr(self._source, "traffic_span", None)
+        return span() if callable(span) else None
 
     def read(self, centre, max_range, exclude):
         got = self._source.read(centre, max_range, exclude)
