@@ -27,6 +27,17 @@ def open_blend(path, error=SceneError):
         print(f"rls: warning: {warning}", file=sys.stderr)
 
 
+def scene_title(scene):
+    """What charts call ``scene``: its .blend file's name (``junction.blend``), with the
+    scene's name when the file holds several scenes (``junction.blend, scene Night``);
+    the scene's name alone for a file never saved."""
+    path = bpy.data.filepath
+    if not path:
+        return scene.name
+    name = os.path.basename(path)
+    return name if len(bpy.data.scenes) == 1 else f"{name}, scene {scene.name}"
+
+
 def newer_file_warning(path, file_version, app_file_version):
     """The warning for a file saved by a newer Blender than this one (None otherwise):
     Blender reads it, but data that version added is dropped or misread."""

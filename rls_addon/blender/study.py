@@ -8,6 +8,7 @@ from ..core.errors import RegionError, SceneError
 from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
 from .extract import read_instances
+from .files import scene_title
 from .region import is_lob, lob_polygon_world
 from .scenes.build import is_mount, mount_position
 
@@ -47,6 +48,7 @@ class BlenderStudyScene:
     def __init__(self, scene):
         self.scene = scene
         self.name = scene.name
+        self.title = scene_title(scene)
 
     def current_frame(self):
         return self.scene.frame_current

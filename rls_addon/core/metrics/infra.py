@@ -236,10 +236,13 @@ class DensityMap:
         }
 
     def to_png(self, pixels_per_cell=None):
-        """PNG bytes, north up, viridis from 0 to the maximum; outside cells transparent."""
+        """PNG bytes, north up, viridis from 0 to the maximum; outside cells transparent,
+        cells with no return white (apart from the scale, as the charts draw them)."""
         from ..output.png import colormap, encode_png
 
-        img = colormap(self.values[::-1], vmin=0.0)
+        values = self.values[::-1]
+        img = colormap(values, vmin=0.0)
+        img[np.isfinite(values) & (values == 0)] = 255
         if pixels_per_cell is None:
             pixels_per_cell = max(1, 512 // max(img.shape[:2]))
         k = int(pixels_per_cell)

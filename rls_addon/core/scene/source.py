@@ -88,6 +88,7 @@ class StudyScene(Protocol):
     """What a study asks of a scene."""
 
     name: str
+    title: str          # optional: what charts call it (its file's name); default ``name``
 
     def current_frame(self) -> int: ...
 

@@ -42,6 +42,9 @@ class StudyResult:
     # scanned again, per candidate (a handful: the members of the sets drawn).
     scanner: "StudyScanner" = dataclasses.field(default=None, repr=False)
     kept: dict = dataclasses.field(default_factory=dict, repr=False)
+    # What the charts' titles call the scene: its file's name where the StudyScene
+    # knows it (``title``), else the scene's name
+    title: str = ""
 
     def kept_xy(self, index):
         """(n, 2) world xy of candidate ``index``'s points in the region with a counted
@@ -131,7 +134,7 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
                          {"id": preset.id, "name": preset.name, "source": preset.source},
                          polygon, layout, cands, cc, searches, {}, scanner.hidden,
                          scanner.prepared.backend, scanner.session.builds, scanner.notices, vis,
-                         evaluation, scanner)
+                         evaluation, scanner, title=getattr(scene, "title", None) or scene.name)
     # The density maps the report draws (the best set of each k): their members are
     # scanned again here with this process's scanner (in a run on workers the counts
     # came from its twins, built from the same scene and settings: the same points).
