@@ -16,6 +16,7 @@ import os
 import sys
 
 
+from ..core.choices import DISK_PLACEMENTS
 from ..core.errors import InputError, OutputError, RegionError
 from ..core.metrics.infra import (
     DEFAULT_CELL_M,
@@ -38,7 +39,7 @@ def add_parser(sub):
     p.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M, help=f"disk radius in m (default {DEFAULT_RADIUS_M})")
     p.add_argument("--cell", type=float, default=DEFAULT_CELL_M, help=f"density map cell in m (default {DEFAULT_CELL_M})")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"disk placement seed (default {DEFAULT_SEED})")
-    p.add_argument("--disk-placement", choices=("inside", "centre"), default="inside",
+    p.add_argument("--disk-placement", choices=DISK_PLACEMENTS.ids, default="inside",
                    help="'inside': whole disks in the region (default); 'centre': only centres")
     p.add_argument("--density-png", metavar="OUT.png",
                    help="also write the density map as a PNG chart: points per m^2 per cell, "

@@ -18,6 +18,7 @@ from ..core.choices import (
 )
 from ..core.errors import SceneError
 from ..core.output.io.formats import FORMATS
+from ..core.ranges import parse_frames  # noqa: F401  (the other commands import it from here)
 from ..core.output.io.point_types import POINT_TYPES
 from .distribute import add_arguments as add_cluster_arguments
 
@@ -150,22 +151,6 @@ def _offset(text):
     if len(vals) != 3:
         raise SceneError(f"--las-offset: expected X,Y,Z in metres, got '{text}'")
     return vals
-
-
-def parse_frames(text, current):
-    """'5' -> [5]; '1-10' -> 1..10; '1-10:2' -> 1,3,..,9; None -> [current]."""
-    if text is None:
-        return [current]
-    try:
-        rng, _, step = text.partition(":")
-        a, sep, b = rng.partition("-")
-        start, end = int(a), int(b) if sep else int(a)
-        step = int(step) if step else 1
-    except ValueError:
-        raise SceneError(f"--frames: expected N, A-B or A-B:STEP, got '{text}'") from None
-    if end < start or step < 1:
-        raise SceneError(f"--frames: empty range '{text}'")
-    return list(range(start, end + 1, step))
 
 
 def open_scene(path, prepare_blender):

@@ -4,21 +4,11 @@ every LiDAR in the InfraLOB: the chart the command line draws."""
 import bpy
 
 from ..blender.metrics import density_image, preview_clouds
-from ..blender.region import is_lob, lob_polygon_world
+from ..blender.region import lob_polygon_world
+from ..blender.values import typed_float
 from ..core.errors import RLSError
 from ..core.metrics.infra import infra_lob_metrics
-from .common import cancelled
-
-
-def _find_lob(context):
-    sc = context.scene
-    obj = context.active_object
-    if obj is not None and is_lob(obj):
-        return obj
-    if sc.rls.lob is not None and is_lob(sc.rls.lob) and sc.rls.lob.name in sc.objects:
-        return sc.rls.lob
-    lobs = [o for o in sc.objects if is_lob(o)]
-    return lobs[0] if len(lobs) == 1 else None
+from .common import _poll_lob, cancelled, find_lob
 
 
 class RLS_OT_compute_metrics(bpy.types.Operator):
@@ -29,26 +19,20 @@ class RLS_OT_compute_metrics(bpy.types.Operator):
     bl_label = "Compute Metrics"
     bl_options = {"REGISTER", "UNDO"}  # makes the density map image
 
-    @classmethod
-    def poll(cls, context):
-        if _find_lob(context) is None:
-            cls.poll_message_set("Select an InfraLOB region (Add > LiDAR > InfraLOB Region) or "
-                                 "choose one in the Metrics panel")
-            return False
-        return True
+    poll = classmethod(_poll_lob)
 
     def execute(self, context):
         sc = context.scene
         rs = sc.rls
-        lob = _find_lob(context)
+        lob = find_lob(context)
         clouds, lidars = preview_clouds(sc)
         if not clouds:
             return cancelled(self, "No LiDAR points to measure: scan a frame first "
                                    "(Scan Frame or Scan All LiDARs)")
         try:
             res = infra_lob_metrics(clouds, lob_polygon_world(lob), labels=rs.metric_labels,
-                                    disks=rs.metric_disks, radius=rs.metric_radius,
-                                    seed=rs.metric_seed, cell=rs.metric_cell)
+                                    disks=rs.metric_disks, radius=typed_float(rs.metric_radius),
+                                    seed=rs.metric_seed, cell=typed_float(rs.metric_cell))
         except RLSError as exc:
             return cancelled(self, f"{lob.name}: {exc}")
         img, notice = density_image(sc, lob.name, lidars, res)

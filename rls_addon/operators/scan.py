@@ -10,7 +10,8 @@ from ..blender.preview import color_preview, preview_object
 from ..blender.sensor import is_lidar, lidar_objects, lidar_props
 from ..core.errors import RLSError
 from ..properties import COLOR_ITEMS
-from .common import _active_lidar, _poll_active_lidar, _poll_any_lidar, cancelled
+from .common import (_active_lidar, _poll_active_lidar, _poll_any_lidar, begin_modal,
+                     cancelled, end_modal, status_text)
 
 
 # What the last scan operator did (for scripts and tests; reports go to the UI).
@@ -83,28 +84,13 @@ class _ScanOperator:
             self._job = self._make_run(context)
         except RLSError as exc:
             return cancelled(self, exc)
-        wm = context.window_manager
-        wm.progress_begin(0, self._job.total)
-        self._status(context, self._job.status())
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
+        return begin_modal(self, context, self._job.total, self._job.status())
 
     def _status(self, context, text):
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            try:
-                ws.status_text_set(text)
-            except (RuntimeError, AttributeError):
-                pass
+        status_text(context, text)
 
     def _end(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        self._status(context, None)
+        end_modal(self, context)
         batch.end_run(self._job)
 
     def modal(self, context, event):

@@ -1,5 +1,5 @@
-"""Blender properties, a module per owner: ``Object.rls_lidar`` (lidar.py) and
-``Scene.rls`` (scene.py).
+"""Blender properties, a module per owner: ``Object.rls_lidar`` (lidar.py),
+``Scene.rls`` (scene.py) and ``Scene.rls_study`` (study.py).
 
 Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
 ``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
@@ -13,19 +13,23 @@ from ..blender import preset_catalog
 from .lidar import (_ITEMS, COLOR_ITEMS, RLS_LidarSettings, lidar_mode_items, preset_items,
                     refresh_preset_items)
 from .scene import RLS_SceneSettings
+from .study import RLS_StudyRow, RLS_StudySettings
 
-__all__ = ["CLASSES", "COLOR_ITEMS", "RLS_LidarSettings", "RLS_SceneSettings", "lidar_mode_items",
+__all__ = ["CLASSES", "COLOR_ITEMS", "RLS_LidarSettings", "RLS_SceneSettings", "RLS_StudyRow",
+           "RLS_StudySettings", "lidar_mode_items",
            "preset_items", "refresh_preset_items", "register_properties", "unregister_properties"]
 
-CLASSES = (RLS_LidarSettings, RLS_SceneSettings)
+CLASSES = (RLS_LidarSettings, RLS_SceneSettings, RLS_StudyRow, RLS_StudySettings)
 
 
 def register_properties():
     bpy.types.Object.rls_lidar = PointerProperty(type=RLS_LidarSettings)
     bpy.types.Scene.rls = PointerProperty(type=RLS_SceneSettings)
+    bpy.types.Scene.rls_study = PointerProperty(type=RLS_StudySettings)
 
 
 def unregister_properties():
+    del bpy.types.Scene.rls_study
     del bpy.types.Scene.rls
     del bpy.types.Object.rls_lidar
     _ITEMS["presets"] = []

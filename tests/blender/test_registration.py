@@ -13,13 +13,16 @@ NAMES = ("OBJECT_OT_rls_add_lidar", "OBJECT_OT_rls_add_infralob", "RLS_OT_scan_f
          "OBJECT_PT_rls_infralob", "OBJECT_PT_rls_label", "RLS_PT_device_presets",
          "VIEW3D_MT_rls_add", "VIEW3D_MT_rls_add_spinning", "VIEW3D_MT_rls_add_mems",
          "VIEW3D_MT_rls_add_risley", "VIEW3D_MT_rls_add_custom",
-         "RLS_LidarSettings", "RLS_SceneSettings")
+         "RLS_LidarSettings", "RLS_SceneSettings",
+         "RLS_OT_study", "RLS_UL_study_rows", "OBJECT_PT_rls_study", "OBJECT_PT_rls_study_options",
+         "RLS_StudyRow", "RLS_StudySettings")
 
 
 def _state():
     state = {
         "prop": hasattr(bpy.types.Object, "rls_lidar"),
         "scene_prop": hasattr(bpy.types.Scene, "rls"),
+        "study_prop": hasattr(bpy.types.Scene, "rls_study"),
         "menu": any(getattr(f, "__name__", "") == "draw_add_menu"
                     for f in getattr(bpy.types.VIEW3D_MT_add.draw, "_draw_funcs", [])),
         "import_menu": any(getattr(f, "__name__", "") == "draw_import_menu" for f in
@@ -29,7 +32,8 @@ def _state():
 
     state["family_menus"] = len(ui.family_menus()) == 4
     state.update({c.__name__: c.is_registered for c in registration.CLASSES})
-    state.update({n: hasattr(bpy.types, n) for n in NAMES if not n.endswith("Settings")})
+    state.update({n: hasattr(bpy.types, n) for n in NAMES
+                  if not n.endswith(("Settings", "Row"))})  # PropertyGroups: not in bpy.types
     return state
 
 

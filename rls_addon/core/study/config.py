@@ -70,3 +70,47 @@ class StudyConfig:
                              "frames: evaluate a subset of --traffic, or leave --traffic out")
         if self.evaluate_frames and int(self.evaluate_min_points) < 0:
             raise SceneError("the points a box needs to count must be 0 or more")
+
+
+# The settings a user types as text (a list of numbers or frames, a list of labels),
+# and what the command line calls each (the panel names them by its own labels)
+TEXT_FIELDS = {"k": "--k", "grid_heights": "--heights", "pitches": "--pitch",
+               "yaws": "--yaw", "traffic_frames": "--traffic",
+               "evaluate_frames": "--evaluate", "visibility_labels": "--visibility-labels"}
+
+
+def study_config(names=None, **fields):
+    """The ``StudyConfig`` of settings as a user gives them, the one way the command
+    line (``rls study``) and the Study panel make it: the fields of ``TEXT_FIELDS``
+    may be text (``k="1,2"``, ``pitches="0:30:15"``, ``traffic_frames="1-60:5"``, empty
+    or None for no frames, ``visibility_labels="vehicle"``); the rest are
+    ``StudyConfig``'s own. ``names`` maps a field to what the user knows it as, for
+    the errors (default: the command line's flags)."""
+    from ..labels import label_ids, label_name
+    from ..ranges import parse_frames, parse_values
+
+    names = dict(TEXT_FIELDS, **(names or {}))
+    out = dict(fields)
+    if "k" in fields:
+        values = parse_values(fields["k"], names["k"])
+        if any(v < 1 or v != int(v) for v in values):
+            raise SceneError(f"{names['k']}: sensor counts must be positive integers, "
+                             f"got {fields['k']}")
+        out["k"] = tuple(sorted({int(v) for v in values}))
+    for field in ("grid_heights", "pitches", "yaws"):
+        if field in fields:
+            out[field] = tuple(parse_values(fields[field], names[field]))
+    for field in ("traffic_frames", "evaluate_frames"):
+        if field in fields:
+            text = fields[field]
+            if isinstance(text, str):
+                text = text.strip()
+                out[field] = tuple(parse_frames(text, 0, names[field])) if text else ()
+            else:
+                out[field] = tuple(int(f) for f in text or ())
+    if "visibility_labels" in fields and isinstance(fields["visibility_labels"], str):
+        out["visibility_labels"] = tuple(label_name(i)
+                                         for i in label_ids(fields["visibility_labels"]))
+    if "mounts" in fields:
+        out["mounts"] = tuple(fields["mounts"])
+    return StudyConfig(**out)

@@ -141,9 +141,17 @@ def candidate_rows(result):
     return rows
 
 
-def write_report(result, out_dir, overwrite=False, notices=None):
+def report_clash(out_dir, ks):
+    """The first file of a report of ``ks`` that already exists in ``out_dir``, or None."""
+    names = list(REPORT_FILES) + [f"density_k{k}.png" for k in ks]
+    return next((os.path.join(out_dir, f) for f in names
+                 if os.path.exists(os.path.join(out_dir, f))), None)
+
+
+def write_report(result, out_dir, overwrite=False, notices=None, charts=None):
     """Write the report files into ``out_dir``; returns a summary dict. Notices (e.g.
-    matplotlib missing) are appended to ``notices`` when given."""
+    matplotlib missing) are appended to ``notices`` when given. ``charts``: the
+    (files, notice) of ``charts_png(result)`` when the caller drew them already."""
     from ..output.io.atomic import atomic_write_files
 
     rows = candidate_rows(result)
@@ -156,9 +164,9 @@ def write_report(result, out_dir, overwrite=False, notices=None):
                                     "infra_nuc", "pareto", "best", "method"] + vis_fields
                                    + ap_fields)
     report = report_dict(result)
-    charts, notice = charts_png(result)
-    files.update(charts)
-    report["charts"] = sorted(charts)
+    drawn, notice = charts if charts is not None else charts_png(result)
+    files.update(drawn)
+    report["charts"] = sorted(drawn)
     if notice:
         report["notice"] = notice
         if notices is not None:
