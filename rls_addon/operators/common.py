@@ -3,6 +3,7 @@ a button is disabled, selection, the modal loop's progress bar, status text and 
 and ``cancelled``: a domain error reported as the operator's one error line."""
 
 from ..blender.region import is_lob
+from ..core.errors import RLSError
 from ..blender.sensor import is_lidar, lidar_objects
 
 
@@ -75,6 +76,28 @@ def end_modal(op, context):
         op._timer = None
     wm.progress_end()
     status_text(context, None)
+
+
+def modal_step(op, context, finish, done):
+    """One step of ``op._job`` in ``op``'s modal loop; returns what ``modal`` returns:
+    ``finish(op, job)`` after the last step, the error as the one report line, else the
+    progress bar at ``done(job)`` and the job's status text."""
+    job = op._job
+    try:
+        if not job.finished:
+            job.step()
+    except RLSError as exc:
+        op._end(context)
+        return cancelled(op, exc)
+    except Exception:
+        op._end(context)
+        raise
+    if job.finished:
+        op._end(context)
+        return finish(op, job)
+    context.window_manager.progress_update(done(job))
+    op._status(context, job.status())
+    return {"RUNNING_MODAL"}
 
 
 def _select_only(context, obj):

@@ -11,7 +11,7 @@ from ..blender.sensor import is_lidar, lidar_objects, lidar_props
 from ..core.errors import RLSError
 from ..properties import COLOR_ITEMS
 from .common import (_active_lidar, _poll_active_lidar, _poll_any_lidar, begin_modal,
-                     cancelled, end_modal, status_text)
+                     cancelled, end_modal, modal_step, status_text)
 
 
 # What the last scan operator did (for scripts and tests; reports go to the UI).
@@ -99,21 +99,7 @@ class _ScanOperator:
             batch.request_cancel()
             job.cancelled = True
         if event.type == "TIMER" or job.cancelled:
-            try:
-                if not job.finished:
-                    job.step()
-            except RLSError as exc:
-                self._end(context)
-                return cancelled(self, exc)
-            except Exception:
-                self._end(context)
-                raise
-            if job.finished:
-                self._end(context)
-                return _report_run(self, job)
-            context.window_manager.progress_update(job.index)
-            self._status(context, job.status())
-            return {"RUNNING_MODAL"}
+            return modal_step(self, context, _report_run, lambda job: job.index)
         return {"PASS_THROUGH"}
 
     def cancel(self, context):  # Blender quits or the window closes

@@ -10,7 +10,8 @@ import bpy
 
 from ..blender.study_job import StudyJob, study_config
 from ..core.errors import RLSError
-from .common import _poll_lob, begin_modal, cancelled, end_modal, find_lob, status_text
+from .common import (_poll_lob, begin_modal, cancelled, end_modal, find_lob, modal_step,
+                     status_text)
 
 # What the last study did (for scripts and tests; reports go to the UI)
 LAST_STUDY = {}
@@ -91,20 +92,7 @@ class RLS_OT_study(bpy.types.Operator):
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
-        try:
-            job.step()
-        except RLSError as exc:
-            self._end(context)
-            return cancelled(self, exc)
-        except Exception:
-            self._end(context)
-            raise
-        if job.finished:
-            self._end(context)
-            return _finish(self, job)
-        context.window_manager.progress_update(int(1000 * job.fraction()))
-        self._status(context, job.status())
-        return {"RUNNING_MODAL"}
+        return modal_step(self, context, _finish, lambda job: int(1000 * job.fraction()))
 
     def cancel(self, context):  # Blender quits or the window closes
         if self._job is not None:
