@@ -133,9 +133,20 @@ class LiveSession:
         backend = settings.backend
         if backend not in self.sessions:
             self.sessions[backend] = ScanSession(caster_factory(backend)[0])
-        result, _ = self.sessions[backend].scan(self.source, key, job.preset, settings.scan,
-                                                scene.frame_current)
+        result, _ = self.sessions[backend].scan(self._source(scene), key, job.preset,
+                                                settings.scan, scene.frame_current)
         return result.points
+
+    def _source(self, scene):
+        """The scene source, made again when undo (or a reload) replaced the scene it
+        held (its meshes read again; the prepared scenes are kept by their content)."""
+        try:
+            if self.source.scene.name == scene.name:
+                return self.source
+        except ReferenceError:
+            pass
+        self.source = BlenderScene(scene)
+        return self.source
 
     def publish(self, ready):
         """Show the LiDARs rescanned (``{name: points}``) and the region's numbers and
@@ -274,7 +285,11 @@ def on_change(scene, depsgraph=None):
 
 @persistent
 def on_load(*args):
-    stop()
+    """Another file: live coverage ends (its handlers stay, idle, until the next start:
+    a handler list is not changed while Blender runs it)."""
+    _STATE["live"] = None
+    if bpy.app.timers.is_registered(tick):
+        bpy.app.timers.unregister(tick)
 
 
 def tick():

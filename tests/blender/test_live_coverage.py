@@ -221,3 +221,22 @@ def test_live_panels_draw_the_stored_numbers_only(live_scene, monkeypatch):
         assert f"{sc.rls_live.infra_d:.3f} pts/m²" in labels
         assert f"{sc.rls_live.infra_nuc:.4f}" in labels
         assert any(t.startswith("Map: 0 (purple) to ") for t in labels)
+
+
+def test_undo_of_a_move_is_followed(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    first = (sc.rls_live.infra_d, sc.rls_live.points)
+    bpy.ops.ed.undo_push(message="before the move")
+    a.location.x = -3.0
+    bpy.context.view_layer.update()
+    bpy.ops.ed.undo_push(message="moved")
+    drive(live)
+    assert sc.rls_live.points != first[1]
+    assert bpy.ops.ed.undo() == {"FINISHED"}  # the scene is reloaded: names, not pointers
+    sc = bpy.context.scene
+    drive(live)
+    a, b = bpy.data.objects["LiDAR"], bpy.data.objects["LiDAR.001"]
+    assert tuple(a.location) == pytest.approx((-9.0, -9.0, 4.0))
+    assert (sc.rls_live.infra_d, sc.rls_live.points) == pytest.approx(first)
+    check_follows(sc, [a, b])
