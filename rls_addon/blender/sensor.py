@@ -39,25 +39,6 @@ def find_lidar(scene, name):
     return obj
 
 
-def new_lidar(name, collection, preset_id=DEFAULT_PRESET, location=(0.0, 0.0, 0.0),
-              rotation_euler=(0.0, 0.0, 0.0), show_fov=False):
-    """A LiDAR object (an empty whose axes are the sensor frame) linked to
-    ``collection``: what *Add > LiDAR* adds, and the study's best sets."""
-    import bpy
-
-    obj = bpy.data.objects.new(name, None)
-    obj.empty_display_type = "ARROWS"
-    obj.empty_display_size = 0.5
-    obj.location = location
-    obj.rotation_euler = rotation_euler
-    collection.objects.link(obj)
-    s = lidar_props(obj)
-    s.is_lidar = True
-    s.preset_id = preset_id or DEFAULT_PRESET
-    s.show_fov = show_fov
-    return obj
-
-
 def read_settings(obj):
     """The core's ``LidarSettings`` of a LiDAR object: the one place where the panel's
     properties become settings. Overrides left off take the preset's values (None)."""

@@ -1,6 +1,8 @@
 """A Blender scene as a placement study's scene (``core.scene.source.StudyScene``): its
 InfraLOB, its mounts and its static geometry. The study itself runs in the core."""
 
+import os
+
 import bpy
 
 from ..core.study.loop import run_study as core_run_study
@@ -8,8 +10,8 @@ from ..core.errors import RegionError, SceneError
 from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
 from .extract import read_instances
-from .files import scene_title
 from .region import is_lob, lob_polygon_world
+from .source import traffic_span
 from .scenes.build import is_mount, mount_position
 
 
@@ -48,7 +50,7 @@ class BlenderStudyScene:
     def __init__(self, scene):
         self.scene = scene
         self.name = scene.name
-        self.title = scene_title(scene)
+        self.file = os.path.basename(bpy.data.filepath)  # '' for an unsaved file
 
     def current_frame(self):
         return self.scene.frame_current
@@ -67,6 +69,9 @@ class BlenderStudyScene:
         hidden = sorted(i.key for i in instances if i.label in hidden_labels)
         static = [i for i in instances if i.label not in hidden_labels]
         return world_geometry(static, object_table(static), materials), hidden
+
+    def traffic_span(self):
+        return traffic_span(self.scene)
 
     def traffic(self, frames, labels):
         out = {}

@@ -19,7 +19,8 @@ from ..core.study.answer import (
     table_rows,
 )
 from .images import image_from_png
-from .sensor import lidar_props, new_lidar
+from .lidars import new_lidar
+from .sensor import lidar_props
 
 COLLECTION = "RLS Study"
 STUDY_PROPERTY = "rls_study"          # on every object and image a study makes
@@ -107,14 +108,15 @@ def _markers(coll, result, scores):
     return out
 
 
-def _best_lidars(parent, result):
+def _best_lidars(scene, parent, result):
     cfg = result.config
     out = {}
     for k, members in best_sets(result).items():
         coll = _child(parent, f"{COLLECTION} best k={k}")
         for c in members:
-            obj = new_lidar(f"k{k} {c.name}", coll, result.device["id"], c.position,
-                            tuple(math.radians(a) for a in (c.roll_deg, c.pitch_deg, c.yaw_deg)))
+            obj = new_lidar(scene, f"k{k} {c.name}", result.device["id"], c.position,
+                            tuple(math.radians(a) for a in (c.roll_deg, c.pitch_deg, c.yaw_deg)),
+                            collection=coll, show_fov=False, exact_name=False)
             obj[STUDY_PROPERTY] = True
             obj["rls_study_k"] = k
             s = lidar_props(obj)
@@ -148,7 +150,7 @@ def show_answer(scene, result, charts):
         scene.collection.children.link(root)
         scores = candidate_scores(result)
         made["markers"] = _markers(_child(root, f"{COLLECTION} candidates"), result, scores)
-        made["lidars"] = _best_lidars(root, result)
+        made["lidars"] = _best_lidars(scene, root, result)
         for name, png in sorted(charts.items()):
             made["images"].append(image_from_png(CHART_PREFIX + name, png, tag=STUDY_PROPERTY))
         props = scene.rls_study

@@ -92,7 +92,12 @@ def output_folder(path, ks, overwrite):
 
 class StudyJob:
     """One study of ``cfg`` over ``scene`` in steps: ``step()`` until ``finished``,
-    ``close()`` in any case (puts the scene's frame back)."""
+    ``finish()`` in any case (puts the scene's frame back). It answers as a core
+    ``ScanRun`` does to the operators' modal loop (``operators.running.ModalRun``):
+    ``total`` and ``index`` (the progress bar, in thousandths), ``status()``,
+    ``cancelled`` (the next step ends it, with nothing made), ``run()``."""
+
+    total = 1000
 
     STAGES = ("read", "scan", "search", "charts", "answer")
 
@@ -102,8 +107,8 @@ class StudyJob:
         self.overwrite = overwrite
         self.frame0 = scene.frame_current
         self.stage = "read"
-        self.run = self.result = self.charts = self.summary = self.made = None
-        self.finished = False
+        self.study = self.result = self.charts = self.summary = self.made = None
+        self.finished = self.cancelled = False
         self.eta = None
         self.notices = []
         self.t0 = time.perf_counter()
@@ -112,17 +117,19 @@ class StudyJob:
         self.eta = eta
 
     def step(self):
-        """Do the next step; ``finished`` after the last."""
-        if self.stage == "read":
-            self.run = StudyRun(BlenderStudyScene(self.scene), self.cfg, self._progress,
+        """Do the next step; ``finished`` after the last (or at once when cancelled)."""
+        if self.cancelled:
+            self.finished = True
+        elif self.stage == "read":
+            self.study = StudyRun(BlenderStudyScene(self.scene), self.cfg, self._progress,
                                 self.factory)
             self.stage = "scan"
         elif self.stage == "scan":
-            self.run.step()
-            if self.run.scanned_all:
+            self.study.step()
+            if self.study.scanned_all:
                 self.stage = "search"
         elif self.stage == "search":
-            self.result = self.run.finish()
+            self.result = self.study.finish()
             self.notices.extend(self.result.notices)
             self.stage = "charts"
         elif self.stage == "charts":
@@ -137,9 +144,19 @@ class StudyJob:
             self.made = show_answer(self.scene, self.result, self.charts[0])
             self.finished = True
 
-    def run_all(self):
-        while not self.finished:
-            self.step()
+    def run(self, interrupt_cancels=False):
+        """Every step; Ctrl-C cancels when ``interrupt_cancels`` (nothing made)."""
+        try:
+            while not self.finished:
+                self.step()
+        except KeyboardInterrupt:
+            if not interrupt_cancels:
+                raise
+            self.cancelled = self.finished = True
+
+    @property
+    def index(self):
+        return int(self.total * self.fraction())
 
     def fraction(self):
         """How far the job is, 0..1 (the scans are most of it)."""
@@ -148,7 +165,7 @@ class StudyJob:
         if self.stage == "read":
             return 0.0
         if self.stage == "scan":
-            return 0.02 + 0.88 * self.run.done / max(self.run.total, 1)
+            return 0.02 + 0.88 * self.study.done / max(self.study.total, 1)
         return {"search": 0.9, "charts": 0.94, "answer": 0.98}[self.stage]
 
     def status(self):
@@ -157,7 +174,7 @@ class StudyJob:
             return "RLS study: reading the scene and building its ray-casting structure"
         if self.stage == "scan":
             left = f", about {self.eta:.0f} s left" if self.eta is not None else ""
-            return (f"RLS study: scanning candidate {self.run.done + 1} of {self.run.total}"
+            return (f"RLS study: scanning candidate {self.study.done + 1} of {self.study.total}"
                     f"{left} (Esc to stop)")
         if self.stage == "search":
             return "RLS study: searching the sets of each k"
@@ -165,6 +182,6 @@ class StudyJob:
             return "RLS study: drawing the charts"
         return "RLS study: putting the answer in the scene"
 
-    def close(self):
+    def finish(self):
         if self.scene.frame_current != self.frame0:
             self.scene.frame_set(self.frame0)

@@ -3,8 +3,9 @@
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty
 
+from ..blender.lidars import new_lidar
 from ..blender.region import LOB_PROPERTY
-from ..blender.sensor import DEFAULT_PRESET, new_lidar
+from ..blender.sensor import DEFAULT_PRESET
 from ..properties import preset_items
 from .common import _select_only
 
@@ -29,9 +30,9 @@ class OBJECT_OT_rls_add_lidar(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        obj = new_lidar("LiDAR", context.collection or context.scene.collection,
-                        self.preset or DEFAULT_PRESET, context.scene.cursor.location,
-                        show_fov=self.show_fov)
+        obj = new_lidar(context.scene, "LiDAR", self.preset or DEFAULT_PRESET,
+                        context.scene.cursor.location, collection=context.collection,
+                        show_fov=self.show_fov, exact_name=False)
         _select_only(context, obj)
         return {"FINISHED"}
 

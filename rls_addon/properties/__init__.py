@@ -1,6 +1,6 @@
 """Blender properties, a module per owner: ``Object.rls_lidar`` (lidar.py),
-``Scene.rls`` (scene.py), ``Scene.rls_study`` (study.py) and ``Scene.rls_live``
-(live.py).
+``Scene.rls`` (scene.py, with Detect and Evaluate's in evaluation.py), ``Scene.rls_study``
+(study.py) and ``Scene.rls_live`` (live.py).
 
 Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
 ``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
@@ -13,6 +13,7 @@ from bpy.props import PointerProperty
 from ..blender import preset_catalog
 from .lidar import (_ITEMS, COLOR_ITEMS, RLS_LidarSettings, lidar_mode_items, preset_items,
                     refresh_preset_items)
+from .evaluation import RLS_APRow, RLS_EvaluationSettings
 from .scene import RLS_SceneSettings
 from .live import RLS_LiveSettings
 from .study import RLS_StudyRow, RLS_StudySettings
@@ -21,8 +22,8 @@ __all__ = ["CLASSES", "COLOR_ITEMS", "RLS_LidarSettings", "RLS_SceneSettings", "
            "RLS_StudySettings", "RLS_LiveSettings", "lidar_mode_items",
            "preset_items", "refresh_preset_items", "register_properties", "unregister_properties"]
 
-CLASSES = (RLS_LidarSettings, RLS_SceneSettings, RLS_StudyRow, RLS_StudySettings,
-           RLS_LiveSettings)
+CLASSES = (RLS_LidarSettings, RLS_APRow, RLS_EvaluationSettings, RLS_SceneSettings,
+           RLS_StudyRow, RLS_StudySettings, RLS_LiveSettings)
 
 
 def register_properties():

@@ -132,6 +132,7 @@ def _modal(scene, cfg, steps, tmp_path):
     fake = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append(msg))
     fake._end = lambda c: Op._end(fake, c)
     fake._status = lambda c, t: Op._status(fake, c, t)
+    fake._report = lambda job: Op._report(fake, job)
     fake._job = StudyJob(scene, cfg, str(tmp_path / "report"))
     ctx.window_manager.progress_begin(0, 1000)
     assert Op.modal(fake, ctx, SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
@@ -156,7 +157,7 @@ def test_esc_stops_the_study_with_nothing_half_made(scene, tmp_path):
     # everything but the answer: nothing of it is in the scene, no report is written
     for steps, stage in ((3, "scan"), (1 + 8 + 2, "answer")):
         job = _modal(sc, cfg, steps, tmp_path)
-        assert job.stage == stage and not job.finished
+        assert job.stage == stage and job.cancelled and job.made is None
         assert study_objects() == (set(), set())
         assert {o.name for o in bpy.data.objects} == before
         assert not sc.rls_study.has_result and len(sc.rls_study.rows) == 0

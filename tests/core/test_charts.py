@@ -12,7 +12,13 @@ from rls_addon.core.metrics import charts
 from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.points import empty_points
 
-pytest.importorskip("matplotlib")
+from .external_tools import require_module
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _matplotlib():
+    require_module("matplotlib", "matplotlib==3.11.2")
+
 
 # an L-shaped region: its bounding box holds a 2 x 2 m corner of cells outside it
 L_REGION = [[0, 0], [4, 0], [4, 2], [2, 2], [2, 4], [0, 4]]
@@ -207,7 +213,7 @@ def test_a_chart_without_empty_cells_has_no_such_legend_entry(l_result):
 def test_pareto_chart_has_one_panel_per_k_with_axes_and_the_scene_file(study, monkeypatch):
     from rls_addon.core.study import report
 
-    monkeypatch.setattr(study, "title", "junction.blend")
+    monkeypatch.setattr(study, "scene_file", "junction.blend")
     drawn = []
     real = charts.figure_png
 

@@ -83,12 +83,15 @@ class SceneSource(Protocol):
 
     def sweep(self, frame: int, period: float) -> Sweep: ...
 
+    # May offer ``traffic_span() -> (first, last) | None``: the frames over which its
+    # road users are keyed (``traffic_keys``); frames outside are refused.
+
 
 class StudyScene(Protocol):
     """What a study asks of a scene."""
 
     name: str
-    title: str          # optional: what charts call it (its file's name); default ``name``
+    file: str           # optional: its file's name (what charts call it); default ``name``
 
     def current_frame(self) -> int: ...
 
@@ -107,3 +110,5 @@ class StudyScene(Protocol):
     def traffic(self, frames: tuple, labels: set) -> dict:
         """{frame: source.SceneRead} of the objects with these label ids at each frame
         (their meshes in their own frames, their matrices at that frame)."""
+
+    # May offer ``traffic_span()``, as a ``SceneSource`` may.

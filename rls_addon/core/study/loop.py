@@ -13,6 +13,7 @@ from ..casting import caster_factory
 from ..errors import SceneError, SettingsError
 from ..metrics.infra import density_map
 from ..metrics.visibility import VisibilityCounts, ranks
+from ..scene.traffic_keys import check_keyed, source_span
 from .placement import CandidateCounts, DiskLayout
 from .config import StudyConfig
 from .evaluation import StudyEvaluation
@@ -42,9 +43,12 @@ class StudyResult:
     # scanned again, per candidate (a handful: the members of the sets drawn).
     scanner: "StudyScanner" = dataclasses.field(default=None, repr=False)
     kept: dict = dataclasses.field(default_factory=dict, repr=False)
-    # What the charts' titles call the scene: its file's name where the StudyScene
-    # knows it (``title``), else the scene's name
-    title: str = ""
+    scene_file: str = ""  # the scene's file name (its charts' titles name it)
+
+    @property
+    def title(self):
+        """What charts call the scene: its file's name, else the scene's own."""
+        return self.scene_file or self.scene
 
     def kept_xy(self, index):
         """(n, 2) world xy of candidate ``index``'s points in the region with a counted
@@ -92,6 +96,9 @@ class StudyRun:
     def __init__(self, scene, cfg, progress=None, factory=caster_factory):
         self.t0 = time.perf_counter()
         self.scene, self.cfg, self.progress = scene, cfg, progress
+        span = source_span(scene)
+        check_keyed(cfg.traffic_frames, span, "traffic frames")
+        check_keyed(cfg.evaluate_frames, span, "evaluation frames")
         self.inputs = inputs = study_inputs(scene, cfg)
         cands, layout = inputs.candidates, inputs.layout
         self.candidates = cands
@@ -171,7 +178,9 @@ class StudyRun:
                                             vis)
             scanner.notices.append(f"evaluation: {len(cands)} candidates and "
                                    f"{len(evaluation.sets)} sets scored by detection in "
-                                   f"{time.perf_counter() - t_eval:.1f} s")
+                                   f"{time.perf_counter() - t_eval:.1f} s; the detector's "
+                                   f"background: {evaluation.background['what']}")
+            scanner.notices += evaluation.notices
         t_maps = time.perf_counter()
         scene = self.scene
         result = StudyResult(cfg, scene.name, scanner.frame,
@@ -179,7 +188,7 @@ class StudyRun:
                              self.inputs.polygon, layout, cands, cc, searches, {},
                              scanner.hidden, scanner.prepared.backend, scanner.session.builds,
                              scanner.notices, vis, evaluation, scanner,
-                             title=getattr(scene, "title", None) or scene.name)
+                             scene_file=getattr(scene, "file", "") or "")
         # The density maps the report draws (the best set of each k): their members are
         # scanned again here with this process's scanner (in a run on workers the counts
         # came from its twins, built from the same scene and settings: the same points).
