@@ -742,6 +742,10 @@ def measure(quick):
         costs["traffic_costs"] = traffic_costs.measure(quick)
     except SumoMissing as exc:  # the section is left out
         log(f"bench: SUMO traffic skipped: {exc}")
+    log("bench: live coverage: a moved LiDAR's update, a drag's scans (bench/live_costs.py)")
+    from bench import live_costs
+
+    costs["live_costs"] = live_costs.measure(quick)
     log("bench: long runs: memory, stalls, Bezier keyframes (bench/long_runs.py)")
     from bench import long_runs
 

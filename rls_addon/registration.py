@@ -51,6 +51,9 @@ def blender_command(argv):
 
 
 def unregister():
+    from .blender import live
+
+    live.stop()  # its handlers and timer go with the extension
     if _state["cli"] is not None:
         bpy.utils.unregister_cli_command(_state["cli"])
         _state["cli"] = None

@@ -26,10 +26,14 @@ from .sensor import is_lidar
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
 
+# Custom properties of the objects RLS makes to show things (previews, fields of view,
+# study markers, coverage maps) and of regions: none of them is ever scanned
+HELPER_PROPERTIES = ("rls_preview", "rls_infralob", "rls_fov", "rls_study", "rls_coverage")
+
+
 def is_rls_helper(obj):
-    """LiDAR objects, previews and regions of interest are never scanned."""
-    return bool(obj.get("rls_preview") or obj.get("rls_infralob") or is_lidar(obj)
-                or obj.get("rls_fov"))
+    """LiDAR objects, previews, regions of interest and what RLS draws are never scanned."""
+    return bool(is_lidar(obj) or any(obj.get(p) for p in HELPER_PROPERTIES))
 
 
 def _bounds_distance(matrix, bound_box, centre):

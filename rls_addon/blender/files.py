@@ -29,6 +29,17 @@ def open_blend(path, error=SceneError):
         print(f"rls: warning: {warning}", file=sys.stderr)
 
 
+def scene_title(scene):
+    """What charts call ``scene``: its .blend file's name (``junction.blend``), with the
+    scene's name when the file holds several scenes (``junction.blend, scene Night``);
+    the scene's name alone for a file never saved."""
+    path = bpy.data.filepath
+    if not path:
+        return scene.name
+    name = os.path.basename(path)
+    return name if len(bpy.data.scenes) == 1 else f"{name}, scene {scene.name}"
+
+
 def factory_reset():
     """Blender's factory settings with an empty scene (as ``rls scene from-net`` and
     ``rls demo`` start from). Blender unregisters and registers its add-ons on the way:

@@ -1,34 +1,24 @@
-"""Blender images made from core results (the InfraLOB density map)."""
+"""Blender images made from core results (density maps, study charts): the PNG bytes
+the core draws, packed into the .blend and decoded by Blender itself, so any PNG
+(matplotlib's charts or RLS's own bare maps) shows as it was drawn."""
 
 import bpy
-import numpy as np
-
-from ..core.output.png import decode_png_rgba
 
 IMAGE_PROPERTY = "rls_density"
 
 
-def image_from_png(name, png_bytes):
-    """Create or replace the image ``name`` with the pixels of ``png_bytes`` (an RGBA PNG
-    as ``core.png`` writes it) and pack it, so it is saved with the .blend."""
-    rgba = decode_png_rgba(png_bytes)
-    h, w = rgba.shape[:2]
-    img = bpy.data.images.get(name)
-    if img is not None and tuple(img.size) != (w, h):
-        bpy.data.images.remove(img)
-        img = None
-    if img is None:
-        img = bpy.data.images.new(name, width=w, height=h, alpha=True)
+def image_from_png(name, png_bytes, tag=IMAGE_PROPERTY):
+    """Create or replace the image ``name`` holding ``png_bytes`` (a whole PNG file),
+    packed, so it is saved with the .blend; ``tag`` is set as a custom property on it
+    (what made it)."""
+    old = bpy.data.images.get(name)
+    if old is not None:
+        bpy.data.images.remove(old)
+    img = bpy.data.images.new(name, width=8, height=8, alpha=True)
+    img.pack(data=png_bytes, data_len=len(png_bytes))
+    img.source = "FILE"  # decoded from the packed PNG: its own size and pixels
     img.alpha_mode = "STRAIGHT"
-    # Blender stores rows bottom-up; the PNG's first row is the top (north).
-    px = (rgba[::-1].astype(np.float32) / 255.0).ravel()
-    img.pixels.foreach_set(px)
-    img.update()
-    img[IMAGE_PROPERTY] = True
-    try:
-        img.pack()
-    except RuntimeError:
-        pass  # unpackable in this session: the pixels stay in memory until the file closes
+    img[tag] = True
     try:
         img.preview_ensure()
     except (RuntimeError, AttributeError):

@@ -17,6 +17,7 @@ import os
 import sys
 
 
+from ..core.choices import DISK_PLACEMENTS
 from ..core.errors import InputError, OutputError, RegionError
 from ..core.metrics.infra import (
     DEFAULT_CELL_M,
@@ -39,7 +40,7 @@ def add_parser(sub):
     p.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M, help=f"disk radius in m (default {DEFAULT_RADIUS_M})")
     p.add_argument("--cell", type=float, default=DEFAULT_CELL_M, help=f"density map cell in m (default {DEFAULT_CELL_M})")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED, help=f"disk placement seed (default {DEFAULT_SEED})")
-    p.add_argument("--disk-placement", choices=("inside", "centre"), default="inside",
+    p.add_argument("--disk-placement", choices=DISK_PLACEMENTS.ids, default="inside",
                    help="'inside': whole disks in the region (default); 'centre': only centres")
     p.add_argument("--density-png", metavar="OUT.png",
                    help="also write the density map as a PNG chart: points per m^2 per cell, "
@@ -131,23 +132,15 @@ def sensor_markers(paths):
     """(name, x, y, heading_deg) of each sensor the clouds' sidecars place, once per
     sensor: where its sweep started (``sensor_pose_start``, else ``sensor_to_world``)
     and the way its +X axis pointed. Clouds without a sidecar or pose add nothing."""
-    import numpy as np
+    from ..core.metrics.charts import sensor_marker
 
     markers = {}
     for path in paths:
         info = _label_sidecar(path)
-        pose = info.get("sensor_pose_start", info.get("sensor_to_world"))
-        try:
-            m = np.asarray(pose, dtype=np.float64)
-        except (TypeError, ValueError):
-            continue
-        if m.shape != (4, 4) or not np.all(np.isfinite(m)):
-            continue
         name = _sensor_name(path, info)
-        forward = m[:2, 0]
-        heading = (float(np.degrees(np.arctan2(forward[1], forward[0])))
-                   if np.hypot(*forward) > 1e-9 else None)  # pointing straight up or down
-        markers.setdefault(name, (name, float(m[0, 3]), float(m[1, 3]), heading))
+        marker = sensor_marker(name, info.get("sensor_pose_start", info.get("sensor_to_world")))
+        if marker is not None:
+            markers.setdefault(name, marker)
     return list(markers.values())
 
 

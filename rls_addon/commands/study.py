@@ -28,12 +28,11 @@ PNG writer and the other charts are skipped (a notice says so). Prints a JSON su
 
 import argparse
 import json
-import math
 import os
 import sys
 
-from ..core.choices import BACKENDS, BACKGROUNDS
-from ..core.errors import RegionError, SceneError
+from ..core.choices import BACKENDS, BACKGROUNDS, DISK_PLACEMENTS, YAW_MODES
+from ..core.errors import SceneError
 from ..core.metrics.infra import (
     DEFAULT_CELL_M,
     DEFAULT_DISKS,
@@ -42,33 +41,10 @@ from ..core.metrics.infra import (
 )
 from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from ..core.study.placement import DEFAULT_EXHAUSTIVE_LIMIT
-from ..core.study.report import REPORT_FILES, write_report
+from ..core.study.report import report_clash, write_report
 from .distribute import add_arguments as add_cluster_arguments
-from .scan import check_output_dir, open_scene, parse_frames
-
-
-def parse_values(text, what="values"):
-    """'10' -> [10.0]; '0,10,20' -> list; '0:30:10' -> 0,10,20,30 (inclusive range)."""
-    if isinstance(text, (int, float)):
-        return [float(text)]
-    text = str(text).strip()
-    bad = RegionError(f"{what}: expected V, V1,V2,... or START:STOP:STEP, got {text!r}")
-    try:
-        if ":" in text:
-            parts = [float(t) for t in text.split(":")]
-            if len(parts) != 3 or parts[2] <= 0:
-                raise bad
-            a, b, step = parts
-            count = int(math.floor((b - a) / step + 1e-9)) + 1
-            if count < 1:
-                raise bad
-            return [round(a + i * step, 9) for i in range(count)]
-        vals = [float(t) for t in text.split(",") if t.strip()]
-    except ValueError:
-        raise bad from None
-    if not vals:
-        raise RegionError(f"{what}: no values in {text!r}")
-    return vals
+from ..core.study.config import parse_values  # noqa: F401  (tests read it from here)
+from .scan import check_output_dir, open_scene
 
 
 def add_parser(sub):
@@ -96,14 +72,14 @@ def add_parser(sub):
     p.add_argument("--grid-margin", type=float, default=0.0, help="grow the grid beyond the region (m)")
     p.add_argument("--pitch", default="0", help="downward pitch in degrees: 0, 0,10,20 or 0:30:10")
     p.add_argument("--yaw", default="0", help="yaw in degrees (same forms as --pitch)")
-    p.add_argument("--yaw-mode", choices=("face", "absolute"), default="face",
+    p.add_argument("--yaw-mode", choices=YAW_MODES.ids, default="face",
                    help="'face' (default): yaw is relative to facing the region's centre")
     p.add_argument("--roll", type=float, default=0.0, help="roll in degrees")
     p.add_argument("--labels", default="road,sidewalk", help="labels counted in the region")
     p.add_argument("--disks", type=int, default=DEFAULT_DISKS)
     p.add_argument("--radius", type=float, default=DEFAULT_RADIUS_M)
     p.add_argument("--disk-seed", type=int, default=DEFAULT_SEED)
-    p.add_argument("--disk-placement", choices=("inside", "centre"), default="inside")
+    p.add_argument("--disk-placement", choices=DISK_PLACEMENTS.ids, default="inside")
     p.add_argument("--cell", type=float, default=DEFAULT_CELL_M, help="density map cell (m)")
     p.add_argument("--seed", type=int, default=0, help="scan seed (noise, dropout)")
     p.add_argument("--no-noise", action="store_true")
@@ -149,29 +125,21 @@ def add_parser(sub):
 
 
 def config_from_args(args):
-    from ..core.labels import label_ids, label_name
-    from ..core.study.config import StudyConfig
+    from ..core.study.config import study_config
 
-    ks = sorted({int(v) for v in parse_values(args.k, "--k")})
-    if any(k < 1 or k != float(k) for k in ks):
-        raise SceneError(f"--k: sensor counts must be positive integers, got {args.k}")
-    return StudyConfig(
-        device=args.device, k=tuple(ks), lob=args.lob, mounts=tuple(args.mount),
-        grid_step=args.grid, grid_heights=tuple(parse_values(args.heights, "--heights")),
-        grid_margin=args.grid_margin, pitches=tuple(parse_values(args.pitch, "--pitch")),
-        yaws=tuple(parse_values(args.yaw, "--yaw")), yaw_mode=args.yaw_mode, roll=args.roll,
+    return study_config(
+        device=args.device, k=args.k, lob=args.lob, mounts=args.mount,
+        grid_step=args.grid, grid_heights=args.heights, grid_margin=args.grid_margin,
+        pitches=args.pitch, yaws=args.yaw, yaw_mode=args.yaw_mode, roll=args.roll,
         labels=args.labels, disks=args.disks, radius=args.radius, disk_seed=args.disk_seed,
         disk_placement=args.disk_placement, cell=args.cell, scan_seed=args.seed,
         noise=not args.no_noise, dropout=not args.no_dropout, keep_traffic=args.keep_traffic,
         backend=args.backend, frame=args.frame, one_per_mount=not args.allow_shared_mounts,
-        exhaustive_limit=args.exhaustive_limit,
-        traffic_frames=tuple(parse_frames(args.traffic, 0)) if args.traffic else (),
-        evaluate_frames=tuple(parse_frames(args.evaluate, 0)) if args.evaluate else (),
-        evaluate_min_points=args.min_points, evaluate_background=args.background,
-        background_sweeps=args.background_sweeps, evaluate_sets=args.evaluate_sets,
-        rotation_hz=args.rotation_hz,
-        lidar_mode=args.lidar_mode,
-        visibility_labels=tuple(label_name(i) for i in label_ids(args.visibility_labels)))
+        exhaustive_limit=args.exhaustive_limit, traffic_frames=args.traffic,
+        evaluate_frames=args.evaluate, evaluate_min_points=args.min_points,
+        evaluate_background=args.background, background_sweeps=args.background_sweeps,
+        evaluate_sets=args.evaluate_sets, rotation_hz=args.rotation_hz,
+        lidar_mode=args.lidar_mode, visibility_labels=args.visibility_labels)
 
 
 def _progress(done, total, cand, eta):
@@ -199,12 +167,9 @@ def run(args):
 def _study(args, cfg, scene):
     from ..blender.study import run_study
 
-    if not args.overwrite:
-        names = list(REPORT_FILES) + [f"density_k{k}.png" for k in cfg.k]
-        clash = [f for f in names if os.path.exists(os.path.join(args.out, f))]
-        if clash:
-            raise SceneError(f"{os.path.join(args.out, clash[0])} already exists; "
-                             "pass --overwrite to replace the report")
+    clash = None if args.overwrite else report_clash(args.out, cfg.k)
+    if clash:
+        raise SceneError(f"{clash} already exists; pass --overwrite to replace the report")
     from .distribute import scene_file, study_scan_all
 
     result = run_study(scene, cfg, progress=_progress,

@@ -192,3 +192,25 @@ FIELDS = Choices("point field", [
                                      "1 = nearest (uint8)"),
     ("num_returns", "Number of Returns", "Echoes the pulse brought back (uint8)"),
 ])
+
+# A placement study's choices (``rls study`` flags, the Study panel)
+YAW_MODES = Choices("yaw mode", [
+    ("face", "Face the Region", "Yaw relative to facing the region's centre (0 looks at it)"),
+    ("absolute", "Absolute", "Yaw in the world frame (0 looks along +X)"),
+])
+
+DISK_PLACEMENTS = Choices("disk placement", [
+    ("inside", "Inside", "Whole disks inside the region"),
+    ("centre", "Centre", "Only the disks' centres inside the region"),
+])
+
+# What a study's candidate markers are coloured by (and its table sorted by): each
+# placement's score, the best yellow and the worst dark purple
+STUDY_SCORES = Choices("study score", [
+    ("infra_d", "InfraD", "Points per m² in the region (higher is better)"),
+    ("infra_nuc", "InfraNUC", "Non-uniformity of the points in the region (lower is better)"),
+    ("visibility", "Visibility", "Share of vehicle-frames seen by at least 20 points "
+                                 "(needs traffic frames; higher is better)"),
+    ("ap", "AP", "Vehicle AP_R40 at BEV IoU 0.5 of RLS's roadside detector (needs "
+                 "evaluation frames; higher is better)"),
+])

@@ -1,12 +1,9 @@
-"""What the operators share: the active LiDAR, poll checks that say why a button is
-disabled, selection, ``cancelled``: a domain error reported as the operator's one
-error line, and ``status_text``: the status bar's text while one works."""
+"""What the operators share: the active LiDAR, the InfraLOB, poll checks that say why a
+button is disabled, selection, ``cancelled``: a domain error reported as the operator's
+one error line, and ``status_text``: the status bar's text while one works."""
 
-
-
+from ..blender.region import is_lob
 from ..blender.sensor import is_lidar, lidar_objects
-
-
 
 
 def _active_lidar(context):
@@ -24,6 +21,28 @@ def _poll_active_lidar(cls, context):
 def _poll_any_lidar(cls, context):
     if not lidar_objects(context.scene):
         cls.poll_message_set("The scene has no LiDAR objects (Add > LiDAR)")
+        return False
+    return True
+
+
+def find_lob(context):
+    """The InfraLOB the metrics, the study and live coverage work over: the active object
+    when it is one, else the Metrics panel's, else the scene's only one (None: none or
+    several)."""
+    sc = context.scene
+    obj = context.active_object
+    if obj is not None and is_lob(obj):
+        return obj
+    if sc.rls.lob is not None and is_lob(sc.rls.lob) and sc.rls.lob.name in sc.objects:
+        return sc.rls.lob
+    lobs = [o for o in sc.objects if is_lob(o)]
+    return lobs[0] if len(lobs) == 1 else None
+
+
+def _poll_lob(cls, context):
+    if find_lob(context) is None:
+        cls.poll_message_set("Select an InfraLOB region (Add > LiDAR > InfraLOB Region) or "
+                             "choose one in the Metrics panel")
         return False
     return True
 

@@ -1,27 +1,14 @@
 """*Compute Metrics*: InfraD, InfraNUC and the density map over the preview points of
-every LiDAR in the InfraLOB."""
+every LiDAR in the InfraLOB: the chart the command line draws."""
 
 import bpy
 
-from ..blender.images import image_from_png
-from ..blender.preview import preview_object, preview_world_points
-from ..blender.region import is_lob, lob_polygon_world
-from ..blender.sensor import lidar_objects
+from ..blender.metrics import density_image, preview_clouds
+from ..blender.region import lob_polygon_world
+from ..blender.values import typed_float
 from ..core.errors import RLSError
 from ..core.metrics.infra import infra_lob_metrics
-from ..core.points import empty_points
-from .common import cancelled
-
-
-def _find_lob(context):
-    sc = context.scene
-    obj = context.active_object
-    if obj is not None and is_lob(obj):
-        return obj
-    if sc.rls.lob is not None and is_lob(sc.rls.lob) and sc.rls.lob.name in sc.objects:
-        return sc.rls.lob
-    lobs = [o for o in sc.objects if is_lob(o)]
-    return lobs[0] if len(lobs) == 1 else None
+from .common import _poll_lob, cancelled, find_lob
 
 
 class RLS_OT_compute_metrics(bpy.types.Operator):
@@ -32,44 +19,30 @@ class RLS_OT_compute_metrics(bpy.types.Operator):
     bl_label = "Compute Metrics"
     bl_options = {"REGISTER", "UNDO"}  # makes the density map image
 
-    @classmethod
-    def poll(cls, context):
-        if _find_lob(context) is None:
-            cls.poll_message_set("Select an InfraLOB region (Add > LiDAR > InfraLOB Region) or "
-                                 "choose one in the Metrics panel")
-            return False
-        return True
+    poll = classmethod(_poll_lob)
 
     def execute(self, context):
         sc = context.scene
         rs = sc.rls
-        lob = _find_lob(context)
-        clouds, names = [], []
-        for obj in lidar_objects(sc):
-            prev = preview_object(obj)
-            if prev is None or len(prev.data.vertices) == 0:
-                continue
-            co, labels = preview_world_points(prev)
-            pts = empty_points(len(co))
-            pts["x"], pts["y"], pts["z"] = co[:, 0], co[:, 1], co[:, 2]
-            pts["label"] = labels
-            clouds.append(pts)
-            names.append(obj.name)
+        lob = find_lob(context)
+        clouds, lidars = preview_clouds(sc)
         if not clouds:
             return cancelled(self, "No LiDAR points to measure: scan a frame first "
                                    "(Scan Frame or Scan All LiDARs)")
         try:
             res = infra_lob_metrics(clouds, lob_polygon_world(lob), labels=rs.metric_labels,
-                                    disks=rs.metric_disks, radius=rs.metric_radius,
-                                    seed=rs.metric_seed, cell=rs.metric_cell)
+                                    disks=rs.metric_disks, radius=typed_float(rs.metric_radius),
+                                    seed=rs.metric_seed, cell=typed_float(rs.metric_cell))
         except RLSError as exc:
             return cancelled(self, f"{lob.name}: {exc}")
-        img = image_from_png(f"RLS density {lob.name}", res.density.to_png())
+        img, notice = density_image(sc, lob.name, lidars, res)
+        if notice:
+            self.report({"WARNING"}, notice)
         rs.has_metrics = True
         rs.infra_d, rs.infra_nuc = res.infra_d, res.infra_nuc
         rs.metric_points, rs.metric_area = res.n_points, res.area_m2
         rs.metric_lob_name = lob.name
-        rs.metric_sensors = ", ".join(names)
+        rs.metric_sensors = ", ".join(o.name for o in lidars)
         rs.metric_image = img
         rs.lob = lob
         self.report({"INFO"}, f"{lob.name}: InfraD {res.infra_d:.3f} pts/m^2, "

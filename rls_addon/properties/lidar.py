@@ -110,15 +110,23 @@ def _preset_number(preset_id):
     return -1
 
 
-def _get_preset(self):
-    return _preset_number(self.preset_id or DEFAULT_PRESET)
+def preset_accessors(attribute):
+    """(get, set) of a preset EnumProperty that keeps its preset's id in the string
+    property ``attribute`` (ids stay valid when the list grows; numbers do not)."""
+
+    def get(self):
+        return _preset_number(getattr(self, attribute) or DEFAULT_PRESET)
+
+    def set(self, value):
+        for it in preset_items(None, None):
+            if it and it[0] and it[4] == value:
+                setattr(self, attribute, it[0])
+                return
+
+    return get, set
 
 
-def _set_preset(self, value):
-    for it in preset_items(None, None):
-        if it and it[0] and it[4] == value:
-            self.preset_id = it[0]
-            return
+_get_preset, _set_preset = preset_accessors("preset_id")
 
 
 def _update_fov(self, context):

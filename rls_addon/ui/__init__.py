@@ -9,6 +9,8 @@ from .label import OBJECT_PT_rls_label
 from .lidar import (OBJECT_PT_rls_lidar, OBJECT_PT_rls_lidar_motion, OBJECT_PT_rls_lidar_output,
                     OBJECT_PT_rls_lidar_preview, OBJECT_PT_rls_lidar_range, RLS_PT_device_presets)
 from .region import OBJECT_PT_rls_infralob, OBJECT_PT_rls_lidar_metrics
+from .live import OBJECT_PT_rls_lidar_live, OBJECT_PT_rls_live
+from .study import OBJECT_PT_rls_study, OBJECT_PT_rls_study_options, RLS_UL_study_rows
 
 # The family menus are registered apart, one per device family (add_menu.sync_family_menus)
 CLASSES = (
@@ -23,6 +25,11 @@ CLASSES = (
     OBJECT_PT_rls_infralob,
     OBJECT_PT_rls_label,
     SCENE_PT_rls_evaluate,
+    RLS_UL_study_rows,
+    OBJECT_PT_rls_study,
+    OBJECT_PT_rls_study_options,
+    OBJECT_PT_rls_live,
+    OBJECT_PT_rls_lidar_live,
 )
 
 __all__ = ["CLASSES", "family_menus", "sync_family_menus", "unregister_family_menus",
@@ -30,4 +37,5 @@ __all__ = ["CLASSES", "family_menus", "sync_family_menus", "unregister_family_me
            "OBJECT_PT_rls_lidar", "OBJECT_PT_rls_lidar_range", "OBJECT_PT_rls_lidar_motion",
            "OBJECT_PT_rls_lidar_output", "OBJECT_PT_rls_lidar_preview",
            "OBJECT_PT_rls_lidar_metrics", "OBJECT_PT_rls_infralob", "OBJECT_PT_rls_label",
-           "SCENE_PT_rls_evaluate"]
+           "SCENE_PT_rls_evaluate", "RLS_UL_study_rows", "OBJECT_PT_rls_study",
+           "OBJECT_PT_rls_study_options", "OBJECT_PT_rls_live", "OBJECT_PT_rls_lidar_live"]

@@ -55,13 +55,28 @@ def test_metrics_from_preview_points_of_all_lidars(scene):
     assert rs.infra_nuc == pytest.approx(ref.infra_nuc, rel=1e-5)
     assert rs.metric_points == ref.n_points and rs.metric_area == pytest.approx(400.0)
     img = rs.metric_image
-    assert img is not None and img.size[0] > 0 and img.size[0] == img.size[1]
+    # the command line's chart (a 7.5 in figure at 100 dpi), not the bare 20 x 20 cells
+    assert img is not None and img.size[0] == 750 and img.packed_file is not None
     px = np.empty(img.size[0] * img.size[1] * 4, dtype=np.float32)
     img.pixels.foreach_get(px)
     assert px.reshape(-1, 4)[:, 3].max() == 1.0 and px.reshape(-1, 4)[:, :3].max() > 0.5
+    title = img["rls_title"]
+    assert "LiDAR + LiDAR.001, region InfraLOB in Scene" in title  # not saved: no file
+    assert f"InfraD {ref.infra_d:.2f} points / m²" in title
     # recomputing replaces the image instead of piling up copies
     assert bpy.ops.rls.compute_metrics() == {"FINISHED"}
     assert len([i for i in bpy.data.images if i.name.startswith("RLS density")]) == 1
+
+
+def test_metrics_chart_names_the_scene_file(scene, tmp_path):
+    pytest.importorskip("matplotlib")
+    _scan_two_lidars()
+    bpy.ops.object.rls_add_infralob(size_x=20.0, size_y=20.0)
+    scene.rls.metric_disks = 100
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "crossing.blend"))
+    assert bpy.ops.rls.compute_metrics() == {"FINISHED"}
+    title = scene.rls.metric_image["rls_title"]
+    assert "region InfraLOB in crossing.blend" in title and "Scene" not in title
 
 
 def test_metrics_bad_input(scene):

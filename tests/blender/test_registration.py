@@ -15,15 +15,21 @@ NAMES = ("OBJECT_OT_rls_add_lidar", "OBJECT_OT_rls_add_infralob", "RLS_OT_scan_f
          "OBJECT_PT_rls_infralob", "OBJECT_PT_rls_label", "RLS_PT_device_presets",
          "VIEW3D_MT_rls_add", "VIEW3D_MT_rls_add_spinning", "VIEW3D_MT_rls_add_mems",
          "VIEW3D_MT_rls_add_risley", "VIEW3D_MT_rls_add_custom",
-         "RLS_LidarSettings", "RLS_SceneSettings")
+         "RLS_LidarSettings", "RLS_SceneSettings",
+         "RLS_OT_study", "RLS_UL_study_rows", "OBJECT_PT_rls_study", "OBJECT_PT_rls_study_options",
+         "RLS_StudyRow", "RLS_StudySettings", "RLS_LiveSettings", "RLS_OT_live_coverage",
+         "RLS_OT_live_update", "OBJECT_PT_rls_live", "OBJECT_PT_rls_lidar_live")
 
-PROPERTY_GROUPS = {"RLS_LidarSettings", "RLS_SceneSettings", "RLS_APRow", "RLS_EvaluationSettings"}
+PROPERTY_GROUPS = {"RLS_LidarSettings", "RLS_SceneSettings", "RLS_APRow", "RLS_EvaluationSettings",
+                   "RLS_StudyRow", "RLS_StudySettings", "RLS_LiveSettings"}
 
 
 def _state():
     state = {
         "prop": hasattr(bpy.types.Object, "rls_lidar"),
         "scene_prop": hasattr(bpy.types.Scene, "rls"),
+        "study_prop": hasattr(bpy.types.Scene, "rls_study"),
+        "live_prop": hasattr(bpy.types.Scene, "rls_live"),
         "menu": any(getattr(f, "__name__", "") == "draw_add_menu"
                     for f in getattr(bpy.types.VIEW3D_MT_add.draw, "_draw_funcs", [])),
         "import_menu": any(getattr(f, "__name__", "") == "draw_import_menu" for f in

@@ -163,3 +163,75 @@ def test_study_charts_without_matplotlib_fall_back_to_bare_maps(study, monkeypat
     assert set(files) == {"density_k1.png", "density_k2.png"}
     assert files["density_k2.png"] == study.density(study.searches[2].best.members).to_png()
     assert "matplotlib is not installed" in notice and "pareto.png skipped" in notice
+
+
+def test_cells_with_no_return_are_apart_from_the_scale(l_result):
+    """A region cell without a point is not the bottom colour of the scale (a sparse
+    cell): it is drawn white and named in the legend, in the chart and the bare map."""
+    from rls_addon.core.metrics.infra import DensityMap
+    from rls_addon.core.output.png import decode_png_rgba
+
+    values = l_result.density.values.copy()
+    values[0, 1] = 0.0  # an empty cell inside the region, beside sparse ones
+    values[1, 0] = 0.25
+    dm = DensityMap(l_result.density.origin_xy, 1.0, values)
+    fig = charts.density_figure(dm, "t", polygon=l_result.polygon_xy)
+    try:
+        ax = fig.axes[0]
+        (im,) = ax.get_images()
+        data = im.get_array()
+        cmap = im.get_cmap()
+        empty_rgba = cmap(im.norm(data[0, 1]))
+        low_rgba = cmap(im.norm(0.0))
+        assert empty_rgba[:3] == pytest.approx((1.0, 1.0, 1.0))  # white: "under" the scale
+        assert low_rgba[:3] != pytest.approx(empty_rgba[:3])
+        assert cmap(im.norm(data[1, 0]))[:3] != pytest.approx(empty_rgba[:3])
+        assert empty_rgba[:3] != pytest.approx(cmap.get_bad()[:3])  # nor "outside"
+        legend = " ".join(t.get_text() for t in fig.legends[0].get_texts())
+        assert "no returns (0 points)" in legend
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+    # the bare map (no matplotlib) draws it white too, and the lowest density not
+    img = decode_png_rgba(dm.to_png(pixels_per_cell=1))[::-1]  # row 0 south again
+    assert (img[0, 1] == 255).all()
+    assert not (img[1, 0, :3] == 255).all() and img[1, 0, 3] == 255
+
+
+def test_a_chart_without_empty_cells_has_no_such_legend_entry(l_result):
+    fig = charts.density_figure(l_result.density, "t", polygon=l_result.polygon_xy)
+    try:
+        legend = " ".join(t.get_text() for t in fig.legends[0].get_texts())
+        assert "no returns" not in legend
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+
+
+def test_pareto_chart_has_one_panel_per_k_with_axes_and_the_scene_file(study, monkeypatch):
+    from rls_addon.core.study import report
+
+    monkeypatch.setattr(study, "scene_file", "junction.blend")
+    drawn = []
+    real = charts.figure_png
+
+    def capture(fig):
+        if "one panel per k" in fig.get_suptitle():
+            drawn.append((fig.get_suptitle(), [
+                (ax.get_title(), ax.get_xlabel(), ax.get_ylabel(), len(ax.collections))
+                for ax in fig.axes if ax.get_visible()]))
+        return real(fig)
+
+    monkeypatch.setattr(charts, "figure_png", capture)
+    files, _ = report.charts_png(study)
+    assert "pareto.png" in files and len(drawn) == 1
+    suptitle, panels = drawn[0]
+    assert suptitle.startswith("junction.blend: ")
+    assert [t.split("\n")[0] for t, *_ in panels] == ["k = 1", "k = 2"]
+    names = [c.name for c in study.candidates]
+    for (title, xlabel, ylabel, _), k in zip(panels, (1, 2)):
+        assert xlabel.startswith("InfraD (points / m²") and ylabel.startswith("InfraNUC")
+        best = study.searches[k].best
+        assert all(names[i] in title.replace("\n", " ") for i in best.members)

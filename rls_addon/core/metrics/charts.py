@@ -7,8 +7,10 @@ deterministic: the PNG carries no software/version text.
 
 A chart shows ``DensityMap.values`` (points per m^2 in square cells, row 0 the southern
 row) at the cells' world coordinates; cells whose centre is outside the region hold no
-data and are drawn grey, like the background, so they cannot be read as zero. Zero
-inside the region is the bottom colour of the scale.
+data and are drawn grey, like the background, so they cannot be read as zero. A cell
+inside the region with no return at all is drawn white (``NO_RETURNS_COLOUR``, in the
+legend), apart from the scale, so an empty cell is never read as a sparse one (the
+bottom colour of the scale is "a few points", not "none").
 """
 
 import io
@@ -19,6 +21,7 @@ import numpy as np
 
 DENSITY_UNIT = "points / m²"
 NO_DATA_COLOUR = "#d4d4d4"
+NO_RETURNS_COLOUR = "#ffffff"
 CMAP = "viridis"
 DPI = 100
 
@@ -91,8 +94,12 @@ def density_figure(dm, title, *, polygon=None, sensors=(), scale=None, scale_not
     height = min(10.0, max(3.8, 5.3 * aspect + 1.0 + 0.22 * lines))
     fig, ax = plt.subplots(figsize=(7.5, height), layout="constrained")
     ax.set_facecolor(NO_DATA_COLOUR)
-    cmap = plt.get_cmap(CMAP).with_extremes(bad=NO_DATA_COLOUR)
-    im = ax.imshow(np.ma.masked_invalid(dm.values), origin="lower", extent=extent, cmap=cmap,
+    # cells with no return are put below the scale and drawn in its "under" colour
+    values = np.asarray(dm.values, dtype=np.float64)
+    empty = np.isfinite(values) & (values == 0)
+    shown = np.where(empty, vmin - 1.0, values)
+    cmap = plt.get_cmap(CMAP).with_extremes(bad=NO_DATA_COLOUR, under=NO_RETURNS_COLOUR)
+    im = ax.imshow(np.ma.masked_invalid(shown), origin="lower", extent=extent, cmap=cmap,
                    vmin=vmin, vmax=vmax, interpolation="nearest")
     label = f"density ({DENSITY_UNIT}, {c:g} m cells)"
     if scale_note:
@@ -100,6 +107,9 @@ def density_figure(dm, title, *, polygon=None, sensors=(), scale=None, scale_not
     cax = ax.inset_axes([1.03, 0.0, 0.035, 1.0])  # exactly as tall as the map
     fig.colorbar(im, cax=cax, label=label)
     handles = [Patch(facecolor=NO_DATA_COLOUR, edgecolor="0.5", label="no data (outside the region)")]
+    if empty.any():
+        handles.append(Patch(facecolor=NO_RETURNS_COLOUR, edgecolor="0.5",
+                             label="no returns (0 points)"))
     if polygon is not None:
         poly = np.asarray(polygon, dtype=np.float64)
         poly = np.vstack([poly, poly[:1]])
@@ -129,6 +139,23 @@ def density_figure(dm, title, *, polygon=None, sensors=(), scale=None, scale_not
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=8,
                frameon=False)
     return fig
+
+
+def sensor_marker(name, sensor_to_world):
+    """(name, x, y, heading_deg) of a sensor at the 4x4 ``sensor_to_world`` for
+    ``density_figure``: its position and the way its +X axis points seen from above
+    (None when it points straight up or down); None for a matrix that is not a finite
+    4x4."""
+    try:
+        m = np.asarray(sensor_to_world, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        return None
+    forward = m[:2, 0]
+    heading = (float(np.degrees(np.arctan2(forward[1], forward[0])))
+               if np.hypot(*forward) > 1e-9 else None)
+    return (name, float(m[0, 3]), float(m[1, 3]), heading)
 
 
 def figure_png(fig, dpi=DPI):

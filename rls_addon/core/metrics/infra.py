@@ -235,11 +235,22 @@ class DensityMap:
             "values": rows,
         }
 
-    def to_png(self, pixels_per_cell=None):
-        """PNG bytes, north up, viridis from 0 to the maximum; outside cells transparent."""
-        from ..output.png import colormap, encode_png
+    def colours(self, vmax=None):
+        """(ny, nx, 4) uint8 RGBA per cell, row 0 south: viridis from 0 to ``vmax``
+        (default: the maximum), cells with no return white (apart from the scale, as the
+        charts draw them), cells outside the region transparent."""
+        from ..output.png import colormap
 
-        img = colormap(self.values[::-1], vmin=0.0)
+        img = colormap(self.values, vmin=0.0, vmax=vmax)
+        img[np.isfinite(self.values) & (self.values == 0)] = 255
+        return img
+
+    def to_png(self, pixels_per_cell=None):
+        """PNG bytes, north up, ``colours()`` (viridis from 0 to the maximum; outside
+        cells transparent, cells with no return white)."""
+        from ..output.png import encode_png
+
+        img = self.colours()[::-1]
         if pixels_per_cell is None:
             pixels_per_cell = max(1, 512 // max(img.shape[:2]))
         k = int(pixels_per_cell)

@@ -91,6 +91,7 @@ class StudyScene(Protocol):
     """What a study asks of a scene."""
 
     name: str
+    file: str           # optional: its file's name (what charts call it); default ``name``
 
     def current_frame(self) -> int: ...
 

@@ -7,9 +7,10 @@ leaves objects labelled ``TRAFFIC_LABELS`` out of the geometry (the scene itself
 changed)."""
 
 import dataclasses
+import math
 
 from ..choices import BACKGROUNDS
-from ..errors import SceneError
+from ..errors import RegionError, SceneError
 from ..labels import ROAD_USERS
 from ..scan.background_sweeps import BACKGROUND_SWEEPS
 from ..metrics.infra import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
@@ -91,3 +92,72 @@ class StudyConfig:
         if self.evaluate_background == "empty" and int(self.background_sweeps) < 1:
             raise SceneError(f"the empty scene's background needs at least one sweep, got "
                              f"{self.background_sweeps}")
+
+
+def parse_values(text, what="values"):
+    """Numbers as a user types them (``what`` names the setting in the error): '10' ->
+    [10.0]; '0,10,20' -> list; '0:30:10' -> 0,10,20,30 (inclusive range)."""
+    if isinstance(text, (int, float)):
+        return [float(text)]
+    text = str(text).strip()
+    bad = RegionError(f"{what}: expected V, V1,V2,... or START:STOP:STEP, got {text!r}")
+    try:
+        if ":" in text:
+            parts = [float(t) for t in text.split(":")]
+            if len(parts) != 3 or parts[2] <= 0:
+                raise bad
+            a, b, step = parts
+            count = int(math.floor((b - a) / step + 1e-9)) + 1
+            if count < 1:
+                raise bad
+            return [round(a + i * step, 9) for i in range(count)]
+        vals = [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise bad from None
+    if not vals:
+        raise RegionError(f"{what}: no values in {text!r}")
+    return vals
+
+
+# The settings a user types as text (a list of numbers or frames, a list of labels),
+# and what the command line calls each (the panel names them by its own labels)
+TEXT_FIELDS = {"k": "--k", "grid_heights": "--heights", "pitches": "--pitch",
+               "yaws": "--yaw", "traffic_frames": "--traffic",
+               "evaluate_frames": "--evaluate", "visibility_labels": "--visibility-labels"}
+
+
+def study_config(names=None, **fields):
+    """The ``StudyConfig`` of settings as a user gives them, the one way the command
+    line (``rls study``) and the Study panel make it: the fields of ``TEXT_FIELDS``
+    may be text (``k="1,2"``, ``pitches="0:30:15"``, ``traffic_frames="1-60:5"``, empty
+    or None for no frames, ``visibility_labels="vehicle"``); the rest are
+    ``StudyConfig``'s own. ``names`` maps a field to what the user knows it as, for
+    the errors (default: the command line's flags)."""
+    from ..labels import label_ids, label_name
+    from ..scan.frames import parse_frames
+
+    names = dict(TEXT_FIELDS, **(names or {}))
+    out = dict(fields)
+    if "k" in fields:
+        values = parse_values(fields["k"], names["k"])
+        if any(v < 1 or v != int(v) for v in values):
+            raise SceneError(f"{names['k']}: sensor counts must be positive integers, "
+                             f"got {fields['k']}")
+        out["k"] = tuple(sorted({int(v) for v in values}))
+    for field in ("grid_heights", "pitches", "yaws"):
+        if field in fields:
+            out[field] = tuple(parse_values(fields[field], names[field]))
+    for field in ("traffic_frames", "evaluate_frames"):
+        if field in fields:
+            text = fields[field]
+            if isinstance(text, str):
+                text = text.strip()
+                out[field] = tuple(parse_frames(text, 0, names[field])) if text else ()
+            else:
+                out[field] = tuple(int(f) for f in text or ())
+    if "visibility_labels" in fields and isinstance(fields["visibility_labels"], str):
+        out["visibility_labels"] = tuple(label_name(i)
+                                         for i in label_ids(fields["visibility_labels"]))
+    if "mounts" in fields:
+        out["mounts"] = tuple(fields["mounts"])
+    return StudyConfig(**out)

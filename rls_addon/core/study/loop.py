@@ -75,87 +75,133 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
     ``scan_all(scanner, candidates, on_scan)``: how the candidates are scanned (default:
     one after another here; a sharded run hands them to workers); it calls
     ``on_scan(CandidateScan)`` for each, in any order."""
-    t0 = time.perf_counter()
-    span = source_span(scene)
-    check_keyed(cfg.traffic_frames, span, "traffic frames")
-    check_keyed(cfg.evaluate_frames, span, "evaluation frames")
-    inputs = study_inputs(scene, cfg)
-    preset, polygon, layout, cands = inputs.preset, inputs.polygon, inputs.layout, inputs.candidates
-    scanner = StudyScanner(scene, cfg, preset, polygon, layout, cands, factory)
-    t_scan = time.perf_counter()
-    # Only counts are kept, written in place as the scans arrive: no points, and no
-    # second copy of the disk counts when the search starts.
-    n_points = np.zeros(len(cands), np.int64)
-    disk_counts = np.zeros((len(cands), len(layout.centres)), np.int64)
-    vehicle_points = (np.zeros((len(cands), len(scanner.vehicle_frames)), np.int64)
-                      if scanner.traffic else None)
-    scanned = np.zeros(len(cands), bool)
-    evaluations = [None] * len(cands)
+    run = StudyRun(scene, cfg, progress, factory)
+    if scan_all is None:
+        while not run.scanned_all:
+            run.step()
+    else:
+        scan_all(run.scanner, run.candidates, run.on_scan)
+    return run.finish()
 
-    def on_scan(got):
+
+class StudyRun:
+    """One study in steps, for a caller that must stay responsive between them (the
+    Study operator runs a step per timer event; ``run_study`` runs them all):
+    making it reads the scene and builds the ray-casting structure, ``step()`` scans
+    the next candidate, ``finish()`` searches the sets and returns the
+    ``StudyResult``. The same steps in any caller give the same numbers. A run
+    dropped before ``finish()`` has changed nothing but the scene's frame (the
+    caller puts it back)."""
+
+    def __init__(self, scene, cfg, progress=None, factory=caster_factory):
+        self.t0 = time.perf_counter()
+        self.scene, self.cfg, self.progress = scene, cfg, progress
+        span = source_span(scene)
+        check_keyed(cfg.traffic_frames, span, "traffic frames")
+        check_keyed(cfg.evaluate_frames, span, "evaluation frames")
+        self.inputs = inputs = study_inputs(scene, cfg)
+        cands, layout = inputs.candidates, inputs.layout
+        self.candidates = cands
+        self.scanner = StudyScanner(scene, cfg, inputs.preset, inputs.polygon, layout, cands,
+                                    factory)
+        self.t_scan = time.perf_counter()
+        # Only counts are kept, written in place as the scans arrive: no points, and no
+        # second copy of the disk counts when the search starts.
+        self.n_points = np.zeros(len(cands), np.int64)
+        self.disk_counts = np.zeros((len(cands), len(layout.centres)), np.int64)
+        self.vehicle_points = (np.zeros((len(cands), len(self.scanner.vehicle_frames)),
+                                        np.int64) if self.scanner.traffic else None)
+        self.scanned = np.zeros(len(cands), bool)
+        self.evaluations = [None] * len(cands)
+
+    @property
+    def total(self):
+        return len(self.candidates)
+
+    @property
+    def done(self):
+        return int(np.count_nonzero(self.scanned))
+
+    @property
+    def scanned_all(self):
+        return bool(self.scanned.all())
+
+    def step(self):
+        """Scan the next candidate not yet scanned; returns it."""
+        c = self.candidates[int(np.argmin(self.scanned))]
+        self.on_scan(self.scanner.scan(c))
+        return c
+
+    def on_scan(self, got):
+        """Keep a ``CandidateScan``'s counts (from ``step`` or from a ``scan_all``)."""
         i = got.index
-        scanned[i] = True
-        n_points[i], disk_counts[i] = got.n_points, got.disk_counts
-        if vehicle_points is not None:
-            vehicle_points[i] = got.vehicle_points
-        evaluations[i] = got.evaluation
-        c = cands[i]
+        self.scanned[i] = True
+        self.n_points[i], self.disk_counts[i] = got.n_points, got.disk_counts
+        if self.vehicle_points is not None:
+            self.vehicle_points[i] = got.vehicle_points
+        self.evaluations[i] = got.evaluation
+        c = self.candidates[i]
         c.n_points, c.scan_points, c.rays, c.seconds = (got.n_points, got.scan_points,
                                                         got.rays, got.seconds)
-        if progress is not None:
-            done = int(np.count_nonzero(scanned))
-            elapsed = time.perf_counter() - t_scan
-            progress(done, len(cands), c, elapsed / done * (len(cands) - done))
+        if self.progress is not None:
+            done = self.done
+            elapsed = time.perf_counter() - self.t_scan
+            self.progress(done, self.total, c, elapsed / done * (self.total - done))
 
-    if scan_all is None:
-        for c in cands:
-            on_scan(scanner.scan(c))
-    else:
-        scan_all(scanner, cands, on_scan)
-    if not scanned.all():
-        raise SceneError(f"{int(np.count_nonzero(~scanned))} of {len(cands)} candidates "
-                         "were not scanned")
-    t_search = time.perf_counter()
-    groups = [c.mount for c in cands] if cfg.one_per_mount else None
-    cc = CandidateCounts(n_points, disk_counts, layout.area_m2, layout.p, groups)
-    for c, p in zip(cands, cc.evaluate([(c.index,) for c in cands])):
-        c.infra_d, c.infra_nuc = p.infra_d, p.infra_nuc
-    searches = {}
-    for k in cfg.k:
-        try:
-            searches[k] = cc.search(k, exhaustive_limit=cfg.exhaustive_limit)
-        except SettingsError as exc:
-            raise SceneError(f"k = {k}: {exc}") from None
-    vis = None
-    if scanner.traffic:
-        vis = TrafficVisibility.of(scanner, cands, vehicle_points, groups, searches, cfg)
-    evaluation = None
-    if cfg.evaluate_frames:
-        t_eval = time.perf_counter()
-        evaluation = StudyEvaluation.of(cfg, scanner, cands, evaluations, searches, vis)
-        scanner.notices.append(f"evaluation: {len(cands)} candidates and "
-                               f"{len(evaluation.sets)} sets scored by detection in "
-                               f"{time.perf_counter() - t_eval:.1f} s; the detector's "
-                               f"background: {evaluation.background['what']}")
-        scanner.notices += evaluation.notices
-    t_maps = time.perf_counter()
-    result = StudyResult(cfg, scene.name, scanner.frame,
-                         {"id": preset.id, "name": preset.name, "source": preset.source},
-                         polygon, layout, cands, cc, searches, {}, scanner.hidden,
-                         scanner.prepared.backend, scanner.session.builds, scanner.notices, vis,
-                         evaluation, scanner, scene_file=getattr(scene, "file", "") or "")
-    # The density maps the report draws (the best set of each k): their members are
-    # scanned again here with this process's scanner (in a run on workers the counts
-    # came from its twins, built from the same scene and settings: the same points).
-    for k in sorted(searches):
-        for i in searches[k].best.members:
-            result.kept_xy(i)
-    t_end = time.perf_counter()
-    result.timing.update({
-        "total_s": t_end - t0, "build_s": scanner.build_s, "scan_s": t_search - t_scan,
-        "search_s": t_maps - t_search, "maps_s": t_end - t_maps,
-        "per_candidate_s": (t_search - t_scan) / max(len(cands), 1)})
-    return result
+    def finish(self):
+        """Search the sets of each k (and score visibility and detection when asked):
+        the ``StudyResult``."""
+        cfg, cands, scanner = self.cfg, self.candidates, self.scanner
+        layout, preset = self.inputs.layout, self.inputs.preset
+        if not self.scanned_all:
+            raise SceneError(f"{int(np.count_nonzero(~self.scanned))} of {len(cands)} "
+                             "candidates were not scanned")
+        t_search = time.perf_counter()
+        groups = [c.mount for c in cands] if cfg.one_per_mount else None
+        cc = CandidateCounts(self.n_points, self.disk_counts, layout.area_m2, layout.p, groups)
+        for c, p in zip(cands, cc.evaluate([(c.index,) for c in cands])):
+            c.infra_d, c.infra_nuc = p.infra_d, p.infra_nuc
+        searches = {}
+        for k in cfg.k:
+            try:
+                searches[k] = cc.search(k, exhaustive_limit=cfg.exhaustive_limit)
+            except SettingsError as exc:
+                raise SceneError(f"k = {k}: {exc}") from None
+        vis = None
+        if scanner.traffic:
+            vis = TrafficVisibility.of(scanner, cands, self.vehicle_points, groups, searches,
+                                       cfg)
+        evaluation = None
+        if cfg.evaluate_frames:
+            t_eval = time.perf_counter()
+            evaluation = StudyEvaluation.of(cfg, scanner, cands, self.evaluations, searches,
+                                            vis)
+            scanner.notices.append(f"evaluation: {len(cands)} candidates and "
+                                   f"{len(evaluation.sets)} sets scored by detection in "
+                                   f"{time.perf_counter() - t_eval:.1f} s; the detector's "
+                                   f"background: {evaluation.background['what']}")
+            scanner.notices += evaluation.notices
+        t_maps = time.perf_counter()
+        scene = self.scene
+        result = StudyResult(cfg, scene.name, scanner.frame,
+                             {"id": preset.id, "name": preset.name, "source": preset.source},
+                             self.inputs.polygon, layout, cands, cc, searches, {},
+                             scanner.hidden, scanner.prepared.backend, scanner.session.builds,
+                             scanner.notices, vis, evaluation, scanner,
+                             scene_file=getattr(scene, "file", "") or "")
+        # The density maps the report draws (the best set of each k): their members are
+        # scanned again here with this process's scanner (in a run on workers the counts
+        # came from its twins, built from the same scene and settings: the same points).
+        for k in sorted(searches):
+            for i in searches[k].best.members:
+                result.kept_xy(i)
+        t_end = time.perf_counter()
+        result.timing.update({
+            "total_s": t_end - self.t0, "build_s": scanner.build_s,
+            "scan_s": t_search - self.t_scan, "search_s": t_maps - t_search,
+            "maps_s": t_end - t_maps,
+            "per_candidate_s": (t_search - self.t_scan) / max(len(cands), 1)})
+        return result
 
 
 @dataclasses.dataclass

@@ -6,10 +6,12 @@
                    (and with traffic: visibility of the set)
   study.json       settings, timing, candidates, per-k Pareto front and best set, the
                    best sets' density maps; with traffic the best set by visibility
-  pareto.png       InfraD against InfraNUC for all candidates and sets, fronts marked
+  pareto.png       InfraD against InfraNUC, one panel per k: every set evaluated, the
+                   Pareto front joined, the best set starred and named
   density_k<K>.png density map (points / m² per cell, world x/y in metres) of the best
                    set of each k, sensors and region outline marked, cells outside the
-                   region grey; every k on one colour scale (0 to the densest cell of any)
+                   region grey, cells with no return white; every k on one colour scale
+                   (0 to the densest cell of any)
   visibility.png   with traffic: InfraD, InfraNUC and visibility of each candidate
                    and of the best sets, side by side
   ap_vs_<metric>.png  with --evaluate: the detector's AP against InfraD, InfraNUC and
@@ -18,7 +20,7 @@
                    candidate and scored set is the ``ap_vehicle_bev50`` column of the
                    tables, the whole evaluation in study.json's ``evaluation``
 
-Charts need matplotlib (Agg); without it the density maps are written with RLS's own
+Chart titles name the scene by its file (``StudyResult.title``). Charts need matplotlib (Agg); without it the density maps are written with RLS's own
 PNG writer (no axes or scale, each map scaled to its own maximum) and the other charts
 are skipped (a notice says so). The density charts are drawn by ``core/metrics/charts.py``.
 """
@@ -73,7 +75,8 @@ def report_dict(result):
     names = [c.name for c in result.candidates]
     cfg = result.config
     out = {
-        "scene": result.scene, "frame": result.frame, "device": result.device,
+        "scene": result.scene, "scene_file": result.scene_file, "frame": result.frame,
+        "device": result.device,
         "region": {"polygon_xy": result.polygon.tolist(), "area_m2": result.layout.area_m2,
                    "labels": cfg.labels, "disks": cfg.disks, "radius_m": cfg.radius,
                    "disk_seed": cfg.disk_seed, "disk_placement": cfg.disk_placement},
@@ -138,9 +141,17 @@ def candidate_rows(result):
     return rows
 
 
-def write_report(result, out_dir, overwrite=False, notices=None):
+def report_clash(out_dir, ks):
+    """The first file of a report of ``ks`` that already exists in ``out_dir``, or None."""
+    names = list(REPORT_FILES) + [f"density_k{k}.png" for k in ks]
+    return next((os.path.join(out_dir, f) for f in names
+                 if os.path.exists(os.path.join(out_dir, f))), None)
+
+
+def write_report(result, out_dir, overwrite=False, notices=None, charts=None):
     """Write the report files into ``out_dir``; returns a summary dict. Notices (e.g.
-    matplotlib missing) are appended to ``notices`` when given."""
+    matplotlib missing) are appended to ``notices`` when given. ``charts``: the
+    (files, notice) of ``charts_png(result)`` when the caller drew them already."""
     from ..output.io.atomic import atomic_write_files
 
     rows = candidate_rows(result)
@@ -153,9 +164,9 @@ def write_report(result, out_dir, overwrite=False, notices=None):
                                     "infra_nuc", "pareto", "best", "method"] + vis_fields
                                    + ap_fields)
     report = report_dict(result)
-    charts, notice = charts_png(result)
-    files.update(charts)
-    report["charts"] = sorted(charts)
+    drawn, notice = charts if charts is not None else charts_png(result)
+    files.update(drawn)
+    report["charts"] = sorted(drawn)
     if notice:
         report["notice"] = notice
         if notices is not None:
@@ -267,7 +278,7 @@ def _visibility_png(result):
     axes[0].set_yticklabels(labels, fontsize=7)
     axes[0].invert_yaxis()
     more = len(result.candidates) - len(shown)
-    fig.suptitle(f"{result.scene}: traffic-free metrics and visibility of the traffic over "
+    fig.suptitle(f"{result.title}: traffic-free metrics and visibility of the traffic over "
                  f"{len(vis.frames)} frames ({len(vis.vehicle_frames)} vehicle-frames)"
                  + (f"\n{len(shown)} of {len(result.candidates)} candidates: the best by "
                     "visibility and the best sets' members (all in candidates.csv)" if more else ""))
@@ -295,29 +306,47 @@ def _fig_bytes(fig):
     return charts.figure_png(fig)
 
 
+PARETO_COLUMNS = 3  # panels per row of pareto.png
+
+
 def _pareto_png(result):
+    """InfraD against InfraNUC, one panel per k (each on its own axes, so the many
+    sets of a large k do not bury the few of k = 1): every set evaluated, the Pareto
+    front joined, the best set starred and named."""
+    import textwrap
+
     import matplotlib.pyplot as plt
     import numpy as np
 
-    fig, ax = plt.subplots(figsize=(7, 5))
-    colours = plt.get_cmap("tab10")
-    for j, (k, s) in enumerate(sorted(result.searches.items())):
-        d = np.array([p.infra_d for p in s.evaluated])
-        u = np.array([p.infra_nuc for p in s.evaluated])
-        ax.scatter(d, u, s=14, alpha=0.45, color=colours(j), label=f"k = {k} ({s.method})")
-        fd = [p.infra_d for p in s.front]
-        fu = [p.infra_nuc for p in s.front]
-        ax.plot(fd, fu, "-o", color=colours(j), markersize=6, markerfacecolor="none",
-                label=f"Pareto front, k = {k}")
-        ax.scatter([s.best.infra_d], [s.best.infra_nuc], marker="*", s=160, color=colours(j),
-                   edgecolor="black", zorder=5)
-    ax.set_xlabel("InfraD (points / m², higher is denser)")
-    ax.set_ylabel("InfraNUC (lower is more uniform)")
-    ax.set_title(f"{result.scene}: {result.device['name']}, {len(result.candidates)} candidates"
-                 " (★ best)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    fig.tight_layout()
+    searches = sorted(result.searches.items())
+    names = [c.name for c in result.candidates]
+    cols = min(PARETO_COLUMNS, len(searches))
+    rows = -(-len(searches) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.6 * cols, 4.1 * rows + 0.7),
+                             squeeze=False, layout="constrained")
+    for j, (ax, (k, s)) in enumerate(zip(axes.flat, searches)):
+        colour = plt.get_cmap("tab10")(j % 10)
+        d = np.array([p.infra_d for p in s.evaluated], float)
+        u = np.array([p.infra_nuc for p in s.evaluated], float)
+        how = (f"all {s.sets_total:,}" if len(s.evaluated) >= s.sets_total
+               else f"{len(s.evaluated):,} of {s.sets_total:,}")
+        ax.scatter(d, u, s=16, alpha=0.5, color="0.45", linewidths=0,
+                   label=f"sets evaluated ({how}, {s.method})")
+        ax.plot([p.infra_d for p in s.front], [p.infra_nuc for p in s.front], "-o",
+                color=colour, markersize=6, markerfacecolor="none",
+                label=f"Pareto front ({len(s.front)})")
+        ax.scatter([s.best.infra_d], [s.best.infra_nuc], marker="*", s=220, color=colour,
+                   edgecolor="black", zorder=5, label="best (balanced score)")
+        best = " + ".join(names[i] for i in s.best.members)
+        ax.set_title("\n".join([f"k = {k}"] + textwrap.wrap(f"best: {best}", 48)), fontsize=9)
+        ax.set_xlabel("InfraD (points / m², higher is denser)")
+        ax.set_ylabel("InfraNUC (lower is more uniform)")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="best")
+    for ax in list(axes.flat)[len(searches):]:
+        ax.set_visible(False)
+    fig.suptitle(f"{result.title}: {result.device['name']}, {len(result.candidates)} "
+                 "candidates: InfraD against InfraNUC, one panel per k", fontsize=10)
     return _fig_bytes(fig)
 
 
@@ -332,7 +361,7 @@ def density_figure(result, k, dm, scale):
     note = (f"one scale for k = {ks}: {scale[0]:g} to {scale[1]:.3g}" if len(result.searches) > 1
             else f"scale {scale[0]:g} to {scale[1]:.3g}")
     title = charts.density_title(
-        f"{result.scene}, {result.device['name']}: best set of k = {k}: "
+        f"{result.title}, {result.device['name']}: best set of k = {k}: "
         + " + ".join(names[i] for i in b.members),
         b.infra_d, b.infra_nuc, f"{b.n_points:,} points in the region, {search.method} search")
     return charts.density_figure(dm, title, polygon=result.polygon, sensors=sensors,

@@ -1,0 +1,71 @@
+"""The region's coverage over the LiDARs' latest clouds (``Coverage``): InfraD,
+InfraNUC and the density map, kept per LiDAR so that rescanning one LiDAR costs only
+its own cloud. Points per disk add up over clouds (as in the placement study:
+``study.placement.DiskLayout``, the seeded disks placed once), so the numbers are
+``infra_lob_metrics``' on all clouds together, without counting the others again.
+``cells`` gives the map's cells and colours for a grid in the viewport."""
+
+import dataclasses
+
+import numpy as np
+
+from ..metrics.infra import (DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED,
+                             DensityMap, density_map, resolve_labels)
+from ..study.placement import DiskLayout, set_metrics
+
+
+@dataclasses.dataclass
+class CoverageState:
+    infra_d: float          # points per m² (0 without points)
+    infra_nuc: float        # NaN without points in any disk (no estimate)
+    n_points: int           # points counted in the region
+    area_m2: float
+    density: DensityMap
+    sensors: tuple          # the LiDARs whose clouds are counted
+
+
+class Coverage:
+    """Coverage of the region ``polygon`` with the metric settings of ``rls metrics``."""
+
+    def __init__(self, polygon, labels="road,sidewalk", disks=DEFAULT_DISKS,
+                 radius=DEFAULT_RADIUS_M, seed=DEFAULT_SEED, disk_placement="inside",
+                 cell=DEFAULT_CELL_M):
+        self.layout = DiskLayout.make(polygon, disks, radius, seed, disk_placement)
+        self.layout.prepare()
+        self.polygon, self.cell = self.layout.polygon, float(cell)
+        self.label_ids = resolve_labels(labels)
+        self._xy, self._counts = {}, {}
+
+    def set_cloud(self, key, points):
+        """LiDAR ``key``'s latest cloud (world frame; x, y and label are read)."""
+        xy = self.layout.select([points], self.label_ids)
+        self._xy[key], self._counts[key] = xy, self.layout.counts(xy)
+
+    def remove(self, key):
+        self._xy.pop(key, None)
+        self._counts.pop(key, None)
+
+    def state(self):
+        """The ``CoverageState`` of every cloud set."""
+        keys = tuple(sorted(self._xy))
+        n = sum(len(self._xy[k]) for k in keys)
+        counts = (np.sum([self._counts[k] for k in keys], axis=0) if keys
+                  else np.zeros(len(self.layout.centres), np.int64))
+        d, u = set_metrics(np.array([n]), counts[None, :], self.layout.area_m2, self.layout.p)
+        xy = np.concatenate([self._xy[k] for k in keys]) if keys else np.empty((0, 2))
+        return CoverageState(float(d[0]), float(u[0]), int(n), self.layout.area_m2,
+                             density_map(xy, self.polygon, self.cell), keys)
+
+
+def cells(dm, vmax=None):
+    """The map's cells inside the region: ((M, 2, 2) x/y corners (lower left, upper
+    right) in world metres, (M, 4) RGBA in 0..1 as the density chart colours them:
+    viridis from 0 to ``vmax`` (default: the densest cell), no return white)."""
+    ny, nx = dm.values.shape
+    inside = np.isfinite(dm.values)
+    iy, ix = np.nonzero(inside)
+    x0, y0 = dm.origin_xy
+    lo = np.stack([x0 + ix * dm.cell_m, y0 + iy * dm.cell_m], axis=1)
+    corners = np.stack([lo, lo + dm.cell_m], axis=1)
+    rgba = dm.colours(vmax)[inside].astype(np.float64) / 255.0
+    return corners, rgba

@@ -1,0 +1,242 @@
+"""Live coverage in the ``bpy`` module: a LiDAR moved, turned, retargeted, given another
+preset and another frame, step by step with Live on; after each step its preview, the
+panel's InfraD / InfraNUC and the coverage map equal a fresh scan's. Handlers run on
+``view_layer.update()`` and ``frame_set``; timers never fire here, so the test calls
+``live.tick`` when it asks to be called, as Blender's timer would."""
+
+import time
+
+import numpy as np
+import pytest
+
+from .conftest import bpy, mesh_object
+from .ops_helpers import add_lidar_op, labelled_ground
+
+
+def drive(live):
+    """Call the timer's callback as ``bpy.app.timers`` would, until it is idle."""
+    assert bpy.app.timers.is_registered(live.tick)  # the handler asked for it
+    for _ in range(200):
+        wait = live.tick()
+        if wait is None:
+            return
+        time.sleep(wait)
+    raise AssertionError("live coverage never settled")
+
+
+def fresh(obj):
+    """A fresh scan of LiDAR ``obj`` as Scan Frame makes it, in world coordinates."""
+    from rls_addon.blender.scan import scan_lidar
+    from rls_addon.blender.sensor import read_settings
+
+    settings = read_settings(obj).override(frame_space="world")
+    return scan_lidar(obj, settings=settings)[0].points
+
+
+def preview_xyz(obj):
+    from rls_addon.blender.preview import preview_object, preview_world_points
+
+    return preview_world_points(preview_object(obj))[0]
+
+
+def check_follows(sc, lidars):
+    """The previews, the panel's numbers and the map are a fresh scan's."""
+    from rls_addon.blender.coverage_map import map_colours
+    from rls_addon.blender.region import lob_polygon_world
+    from rls_addon.core.live.coverage import cells
+    from rls_addon.core.metrics.infra import infra_lob_metrics
+
+    clouds = [fresh(o) for o in lidars]
+    for obj, pts in zip(lidars, clouds):
+        got = preview_xyz(obj)
+        want = np.stack([pts["x"], pts["y"], pts["z"]], 1).astype(np.float32)
+        assert got.shape == want.shape
+        np.testing.assert_array_equal(got, want)  # the same points, to the bit
+    rs, p = sc.rls, sc.rls_live
+    ref = infra_lob_metrics(clouds, lob_polygon_world(bpy.data.objects["InfraLOB"]),
+                            labels=rs.metric_labels, disks=rs.metric_disks, radius=0.7,
+                            seed=rs.metric_seed, cell=2.0)
+    assert p.points == ref.n_points
+    assert p.infra_d == pytest.approx(ref.infra_d, rel=1e-6)  # a float property: 32 bits
+    assert p.infra_nuc == pytest.approx(ref.infra_nuc, rel=1e-6)
+    assert p.sensors == ", ".join(o.name for o in lidars)
+    shown = map_colours(bpy.data.objects["RLS coverage InfraLOB"])
+    want = cells(ref.density)[1]
+    np.testing.assert_allclose(shown, want, atol=1 / 255 + 1e-6)
+    return ref
+
+
+@pytest.fixture
+def live_scene(scene):
+    from rls_addon.blender import live
+
+    labelled_ground(40.0)
+    mesh_object("Kiosk", [(2, 2, 0), (5, 2, 0), (5, 5, 0), (2, 5, 0), (2, 2, 3), (5, 2, 3),
+                          (5, 5, 3), (2, 5, 3)],
+                [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6),
+                 (3, 0, 4, 7)])
+    scene.cursor.location = (0.0, 0.0, 0.0)
+    bpy.ops.object.rls_add_infralob(size_x=24.0, size_y=24.0)
+    rs = scene.rls
+    rs.metric_disks, rs.metric_cell = 800, 2.0
+    a = add_lidar_op(location=(-9.0, -9.0, 4.0))
+    b = add_lidar_op(location=(9.0, -9.0, 4.0))
+    scene.rls_live.debounce_ms = 20.0
+    yield scene, live, a, b
+    live.stop()
+
+
+def test_live_coverage_follows_each_step_of_a_lidar(live_scene):
+    sc, live, a, b = live_scene
+    bpy.context.view_layer.objects.active = bpy.data.objects["InfraLOB"]
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    assert sc.rls_live.active and sc.rls_live.scans == 2  # both scanned once
+    check_follows(sc, [a, b])
+    scans = sc.rls_live.scans
+    target = bpy.data.objects.new("Target", None)
+    sc.collection.objects.link(target)
+    target.location = (0.0, 0.0, 0.0)
+
+    def moved_a():
+        a.location = (-6.0, -8.0, 4.5)
+
+    def turned_a():
+        a.rotation_euler = (0.0, 0.3, 0.8)
+
+    def retargeted_a():  # a Track To constraint on A, then its target moved
+        con = a.constraints.new("TRACK_TO")
+        con.target, con.track_axis, con.up_axis = target, "TRACK_X", "UP_Z"
+        bpy.context.view_layer.update()
+        live.tick()  # (noted, still for less than the debounce: nothing yet)
+        target.location = (4.0, 6.0, 0.0)
+
+    def preset_of_a():
+        a.rls_lidar.preset_id = "velodyne_vlp16"
+
+    for step in (moved_a, turned_a, retargeted_a, preset_of_a):
+        before = np.array(preview_xyz(a))
+        step()
+        bpy.context.view_layer.update()  # the depsgraph handler notes it
+        assert sc.rls_live.scans == scans  # no work in the handler
+        drive(live)
+        scans += 1
+        assert sc.rls_live.scans == scans, step.__name__  # A alone, once
+        assert preview_xyz(a).shape != before.shape or not np.allclose(preview_xyz(a), before)
+        check_follows(sc, [a, b])
+        # RLS's own preview and map updates feed back into the handler: ignored
+        bpy.context.view_layer.update()
+        assert not live.session().scheduler.busy
+    assert sc.rls_live.latency_ms > 0 and "live: 2 LiDAR(s) over InfraLOB" in sc.rls_live.status
+
+
+def test_another_frame_rescans_an_animated_lidar(live_scene):
+    sc, live, a, b = live_scene
+    a.keyframe_insert("location", frame=1)
+    a.location = (-3.0, 0.0, 4.0)
+    a.keyframe_insert("location", frame=11)
+    sc.frame_set(1)
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    scans = sc.rls_live.scans
+    sc.frame_set(6)  # the frame handler notes both LiDARs (the frame is theirs too)
+    drive(live)
+    assert sc.rls_live.scans == scans + 2
+    assert tuple(a.location) == pytest.approx((-6.0, -4.5, 4.0))
+    check_follows(sc, [a, b])
+
+
+def test_a_lidar_removed_leaves_the_count(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    bpy.data.objects.remove(b)
+    bpy.context.view_layer.update()
+    assert sc.rls_live.sensors == a.name
+    check_follows(sc, [a])
+
+
+def test_a_scene_over_budget_falls_back_to_on_demand(live_scene):
+    sc, live, a, b = live_scene
+    sc.rls_live.budget_ms = 1.0  # less than any scan: every update is over
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    for x in (-8.0, -7.0):  # two updates over budget (the first one is not judged)
+        a.location.x = x
+        bpy.context.view_layer.update()
+        drive(live)
+    assert "over the 1 ms budget" in sc.rls_live.status
+    assert "updated on demand" in sc.rls_live.status
+    scans = sc.rls_live.scans
+    a.location.x = -6.0
+    bpy.context.view_layer.update()
+    time.sleep(0.03)
+    assert live.tick() is None and sc.rls_live.scans == scans  # nothing by itself
+    assert bpy.ops.rls.live_update() == {"FINISHED"}  # the panel's Update button
+    assert sc.rls_live.scans == scans + 1
+    check_follows(sc, [a, b])
+
+
+def test_live_off_removes_handlers_timer_and_map(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    assert "RLS coverage InfraLOB" in bpy.data.objects
+    a.location.x = -5.0
+    bpy.context.view_layer.update()
+    assert bpy.app.timers.is_registered(live.tick)
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}  # the toggle: off
+    assert not sc.rls_live.active and not bpy.app.timers.is_registered(live.tick)
+    assert live.on_change not in bpy.app.handlers.depsgraph_update_post
+    assert "RLS coverage InfraLOB" not in bpy.data.objects
+    assert "LiDAR points" in bpy.data.objects  # the previews stay: the last scans
+
+
+def test_live_needs_a_region_and_a_lidar(scene):
+    with pytest.raises(RuntimeError, match="Select an InfraLOB region"):
+        bpy.ops.rls.live_coverage()
+    bpy.ops.object.rls_add_infralob()
+    with pytest.raises(RuntimeError, match="The scene has no LiDAR objects"):
+        bpy.ops.rls.live_coverage()
+    with pytest.raises(RuntimeError, match="Turn Live Coverage on first"):
+        bpy.ops.rls.live_update()
+
+
+def test_live_panels_draw_the_stored_numbers_only(live_scene, monkeypatch):
+    from types import SimpleNamespace
+
+    from rls_addon import ui
+    from rls_addon.core.live.schedule import LiveScheduler
+
+    from .test_ui_panels import _draw, _explode
+
+    sc, live, a, b = live_scene
+    lob = bpy.data.objects["InfraLOB"]
+    off = _draw(ui.OBJECT_PT_rls_live, SimpleNamespace(object=lob, active_object=lob, scene=sc))
+    assert [a_ for n, a_, _ in off if n == "operator"] == [("rls.live_coverage",)]
+    bpy.context.view_layer.objects.active = lob
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    monkeypatch.setattr(LiveScheduler, "tick", _explode)  # drawing does no live work
+    monkeypatch.setattr(LiveScheduler, "update_now", _explode)
+    for cls, obj in ((ui.OBJECT_PT_rls_live, lob), (ui.OBJECT_PT_rls_lidar_live, a)):
+        log = _draw(cls, SimpleNamespace(object=obj, active_object=obj, scene=sc))
+        ops = [a_[0] for n, a_, _ in log if n == "operator"]
+        assert ops == ["rls.live_coverage", "rls.live_update"]
+        labels = [kw.get("text", "") for n, _, kw in log if n == "label"]
+        assert f"{sc.rls_live.infra_d:.3f} pts/m²" in labels
+        assert f"{sc.rls_live.infra_nuc:.4f}" in labels
+        assert any(t.startswith("Map: 0 (purple) to ") for t in labels)
+
+
+def test_undo_of_a_move_is_followed(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    first = (sc.rls_live.infra_d, sc.rls_live.points)
+    bpy.ops.ed.undo_push(message="before the move")
+    a.location.x = -3.0
+    bpy.context.view_layer.update()
+    bpy.ops.ed.undo_push(message="moved")
+    drive(live)
+    assert sc.rls_live.points != first[1]
+    assert bpy.ops.ed.undo() == {"FINISHED"}  # the scene is reloaded: names, not pointers
+    sc = bpy.context.scene
+    drive(live)
+    a, b = bpy.data.objects["LiDAR"], bpy.data.objects["LiDAR.001"]
+    assert tuple(a.location) == pytest.approx((-9.0, -9.0, 4.0))
+    assert (sc.rls_live.infra_d, sc.rls_live.points) == pytest.approx(first)
+    check_follows(sc, [a, b])

@@ -1,0 +1,202 @@
+"""Live coverage without Blender (``core/live``): the scheduler's debounce, supersede
+and budget driven with a fake clock and scanner, as Blender's timer would call it, and
+the per-LiDAR coverage against ``infra_lob_metrics`` on all clouds."""
+
+import numpy as np
+import pytest
+
+from rls_addon.core.live.coverage import Coverage, cells
+from rls_addon.core.live.schedule import LIVE, ON_DEMAND, LiveScheduler, LiveSettings
+from rls_addon.core.metrics.infra import infra_lob_metrics
+from rls_addon.core.points import empty_points
+
+
+class Clock:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+class Scanner:
+    """Scans take ``cost`` seconds of the fake clock; ``during`` runs inside a scan."""
+
+    def __init__(self, clock, cost=0.01, publish_cost=0.005):
+        self.clock, self.cost, self.publish_cost = clock, cost, publish_cost
+        self.scanned, self.shown, self.during = [], [], None
+        self.state = {}  # key -> its pose now (what a scan sees)
+
+    def scan(self, key):
+        self.scanned.append(key)
+        if self.during:
+            self.during(key)
+        self.clock.t += self.cost
+        return (key, self.state.get(key))
+
+    def publish(self, ready):
+        self.clock.t += self.publish_cost
+        self.shown.append(dict(ready))
+
+
+def run_timer(sched, clock, horizon=10.0):
+    """Call ``tick`` when it asks to be called, as ``bpy.app.timers`` would, until it is
+    idle (or ``horizon`` seconds pass)."""
+    end = clock.t + horizon
+    while clock.t < end:
+        wait = sched.tick()
+        if wait is None:
+            return
+        clock.t += wait
+
+
+def drag(sched, scanner, clock, key, steps, every):
+    """Move LiDAR ``key`` in ``steps`` steps ``every`` seconds apart, the timer running
+    in between (a drag in the viewport)."""
+    for i in range(steps):
+        scanner.state[key] = i
+        sched.changed([key])
+        until = clock.t + every
+        while clock.t < until:
+            wait = sched.tick()
+            clock.t = until if wait is None else min(until, clock.t + max(wait, 1e-4))
+
+
+def test_a_drag_costs_one_scan_after_it_settles():
+    clock = Clock()
+    scanner = Scanner(clock)
+    sched = LiveScheduler(scanner, clock, LiveSettings(debounce_s=0.05))
+    drag(sched, scanner, clock, "LiDAR", 20, 0.016)  # 20 steps at 60 Hz
+    assert scanner.scanned == []  # nothing while it moves
+    last_move = clock.t - 0.016
+    run_timer(sched, clock)
+    assert scanner.scanned == ["LiDAR"] and sched.scans == 1 and sched.superseded == 0
+    assert scanner.shown == [{"LiDAR": ("LiDAR", 19)}]  # the last pose
+    (update,) = sched.updates
+    assert update.scans == 1 and update.keys == ("LiDAR",)
+    # shown the debounce plus the scan and the showing after the last move
+    assert update.latency_s == pytest.approx(0.05 + 0.01 + 0.005, abs=1e-3)
+    assert clock.t - last_move == pytest.approx(update.latency_s, abs=1e-3)
+
+
+def test_a_drag_with_a_pause_is_scanned_at_the_pause_and_at_the_end():
+    clock = Clock()
+    scanner = Scanner(clock)
+    sched = LiveScheduler(scanner, clock, LiveSettings(debounce_s=0.05))
+    drag(sched, scanner, clock, "LiDAR", 10, 0.016)
+    drag(sched, scanner, clock, "LiDAR", 1, 0.2)  # held still for 0.2 s
+    drag(sched, scanner, clock, "LiDAR", 10, 0.016)
+    run_timer(sched, clock)
+    assert sched.scans == 2 and [s["LiDAR"][1] for s in scanner.shown] == [0, 9]
+
+
+def test_a_newer_change_supersedes_a_scan_not_shown_yet():
+    clock = Clock()
+    scanner = Scanner(clock)
+    sched = LiveScheduler(scanner, clock, LiveSettings(debounce_s=0.05))
+    # a frame change: both LiDARs at once; A is scanned first, then A moves again
+    # before B is scanned and anything is shown
+    sched.changed(["A", "B"])
+    clock.t += 0.05
+    assert sched.tick() == 0.0 and scanner.scanned == ["A"]
+    scanner.state["A"] = "moved"
+    sched.changed(["A"])
+    run_timer(sched, clock)
+    assert scanner.scanned == ["A", "B", "A"] and sched.superseded == 1
+    assert scanner.shown == [{"A": ("A", "moved"), "B": ("B", None)}]  # one update
+    # a change that arrives during a scan drops that scan's result too
+    scanner.during = lambda key: (sched.changed([key]), setattr(scanner, "during", None))
+    sched.changed(["B"])
+    run_timer(sched, clock)
+    assert scanner.scanned[-2:] == ["B", "B"] and sched.superseded == 2
+    assert len(scanner.shown) == 2 and sched.updates[-1].scans == 2
+
+
+def test_a_scene_over_budget_falls_back_to_on_demand_and_says_so():
+    clock = Clock()
+    scanner = Scanner(clock, cost=0.3)  # a heavy scene: 300 ms a scan
+    sched = LiveScheduler(scanner, clock, LiveSettings(debounce_s=0.05, budget_s=0.15,
+                                                       strikes=2))
+    for move in range(3):
+        sched.changed(["LiDAR"])
+        run_timer(sched, clock)
+        # the first update (it prepares the scene) is not judged, then two strikes
+        assert sched.mode == (LIVE if move < 2 else ON_DEMAND)
+    assert "over the 150 ms budget" in sched.reason and "on demand" in sched.reason
+    assert "an update takes 305 ms" in sched.reason  # the scan and the showing
+    sched.changed(["LiDAR"])
+    assert sched.tick() is None and sched.busy  # nothing happens by itself now
+    clock.t += 1.0
+    assert sched.tick() is None and sched.scans == 3
+    update = sched.update_now()  # the panel's Update button
+    assert update.keys == ("LiDAR",) and sched.scans == 4 and not sched.busy
+    sched.resume()
+    assert sched.mode == LIVE and sched.reason == ""
+
+
+def test_a_light_scene_stays_live_and_an_occasional_slow_update_is_forgiven():
+    clock = Clock()
+    scanner = Scanner(clock, cost=0.02)
+    sched = LiveScheduler(scanner, clock, LiveSettings(debounce_s=0.05, budget_s=0.15))
+    for cost in (0.5, 0.02, 0.3, 0.02, 0.3, 0.02):  # never two slow ones in a row
+        scanner.cost = cost
+        sched.changed(["LiDAR"])
+        run_timer(sched, clock)
+    assert sched.mode == LIVE and len(sched.updates) == 6
+
+
+def test_forgotten_lidars_are_not_scanned():
+    clock = Clock()
+    scanner = Scanner(clock)
+    sched = LiveScheduler(scanner, clock)
+    sched.changed(["A", "B"])
+    sched.forget("A")
+    run_timer(sched, clock)
+    assert scanner.scanned == ["B"]
+
+
+POLY = [(0.0, 0.0), (20.0, 0.0), (20.0, 10.0), (0.0, 10.0)]
+
+
+def cloud(seed, n, label=1, shift=0.0):
+    rng = np.random.default_rng(seed)
+    p = empty_points(n)
+    p["x"] = rng.uniform(-2, 22, n) + shift
+    p["y"] = rng.uniform(-2, 12, n)
+    p["label"] = label
+    return p
+
+
+def test_coverage_is_infra_lob_metrics_of_all_clouds_and_follows_one_rescan():
+    cov = Coverage(POLY, disks=400, cell=2.0)
+    a, b = cloud(1, 3000), cloud(2, 2000)
+    cov.set_cloud("A", a)
+    cov.set_cloud("B", b)
+    ref = infra_lob_metrics([a, b], POLY, disks=400, cell=2.0)
+    got = cov.state()
+    assert got.sensors == ("A", "B") and got.n_points == ref.n_points
+    assert got.infra_d == pytest.approx(ref.infra_d, rel=1e-12)
+    assert got.infra_nuc == pytest.approx(ref.infra_nuc, rel=1e-12)
+    np.testing.assert_array_equal(got.density.values, ref.density.values)
+    moved = cloud(3, 2500, shift=3.0)  # B rescanned after a move
+    cov.set_cloud("B", moved)
+    ref = infra_lob_metrics([a, moved], POLY, disks=400, cell=2.0)
+    assert cov.state().infra_nuc == pytest.approx(ref.infra_nuc, rel=1e-12)
+    cov.remove("A")
+    cov.remove("B")
+    empty = cov.state()
+    assert empty.n_points == 0 and empty.infra_d == 0 and np.isnan(empty.infra_nuc)
+    assert (empty.density.values[np.isfinite(empty.density.values)] == 0).all()
+
+
+def test_map_cells_are_coloured_as_the_chart_with_empty_cells_white():
+    cov = Coverage([(0, 0), (4, 0), (4, 2), (2, 2), (2, 4), (0, 4)], disks=50, cell=1.0)
+    p = empty_points(3)
+    p["x"], p["y"], p["label"] = [0.5, 0.5, 1.5], [0.5, 0.5, 0.5], 1
+    cov.set_cloud("A", p)
+    corners, rgba = cells(cov.state().density)
+    assert len(corners) == 12  # the L's cells; the corner outside it has none
+    first = {tuple(c[0]): tuple(col) for c, col in zip(corners, rgba)}
+    assert first[(0.0, 0.0)][:3] == pytest.approx(np.array([253, 231, 37]) / 255)  # densest
+    assert first[(0.0, 1.0)] == pytest.approx((1.0, 1.0, 1.0, 1.0))  # no return: white
+    assert corners[0][1] - corners[0][0] == pytest.approx([1.0, 1.0])
