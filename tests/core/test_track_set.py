@@ -1,0 +1,84 @@
+"""Many tracks evaluated at once (``TrackSet``) give what each ``Track`` gives on its
+own, byte for byte: driving, accelerating, turning, scaled and sheared, still and
+one-knot tracks, at times inside, on and beyond their knots."""
+
+import numpy as np
+
+from rls_addon.core.scene.motion import Track
+from rls_addon.core.scene.track_set import TrackSet
+
+
+def turned(yaw, pitch=0.0):
+    c, s = np.cos(yaw), np.sin(yaw)
+    m = np.eye(4)
+    m[:2, :2] = [[c, -s], [s, c]]
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    r = np.eye(4)
+    r[[0, 0, 2, 2], [0, 2, 0, 2]] = [cp, sp, -sp, cp]
+    return m @ r
+
+
+def tracks(rng, count=50):
+    out = []
+    for k in range(count):
+        n = int(rng.integers(1, 12))
+        t = np.sort(rng.uniform(0.0, 0.1, n))
+        t[0] = 0.0
+        kind = k % 6
+        mats = []
+        for tt in t:
+            if kind == 0:    # driving straight
+                m = np.eye(4)
+                m[:3, 3] = [10 * tt, 2, 0]
+            elif kind == 1:  # accelerating through a turn
+                m = turned(3 * tt)
+                m[:3, 3] = [5 * tt + 20 * tt * tt, 1, 0]
+            elif kind == 2:  # parked
+                m = turned(0.3)
+                m[:3, 3] = [1, 2, 3]
+            elif kind == 3:  # tumbling, scaled and sheared
+                m = turned(rng.uniform(-3, 3), rng.uniform(-1, 1))
+                m[:3, :3] = m[:3, :3] @ (np.eye(3) + rng.normal(0, 0.3, (3, 3)))
+                m[:3, 3] = rng.normal(size=3)
+            elif kind == 4:  # on a circle
+                m = turned(-20 * tt)
+                m[:3, 3] = [np.cos(20 * tt), np.sin(20 * tt), 0]
+            else:            # mirrored
+                m = turned(2 * tt) @ np.diag([1.0, -1.0, 1.0, 1.0])
+                m[:3, 3] = [tt, -tt, 0]
+            mats.append(m)
+        out.append(Track(t, np.array(mats)))
+    return out
+
+
+def test_a_set_evaluates_every_track_as_the_track_does():
+    rng = np.random.default_rng(1)
+    ts = tracks(rng)
+    both = TrackSet(ts)
+    which = rng.integers(0, len(ts), 4000)
+    t = rng.uniform(-0.02, 0.12, 4000)
+    t[::7] = 0.0
+    t[1::11] = 0.1
+    t[2::13] = [ts[w].times[-1] for w in which[2::13]]  # on their last knot
+    got, pos = both.at(which, t), both.positions_at(which, t)
+    for r in range(len(t)):
+        track = ts[which[r]]
+        assert np.array_equal(track.at([t[r]])[0], got[r])
+        assert np.array_equal(track.positions_at([t[r]])[0], pos[r])
+
+
+def test_many_times_of_one_track_match_its_own_broadcast_evaluation():
+    track = tracks(np.random.default_rng(2), 2)[1]
+    t = np.linspace(0.0, 0.1, 20000)
+    one = TrackSet([track])
+    assert np.array_equal(track.at(t), one.at(np.zeros(len(t), int), t))
+    assert np.array_equal(track.positions_at(t), one.positions_at(np.zeros(len(t), int), t))
+
+
+def test_fixed_tracks_stand_for_objects_that_did_not_move():
+    m = turned(0.7)
+    m[:3, 3] = [4, 5, 6]
+    moving = tracks(np.random.default_rng(3), 2)[1]
+    both = TrackSet.of([None, moving], [m, np.eye(4)])
+    assert np.array_equal(both.at([0, 0], [0.0, 0.05]), np.stack([m, m]))
+    assert np.array_equal(both.at([1], [0.05])[0], moving.at([0.05])[0])
