@@ -307,3 +307,20 @@ def test_a_body_whose_track_needs_more_than_embrees_steps_scans_as_the_portable_
     assert jumped.sum() > 50
     assert np.array_equal(a["range"][ia][jumped], b["range"][ib][jumped])
     assert np.array_equal(a["x"][ia][jumped], b["x"][ib][jumped])
+
+
+def test_every_objects_steps_at_once_equal_each_objects_own():
+    """The steps of a sweep's objects worked out together (their tracks evaluated in
+    one go, round by round) are each object's own, byte for byte: driving, turning,
+    accelerating, jumping (beyond Embree's steps), two-knot and parked tracks."""
+    g, rb = bodies(street(), Embree)
+    iw = World(PreparedScene(g, np.zeros(3), 100.0, Embree), [rb]).instanced
+    times = np.linspace(0.0, T, 9)
+    braking = Track(times, [pose(4 + 12 * t - 30 * t * t, 3, -0.8, 50 * t * t) for t in times])
+    tracks = [*rb.tracks, realistic_turn(), jumping_track(), braking]
+    objects = [(tr, rb.centres[k % 3], rb.local[k % 3][0]) for k, tr in enumerate(tracks)]
+    together = iw._steps_many(objects)
+    for obj, (m, close) in zip(objects, together):
+        ref, ref_close = iw._steps(*obj)
+        assert close == ref_close and np.array_equal(m, ref)
+    assert [len(m) for m, _ in together][:3] == [2, instancing.MAX_STEPS, 1]
