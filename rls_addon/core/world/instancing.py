@@ -181,10 +181,26 @@ class InstancedWorld:
         d = np.asarray(directions, np.float64)
         t = np.asarray(times, np.float64)
         tau = np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0) if self.moving else None
-        pending = self.instances.start(o - self.centre, d, max_range, tau, order)
-        return lambda: self._finish(pending(), o, d, t, max_range, watertight)
+        recheck = None
+        if self.first and watertight and self.static.watertight:
+            # the static scene's re-check in the loop's threads, where it is compiled
+            recheck = self.static.caster.native_recheck(o - self.centre, max_range,
+                                                        self.static.planes, limit=True)
+        pending = self.instances.start(o - self.centre, d, max_range, tau, order, recheck)
+
+        def finish():
+            got = pending()
+            if recheck is not None:
+                self.static.caster.retried += recheck[0].retried
+            return self._finish(got, o, d, t, max_range, watertight and recheck is None)
+
+        return finish
 
     def _finish(self, got, o, d, t, max_range, watertight):
+        """The instanced cast's result as the world's: moving hits beyond the range
+        dropped, and (``watertight``, when the loop did not) the static scene's
+        re-check of the rays that did not hit it, in numpy: the reference of the
+        compiled re-check (``WatertightCaster.native_recheck``)."""
         dist, tri, normals, inst = got
         first = self.first
         far = np.nonzero((inst >= first) & ~(dist <= max_range))[0]
