@@ -41,12 +41,12 @@ NATIVE = ROOT / "rls_addon" / "core" / "native" / "c"
 # footprint's depth-edge test and its probe sectors (edges.c) and probe sub-rays
 # (probes.c), the weather's false returns (weather.c), a study candidate's disk counts
 # (disks.c), the ghost bounces' set-up and landing (ghosts.c), a static cast's returns
-# (returns.c), a footprint's echoes (echoes.c) and the ground-truth boxes' counts
-# (boxes.c).
+# (returns.c), a footprint's echoes (echoes.c), the ground-truth boxes' counts
+# (boxes.c) and a moving sensor's ray origins (tracks.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
            NATIVE / "ghosts.c", NATIVE / "returns.c", NATIVE / "echoes.c",
-           NATIVE / "boxes.c"]
+           NATIVE / "boxes.c", NATIVE / "tracks.c"]
 HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h", NATIVE / "rls_sectors.h"]
 BUILD = ROOT / "build" / "native"
 ZIG_CACHE = ROOT / "build" / "zig-cache"

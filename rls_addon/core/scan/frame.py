@@ -15,6 +15,7 @@ from ..physics.assemble import Draws, Effects, Hits, Rays, assemble
 from ..world.bodies import PreparedScene
 from ..errors import SceneError
 from ..scene.motion import effective_times, polar, rigid
+from ..scene.track_set import positions_at as track_positions
 from .device_values import device_values
 from .sweep import adaptive_substeps
 from ..native.vectors import row_dot
@@ -363,7 +364,7 @@ class _Aim:
             # Driving without turning: one rotation for the sweep (the pattern turned
             # once, and kept while it does not turn), an origin per distinct firing time.
             times, at = distinct_times(tscene)
-            poses = sensor_track.positions_at(times)
+            poses = track_positions(sensor_track, times)
             origins = poses[at]
             rot = sensor_axes(sensor_track.matrices[0])[1]
             dirs = pattern.rotated(rot)
@@ -375,7 +376,7 @@ class _Aim:
             # no matrix per time: with every channel at its own time, a matrix and its
             # polar decomposition per ray cost 240 ms a Pandar64 frame).
             times, at = distinct_times(tscene)
-            poses = sensor_track.positions_at(times)
+            poses = track_positions(sensor_track, times)
             origins = poses[at]
             dirs = sensor_track.rotate(tscene, dirs_sensor)
             if beam is not None:

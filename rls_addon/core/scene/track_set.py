@@ -9,9 +9,46 @@ quaternion slerp, linear scale and shear) and the same arithmetic, element by el
 (tested in ``tests/core/test_track_set.py``), in one evaluation over all rows.
 """
 
+import ctypes
+
 import numpy as np
 
+from ..native import kernels
+from ..native.kernels import Kernel
 from .motion import Track, hermite, matrix_from_quat, slerp
+
+
+def positions_at(track, t):
+    """(N, 3) ``track.positions_at(t)`` (its reference), in C where it is built
+    (``native/c/tracks.c``: the same bits) for the many times of a frame's rays, each
+    firing at its own time."""
+    t = np.asarray(t, np.float64).reshape(-1)
+    fn = TRACK_POSITIONS.get() if compiled and len(t) >= 256 else None
+    if fn is None or len(track.times) < 2 or track.is_static:
+        return track.positions_at(t)
+    knots = [np.ascontiguousarray(track.times), np.ascontiguousarray(track.matrices[:, :3, 3]),
+             np.ascontiguousarray(track.velocities, np.float64), np.ascontiguousarray(t)]
+    out = np.empty((len(t), 3))
+    args = _PositionsArgs(len(knots[0]), *(a.ctypes.data for a in knots[:3]), len(t),
+                          knots[3].ctypes.data, out.ctypes.data)
+    fn(ctypes.byref(args), kernels.threads())
+    return out
+
+
+class _PositionsArgs(ctypes.Structure):
+    """``positions_t`` of native/c/tracks.c."""
+
+    _fields_ = [("knots", ctypes.c_int64), ("times", ctypes.c_void_p),
+                ("position", ctypes.c_void_p), ("velocity", ctypes.c_void_p),
+                ("n", ctypes.c_int64), ("t", ctypes.c_void_p), ("out", ctypes.c_void_p)]
+
+
+NATIVE_TRACKS_ABI = 1
+TRACK_POSITIONS = Kernel("rls_track_positions", "rls_tracks_abi", NATIVE_TRACKS_ABI,
+                         [ctypes.POINTER(_PositionsArgs), ctypes.c_int])
+# Off: a frame's ray origins come from Track.positions_at (the reference the C code is
+# tested against).
+compiled = True
 
 
 class TrackSet:

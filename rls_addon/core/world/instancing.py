@@ -181,12 +181,13 @@ class InstancedWorld:
         d = np.asarray(directions, np.float64)
         t = np.asarray(times, np.float64)
         tau = np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0) if self.moving else None
+        oc = o - self.centre
         recheck = None
         if self.first and watertight and self.static.watertight:
             # the static scene's re-check in the loop's threads, where it is compiled
-            recheck = self.static.caster.native_recheck(o - self.centre, max_range,
-                                                        self.static.planes, limit=True)
-        pending = self.instances.start(o - self.centre, d, max_range, tau, order, recheck)
+            recheck = self.static.caster.native_recheck(oc, max_range, self.static.planes,
+                                                        limit=True)
+        pending = self.instances.start(oc, d, max_range, tau, order, recheck)
 
         def finish():
             got = pending()
