@@ -98,3 +98,26 @@ def test_a_frames_ray_origins_in_c_are_the_tracks_own():
         t[::97] = rng.uniform(-0.02, 0.12, len(t[::97]))
         t[5::101] = track.times[rng.integers(0, len(track.times), len(t[5::101]))]
         assert np.array_equal(track_set.positions_at(track, t), track.positions_at(t))
+
+
+def test_tracks_made_together_are_each_tracks_own():
+    """``Track.many`` (a sweep's bodies decomposed together) gives each body the track
+    ``Track`` gives it: the same rotations' quaternions, on the same side, and the same
+    scale and shear; and the sweep's check of its samples (``_interp_errors``) the same
+    errors as body by body."""
+    from rls_addon.core.scan.sweep import _interp_error, _interp_errors
+
+    rng = np.random.default_rng(9)
+    times = np.linspace(0.0, 0.1, 9)
+    mats = np.array([tr.at(times) for tr in tracks(rng, 40) if len(tr.times) > 1])
+    mats[::5, 4:] = mats[::5, 4:] @ np.diag([-1.0, 1.0, 1.0, 1.0])  # a flip mid-sweep
+    for one, many in zip([Track(times, m) for m in mats] + [Track(times[:2], mats[0, :2])],
+                         Track.many(times, mats) + Track.many(times[:2], mats[:1, :2])):
+        assert np.array_equal(one._quat, many._quat) and np.array_equal(one._scale, many._scale)
+        assert np.array_equal(one.velocities, many.velocities)
+        assert np.array_equal(one.at(times[:-1] + 0.003), many.at(times[:-1] + 0.003))
+    probe_t = (times[1:] + times[:-1]) / 2
+    probe = mats[:, :8] + rng.normal(0, 1e-4, (len(mats), 8, 4, 4))
+    points = [rng.normal(size=(2, 3)) for _ in mats]
+    assert _interp_errors(times, mats, probe_t, probe, points) == \
+        [_interp_error(times, m, probe_t, p, q) for m, p, q in zip(mats, probe, points)]
