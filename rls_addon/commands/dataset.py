@@ -90,7 +90,7 @@ def dataset_writer(args, scene, sensors, classes):
                            points_format=args.points_format, level=args.level,
                            min_points=args.min_points,
                            split=Split(args.val_share, args.split_seed, val),
-                           overwrite=args.overwrite, resume=args.resume)
+                           overwrite=args.overwrite, resume=args.resume, background=True)
     carriers = {o.name: carrier_of(o, classes) for o in sensors}
     return Opv2vWriter(args.out, scene.name, agents_for([o.name for o in sensors], carriers),
                        {k: v for k, v in carriers.items() if v}, overwrite=args.overwrite,
