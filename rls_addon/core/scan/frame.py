@@ -73,6 +73,18 @@ def distinct_times(times):
     return np.unique(t, return_inverse=True)
 
 
+def first_of_each(times):
+    """Indices of the first ray of each distinct time, in the order of the times
+    (``distinct_times``' distinct times are ``times[first_of_each(times)]``)."""
+    t = np.asarray(times)
+    if len(t) and np.all(t[1:] >= t[:-1]):
+        first = np.empty(len(t), bool)
+        first[0] = True
+        np.not_equal(t[1:], t[:-1], out=first[1:])
+        return np.nonzero(first)[0]
+    return np.unique(t, return_index=True)[1]
+
+
 def sensor_axes(sensor_to_world):
     """Origins and orthonormal rotations of 4x4 poses (one (4, 4) or a stack (N, 4, 4));
     scale and shear are removed (``motion.polar``). A mirrored sensor (a negative scale
@@ -283,7 +295,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
             raise ValueError("scan_frame(rays=...) is for a still sensor without beam "
                              "footprints (a footprint needs its neighbours' rays)")
         aim = aim.subset(pick)
-    scene = _prepared(scene, aim.poses, rmax, caster_factory)
+    scene = _prepared(scene, aim, rmax, caster_factory)
     world = World(scene, list(moving))
     warnings = list(scene.warnings) + _empty_scene_warnings(scene, moving, rmax)
 
@@ -345,7 +357,7 @@ class _Aim:
     columns: tuple
     channels: np.ndarray
     ray_times: np.ndarray
-    poses: np.ndarray
+    _poses: object  # (P, 3) the distinct poses, or a _DistinctPoses that makes them
     beam_origins: np.ndarray = None  # (N, 3) sensor frame, or None: all from the origin
 
     @classmethod
@@ -362,10 +374,10 @@ class _Aim:
                 origins = pattern.placed_origins(rot, origin)
         elif sensor_track.linear_is_constant:
             # Driving without turning: one rotation for the sweep (the pattern turned
-            # once, and kept while it does not turn), an origin per distinct firing time.
-            times, at = distinct_times(tscene)
-            poses = track_positions(sensor_track, times)
-            origins = poses[at]
+            # once, and kept while it does not turn), an origin per firing time (in C,
+            # see track_set.positions_at; the distinct poses only when asked for).
+            origins = track_positions(sensor_track, tscene)
+            poses = _DistinctPoses(origins, tscene)
             rot = sensor_axes(sensor_track.matrices[0])[1]
             dirs = pattern.rotated(rot)
             if beam is not None:
@@ -375,9 +387,8 @@ class _Aim:
             # firing time, by the track's turn within its knot interval (``Track.rotate``,
             # no matrix per time: with every channel at its own time, a matrix and its
             # polar decomposition per ray cost 240 ms a Pandar64 frame).
-            times, at = distinct_times(tscene)
-            poses = track_positions(sensor_track, times)
-            origins = poses[at]
+            origins = track_positions(sensor_track, tscene)
+            poses = _DistinctPoses(origins, tscene)
             dirs = sensor_track.rotate(tscene, dirs_sensor)
             if beam is not None:
                 origins = origins + sensor_track.rotate(tscene, beam)
@@ -393,12 +404,38 @@ class _Aim:
         return cls(origins, dirs, tscene, pattern.trace_order, pattern.columns,
                    pattern.channels, pattern.times, poses, beam)
 
+    def pose_points(self):
+        """The sensor's poses, as many times as its rays share them (what a covering
+        check needs, without finding the distinct ones)."""
+        p = self._poses
+        return p.positions if isinstance(p, _DistinctPoses) else p
+
+    @property
+    def poses(self):
+        """The sensor's distinct poses over the sweep ((1, 3) for a still sensor)."""
+        p = self._poses
+        if isinstance(p, _DistinctPoses):
+            p = self._poses = p()
+        return p
+
     def subset(self, pick):
         """The rays ``pick`` (a ``_Subset``) chooses, in the pattern's trace order."""
         return _Aim(self.origins if self.origins.shape[0] == 1 else pick(self.origins),
                     pick(self.dirs), pick(self.times), pick.order,
                     tuple(pick(c) for c in self.columns), pick(self.channels),
                     pick(self.ray_times), self.poses, pick(self.beam_origins))
+
+
+class _DistinctPoses:
+    """The sensor's positions at its distinct firing times, from its position at every
+    ray's time (what ``_Aim.poses`` holds; made only when asked for: the rays carry
+    their origins, and a prepared scene checks them all at once)."""
+
+    def __init__(self, positions, times):
+        self.positions, self.times = positions, times
+
+    def __call__(self):
+        return self.positions[first_of_each(self.times)]
 
 
 def _from_beam_origins(pts, beam_origins, idx):
@@ -410,13 +447,15 @@ def _from_beam_origins(pts, beam_origins, idx):
             pts[f] += beam_origins[idx, k]
 
 
-def _prepared(scene, poses, rmax, caster_factory):
+def _prepared(scene, aim, rmax, caster_factory):
     """``scene`` as a ``PreparedScene`` that covers every pose of the sweep out to
-    ``rmax``: prepared here from a ``SceneGeometry``, or checked."""
+    ``rmax``: prepared here from a ``SceneGeometry``, or checked (against every ray's
+    origin without beam offsets: the poses, repeated)."""
     if not isinstance(scene, PreparedScene):
+        poses = aim.poses
         return PreparedScene(scene, poses.mean(axis=0),
                              rmax + np.ptp(poses, axis=0).max(initial=0.0), caster_factory)
-    if not scene.covers(poses, rmax):
+    if not scene.covers(aim.pose_points(), rmax):
         raise SceneError("the prepared scene does not cover this sensor's range: prepare "
                          "it around the sensor with a reach of at least its range")
     return scene
