@@ -188,11 +188,13 @@ def object_boxes(instances, objects, tracks, classes, result, sensor_pose_at, rm
         times[j] = t
     t_ref = np.array(times, np.float64)
     every = np.arange(n)
-    matrices = tset.at(every, t_ref)
-    starts = tset.at(every, np.zeros(n))
     spans = [_velocity_span(tr, t) for tr, t in zip(tset.tracks, t_ref)]
     moving = [j for j in range(n) if spans[j] is not None]
-    ab = tset.at(np.repeat(moving, 2), np.array([spans[j] for j in moving]).reshape(-1))
+    # every track at once: at the reference times, at the sweep start, and around the
+    # reference times for the velocities
+    at = tset.at(np.r_[every, every, np.repeat(moving, 2)].astype(np.int64),
+                 np.r_[t_ref, np.zeros(n), np.array([spans[j] for j in moving]).reshape(-1)])
+    matrices, starts, ab = at[:n], at[n:2 * n], at[2 * n:]
     poses, sizes = box_frames(matrices, lo, hi)
     margin = 3.0 * float(noise_sigma) + BOX_MARGIN_M
     # the rays toward each box, out to the larger of its two spheres (its points' and

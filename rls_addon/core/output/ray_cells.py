@@ -5,8 +5,8 @@ The rays' unit directions are put in cells of azimuth (``AZ_CELLS`` over 360 deg
 elevation (``EL_CELLS`` over 180 deg) by two stable radix sorts, once per frame, and
 kept while a sensor casts the very same direction array again (a still sensor, or one
 driving without turning: ``ScanPattern.rotated`` gives one read-only array). A box's
-cone from the first ray origin ``o0`` (half-angle asin(reach / distance), its reach the
-box's radius plus how far a moving sensor's origins travel) holds every ray that passes
+cone from the middle of the ray origins ``o0`` (half-angle asin(reach / distance), its reach the
+box's radius plus how far a moving sensor's origins lie from the apex) holds every ray that passes
 within that radius of its centre: such a direction lies within the cone's angle of its
 axis, so within that angle of its elevation and within asin(sin a / cos e) of its
 azimuth (the span of a spherical cap that holds no pole). The cells those spans touch
@@ -84,14 +84,16 @@ class RayCells:
     def __init__(self, rays):
         self.rays = rays
         o = np.asarray(rays.origins, np.float64)
-        self.o0 = o[0] if len(o) else np.zeros(3)
-        # How far the origins may lie from o0: the diagonal of their bounding box from
-        # it (at least the farthest origin's distance; the cones widen by it).
-        self.travel = 0.0
+        # The cones' apex: the middle of the origins' bounding box, and how far they may
+        # lie from it (half its diagonal: at least the farthest origin's distance; the
+        # cones widen by it). One origin: itself.
+        self.o0, self.travel = (o[0] if len(o) else np.zeros(3)), 0.0
         if len(o) > 1:
-            far = [max(abs(float(o[:, k].min()) - self.o0[k]), abs(float(o[:, k].max()) - self.o0[k]))
-                   for k in range(3)]
-            self.travel = math.sqrt(sum(f * f for f in far)) * (1 + 1e-12) + 1e-12
+            lo = np.array([o[:, k].min() for k in range(3)])
+            hi = np.array([o[:, k].max() for k in range(3)])
+            self.o0 = (lo + hi) / 2
+            half = (hi - lo) / 2
+            self.travel = math.sqrt(float(half @ half)) * (1 + 1e-12) + 1e-12
         self.cells = _Cells.of(rays.dirs)
         pr = np.asarray(rays.point_ray, np.int64)
         # the points grouped by ray: ray r's points are point_order[pstart[r]:pstart[r + 1]]
