@@ -119,7 +119,9 @@ def dataset_run(args):
     jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
     writer = dataset_writer(args, scene, sensors, set(classes))
     frames = parse_frames(args.frames, scene.frame_current)
-    return ScanRun(BlenderScene(scene), jobs, frames, writer=writer, progress=_print_step), writer
+    # a background Blender: nobody edits the file (as rls scan's source)
+    return (ScanRun(BlenderScene(scene, edited=False), jobs, frames, writer=writer,
+                    progress=_print_step), writer)
 
 
 def run(args):
