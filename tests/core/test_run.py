@@ -320,3 +320,17 @@ def test_the_disk_budget_waits_for_files_written_behind_the_scan(tmp_path, monke
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
     for name in written:  # each complete, with its sidecar
         assert (tmp_path / name.replace(".pcd", ".json")).is_file()
+
+
+def test_moving_bodies_are_built_once_while_their_meshes_are_the_same(monkeypatch):
+    """A car driving past a still sensor: its body (its triangles in its own frame) is
+    built for the first frame and kept, with each frame's track, while the scene reads
+    the same mesh (its id); its geometry is not digested for that."""
+    from rls_addon.core.scene import geometry
+
+    digests = []
+    real = geometry.SceneGeometry.fingerprint
+    monkeypatch.setattr(geometry.SceneGeometry, "fingerprint",
+                        lambda self: digests.append(1) or real(self))
+    run = run_of(street(car_speed=12.0), [job("pole")], [1, 2, 3, 4]).run()
+    assert run.structure_builds == 2 and not digests  # the static scene and the car

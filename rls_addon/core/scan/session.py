@@ -23,7 +23,7 @@ from ..physics.footprint import footprint_info
 from .frame import scan_frame, sensor_frame
 from ..output.ground_truth import object_boxes
 from ..scene.geometry import nonfinite_warning
-from ..scene.instances import (object_table, static_key, without_nonfinite,
+from ..scene.instances import (bodies_key, object_table, static_key, without_nonfinite,
                                world_geometry)
 from ..labels import DEFAULT_LABELS
 from ..scene.motion import pose_knots, rigid
@@ -171,13 +171,22 @@ class ScanSession:
             bodies += self._substeps(sweep, period, instances[k], k, objects, materials,
                                      substeps[k], skipped)
         if motion.rigid:
-            rigid = [(instances[k].key,
-                      world_geometry(instances, objects, materials, select={k}, local=True),
-                      track) for k, track in motion.rigid]
-            key = tuple((name, local.fingerprint()) for name, local, _ in rigid)
+            def local(k):
+                return world_geometry(instances, objects, materials, select={k}, local=True)
+
+            # Kept while what was read is the same (their meshes' ids), else while their
+            # digests are: their geometry is joined only when the group is new.
+            key = bodies_key(instances, objects, materials, [k for k, _ in motion.rigid])
+            if key is None:
+                rigid = [(instances[k].key, local(k)) for k, _ in motion.rigid]
+                key = tuple((name, geometry.fingerprint()) for name, geometry in rigid)
+                parts = [g for _, g in rigid]
+            else:
+                parts = None
             group = self._cached(self._bodies, key, lambda: RigidBodies(
-                [(local, tr) for _, local, tr in rigid], self.caster_factory))
-            group.tracks = [tr for _, _, tr in rigid]  # this sweep's motion
+                [(g, tr) for g, (_, tr) in zip(parts or [local(k) for k, _ in motion.rigid],
+                                               motion.rigid)], self.caster_factory))
+            group.tracks = [tr for _, tr in motion.rigid]  # this sweep's motion
             bodies.append(group)
         return bodies
 
