@@ -206,3 +206,26 @@ def test_the_ray_facing_a_centre_is_the_best_of_all(moving):
             assert best == facing(rays, centre, slice(None))[0]
             settled += 1
     assert settled > 150
+
+
+def test_every_boxs_record_made_together_is_its_own(monkeypatch):
+    """The sidecar's box records made for all boxes at once (``box_dicts``: the sensor
+    poses inverted and the start matrices decomposed together) are each box's own
+    ``to_dict``, byte for byte, for a driving and a turning sensor."""
+    from rls_addon.core.output.ground_truth import box_dicts
+
+    seen = []
+    fast = session_module.object_boxes
+
+    def compare(*args, **kw):
+        boxes = fast(*args, **kw)
+        assert json.dumps(box_dicts(boxes)) == json.dumps([b.to_dict() for b in boxes])
+        seen.extend(boxes)
+        return boxes
+
+    monkeypatch.setattr(session_module, "object_boxes", compare)
+    for sensor in ("driving", "turning"):
+        job = SensorJob(sensor, LidarSettings(scan=ScanSettings(), output=OutputSettings()),
+                        small_preset(channels=16, steps=900))
+        ScanRun(traffic(sensor), [job], [1, 2], factory=numpy_factory).run()
+    assert len(seen) == 2 * 2 * 7 and all(b.start_matrix is not None for b in seen)

@@ -86,16 +86,22 @@ class ObjectBox:
         """The box pose in the sensor frame at the reference time."""
         return self.in_frame(np.linalg.inv(self.sensor_pose))
 
-    def _at_start(self):
+    def _at_start(self, rot=None):
         """Where the box was at the sweep start (the time of the sidecar's
         ``sensor_pose_start``): what a simulator's per-tick poses give, e.g. OPV2V's
-        ``true_ego_pos`` beside its ``lidar_pose``."""
-        centre, rot, origin = _box_at(self, self.start_matrix)
+        ``true_ego_pos`` beside its ``lidar_pose``. ``rot``: the start matrix's
+        rotation when already decomposed."""
+        centre, rot, origin = _box_at(self, self.start_matrix, rot)
         return {"centre": centre.tolist(), "origin": origin.tolist(), "rotation": rot.tolist(),
                 "heading_rad": float(math.atan2(rot[1, 0], rot[0, 0]))}
 
     def to_dict(self):
-        sensor = self.in_sensor()
+        inv = np.linalg.inv(self.sensor_pose)
+        return self._dict(inv, self.in_frame(inv), None)
+
+    def _dict(self, inv_sensor, sensor, start_rot):
+        """``to_dict`` from the sensor pose's inverse, the box in the sensor frame and
+        the start matrix's rotation (None: decomposed here)."""
         return {
             "instance": self.instance, "object": self.name, "label": self.label,
             "category": self.category, "time_s": self.time, "seen": self.seen,
@@ -108,22 +114,41 @@ class ObjectBox:
                       "origin": self.origin.tolist(),
                       "rotation": self.pose[:3, :3].tolist(),
                       "velocity_mps": self.velocity.tolist()},
-            **({} if self.start_matrix is None else {"world_at_sweep_start": self._at_start()}),
+            **({} if self.start_matrix is None
+               else {"world_at_sweep_start": self._at_start(start_rot)}),
             "sensor": {"centre": sensor[:3, 3].tolist(),
                        "heading_rad": float(math.atan2(sensor[1, 0], sensor[0, 0])),
                        "rotation": sensor[:3, :3].tolist(),
-                       "velocity_mps": (np.linalg.inv(self.sensor_pose)[:3, :3]
-                                        @ self.velocity).tolist()},
+                       "velocity_mps": (inv_sensor[:3, :3] @ self.velocity).tolist()},
         }
 
 
-def _box_at(box, matrix):
+def box_dicts(boxes):
+    """``[b.to_dict() for b in boxes]``, the same dicts: the sensor poses' inverses, the
+    boxes in the sensor frame and the start matrices' rotations made for all boxes at
+    once (one decomposition per matrix, one product per box, as box by box)."""
+    if not boxes:
+        return []
+    inv = np.linalg.inv(np.array([b.sensor_pose for b in boxes], np.float64))
+    sensor = inv @ np.array([b.pose for b in boxes], np.float64)
+    starts = [j for j, b in enumerate(boxes) if b.start_matrix is not None]
+    rots = [None] * len(boxes)
+    if starts:
+        got, _ = polar(np.array([boxes[j].start_matrix for j in starts], np.float64)[:, :3, :3])
+        for j, r in zip(starts, got):
+            rots[j] = r
+    return [b._dict(inv[j], sensor[j], rots[j]) for j, b in enumerate(boxes)]
+
+
+def _box_at(box, matrix, rot=None):
     """The box of ``box``'s object placed by another matrix of the object (the same
-    local box: the size and the offset of its centre from the origin are the object's)."""
-    rot, _ = polar(np.asarray(matrix, np.float64)[None, :3, :3])
+    local box: the size and the offset of its centre from the origin are the object's);
+    ``rot``: the matrix's rotation (``polar``) when already worked out."""
+    if rot is None:
+        rot = polar(np.asarray(matrix, np.float64)[None, :3, :3])[0][0]
     local = box.pose[:3, :3].T @ (box.pose[:3, 3] - box.origin)  # centre from origin
     origin = np.asarray(matrix, np.float64)[:3, 3]
-    return origin + rot[0] @ local, rot[0], origin
+    return origin + rot @ local, rot, origin
 
 
 def box_frames(matrices, lo, hi):

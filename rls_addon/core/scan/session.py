@@ -21,7 +21,7 @@ from ..world.bodies import PreparedScene, RigidBodies, TimedScene
 from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
 from .frame import scan_frame, sensor_frame
-from ..output.ground_truth import object_boxes
+from ..output.ground_truth import box_dicts, object_boxes
 from ..scene.geometry import nonfinite_warning
 from ..scene.instances import (bodies_key, object_table, static_key, without_nonfinite,
                                world_geometry)
@@ -141,10 +141,10 @@ class ScanSession:
                           instances, substeps, n_used, objects, scene, result, read)
         info.update(sensor_pose_record(frame_pose, track, preset.period))
         if object_classes is not None:
-            info["objects"] = [b.to_dict() for b in object_boxes(
+            info["objects"] = box_dicts(object_boxes(
                 instances, objects, motion.tracks if settings.motion != "snapshot" else {},
                 classes, result, _pose_function(frame_pose, track), rmax,
-                values.noise_sigma_m, preset.period)] if boxes else []
+                values.noise_sigma_m, preset.period)) if boxes else []
             info["object_classes"] = sorted(classes)
         result.rays_cast = None  # large; the boxes hold what was wanted from it
         return result, info
