@@ -14,7 +14,6 @@ from rls_addon.core.world.world import World
 from .test_instancing import T, Embree, car, pose, realistic_turn
 
 
-
 def cracked_street():
     """A ground and a wall each cut into a fine grid of triangles (rays aimed at their
     shared edges and vertices slip through float32 traversals: what the watertight
