@@ -83,7 +83,7 @@ def test_a_driving_sensors_poses_are_its_positions_at_its_distinct_times():
     """A driving sensor's rays carry their origins (its position at each ray's time);
     the distinct poses, made only when asked for, are its positions at the distinct
     firing times in time order, as before, in firing order or not."""
-    from rls_addon.core.scan.frame import _DistinctPoses, distinct_times, first_of_each
+    from rls_addon.core.scan.aim import _DistinctPoses, distinct_times, first_of_each
     from rls_addon.core.scene.motion import Track
 
     times = np.linspace(0.0, 0.1, 5)
