@@ -70,7 +70,9 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_disk_counts", "rls_disks_abi",
            "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",
            "rls_static_returns", "rls_returns_abi",
-           "rls_echo_group", "rls_echo_choose", "rls_echoes_abi")
+           "rls_echo_group", "rls_echo_choose", "rls_echoes_abi",
+           "rls_box_counts", "rls_boxes_abi",
+           "rls_track_positions", "rls_tracks_abi")
 
 
 def library_name(sys_platform):
