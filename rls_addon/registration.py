@@ -4,6 +4,7 @@ import bpy
 
 from . import operators, properties, ui
 from .cli import main
+from .core.device.families import FAMILIES
 from .core.errors import RLSError
 
 CLASSES = properties.CLASSES + operators.CLASSES + ui.CLASSES
@@ -13,14 +14,26 @@ _state = {"cli": None}
 
 def register():
     _register_classes()
+    ui.sync_family_menus()
+    FAMILIES.subscribe(_families_changed)
     properties.register_properties()
+    _refresh_presets()
+    bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
+    bpy.types.TOPBAR_MT_file_import.append(operators.traffic.draw_import_menu)
+    _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
+
+
+def _refresh_presets():
     try:  # read the preset list now, so no panel or menu ever has to
         properties.refresh_preset_items()
     except RLSError as exc:
         print(f"rls: warning: {exc}")
-    bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
-    bpy.types.TOPBAR_MT_file_import.append(operators.traffic.draw_import_menu)
-    _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
+
+
+def _families_changed(families):
+    """A device family was added or removed: its menu, and the presets that name it."""
+    ui.sync_family_menus()
+    _refresh_presets()
 
 
 def ensure_registered():
@@ -42,4 +55,6 @@ def unregister():
     bpy.types.TOPBAR_MT_file_import.remove(operators.traffic.draw_import_menu)
     bpy.types.VIEW3D_MT_add.remove(ui.draw_add_menu)
     properties.unregister_properties()
+    FAMILIES.unsubscribe(_families_changed)
+    ui.unregister_family_menus()
     _unregister_classes()

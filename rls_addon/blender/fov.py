@@ -19,7 +19,7 @@ import bpy
 import numpy as np
 
 from ..core.device.patterns.base import angles_from_directions, directions_from_angles
-from ..core.device.presets import spinning_elevations_offsets
+from ..core.device.families.spinning import spinning_elevations_offsets
 
 FOV_PROPERTY = "rls_fov"
 FULL_TURN_GAP = math.radians(10.0)

@@ -15,10 +15,10 @@ import tempfile
 from dataclasses import dataclass
 
 from ..core.errors import PresetError
-from ..core.device.presets import FAMILIES, builtin_presets, get_preset, load_preset, readable_presets_in
+from ..core.device.families import FAMILIES
+from ..core.device.presets import builtin_presets, get_preset, load_preset, readable_presets_in
 
 ENV_USER_DIR = "RLS_USER_PRESET_DIR"
-FAMILY_LABELS = {"spinning": "Spinning", "mems": "MEMS", "risley": "Risley", "custom": "Custom"}
 
 _state = {"override": None, "catalog": None, "errors": []}
 
@@ -120,13 +120,19 @@ def entry(preset_id):
 
 
 def by_family():
-    """[(family, [entries])] in FAMILIES order, empty families left out."""
+    """[(Family, [entries])] in the registry's order (``FAMILIES``), empty families left
+    out."""
     out = []
     for fam in FAMILIES:
-        items = [e for e in catalog() if e.family == fam]
+        items = [e for e in catalog() if e.family == fam.id]
         if items:
             out.append((fam, items))
     return out
+
+
+def family_label(family_id):
+    """The UI's name of a device family (its id when it is no longer registered)."""
+    return FAMILIES.label(family_id) if family_id in FAMILIES else family_id
 
 
 def resolve(preset_id):

@@ -10,6 +10,42 @@ from .extract import MeshReader, instance_key, read_instances, read_mesh
 from .motion import SweepClock, may_deform, may_move, mesh_is_fixed, read_state, timeless
 
 
+def traffic_span(scene):
+    """(first, last) frame over which the scene's road users (objects labelled
+    vehicle, pedestrian or cyclist) are keyed: the keys of the F-curves that change
+    (two keys or more, not all of one value) in their own and their parents' actions;
+    None when no road user is keyed so (``core.scene.traffic_keys``)."""
+    import math
+
+    from ..core.labels import OBJECT_CLASSES, label_id
+    from .labels import object_label
+    from .scenes.build import action_curves
+
+    road_users = {label_id(n) for n in OBJECT_CLASSES}
+    lo, hi, seen = math.inf, -math.inf, set()
+    for obj in scene.objects:
+        if object_label(obj) not in road_users:
+            continue
+        o = obj
+        while o is not None:
+            ad = o.animation_data
+            action = ad.action if ad is not None else None
+            if action is not None and action.name not in seen:
+                seen.add(action.name)
+                for fc in action_curves(action):
+                    n = len(fc.keyframe_points)
+                    if n < 2:
+                        continue
+                    co = np.empty(2 * n, np.float64)
+                    fc.keyframe_points.foreach_get("co", co)
+                    if np.ptp(co[1::2]) > 0:
+                        lo, hi = min(lo, co[0::2].min()), max(hi, co[0::2].max())
+            o = o.parent
+    if lo > hi:
+        return None
+    return int(math.floor(lo + 1e-6)), int(math.ceil(hi - 1e-6))
+
+
 class BlenderScene:
     """``scene`` (a ``bpy.types.Scene``) in ``context`` (default ``bpy.context``). One
     source serves a whole run: its ``MeshReader`` reads a mesh that does not change
@@ -99,6 +135,9 @@ class BlenderScene:
 
     def sweep(self, frame, period):
         return BlenderSweep(self, frame, period)
+
+    def traffic_span(self):
+        return traffic_span(self.scene)
 
 
 class BlenderSweep:

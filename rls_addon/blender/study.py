@@ -9,6 +9,7 @@ from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
 from .extract import read_instances
 from .region import is_lob, lob_polygon_world
+from .source import traffic_span
 from .scenes.build import is_mount, mount_position
 
 
@@ -65,6 +66,9 @@ class BlenderStudyScene:
         hidden = sorted(i.key for i in instances if i.label in hidden_labels)
         static = [i for i in instances if i.label not in hidden_labels]
         return world_geometry(static, object_table(static), materials), hidden
+
+    def traffic_span(self):
+        return traffic_span(self.scene)
 
     def traffic(self, frames, labels):
         out = {}

@@ -18,13 +18,20 @@ frame after it leaves. RLS reads which objects exist once per scan, at the frame
 present at a frame is scanned over that whole sweep and one that is absent is not.
 """
 
-import math
 
 import bpy
 import numpy as np
 
 from ..core.errors import SceneError
-from ..core.traffic.fcd import frame_times, resample
+from ..core.traffic.fcd import (
+    check_origin,
+    check_positions,
+    frame_times,
+    keyed_frames,
+    resample,
+    step_notice,
+)
+from ..core.traffic.ground import STANDING_LABELS
 
 COLLECTION = "SUMO Traffic"
 
@@ -51,13 +58,16 @@ COLOURS = {"car": (0.55, 0.06, 0.05), "van": (0.8, 0.8, 0.78), "truck": (0.15, 0
 
 def profile_mesh(name, shape, size):
     """A mesh: ``shape``'s profile scaled to ``size`` (length, width, height), extruded
-    across the width; its bounds are exactly [-L/2, L/2] x [-W/2, W/2] x [0, H]."""
+    across the width; its bounds are exactly [-L/2, L/2] x [-W/2, W/2] x [0, H]. Its
+    faces are wound so their normals point out of the solid (positive signed volume):
+    a profile is counter-clockwise seen from -y, so the side at -y keeps its order, the
+    side at +y is reversed, and each band runs from the +y side to the -y side."""
     L, W, H = map(float, size)
     prof = PROFILES[shape]
     n = len(prof)
     verts = [(x * L, side * W / 2, z * H) for side in (-1.0, 1.0) for x, z in prof]
-    faces = [list(range(n))[::-1], list(range(n, 2 * n))]
-    faces += [[i, (i + 1) % n, n + (i + 1) % n, n + i] for i in range(n)]
+    faces = [list(range(n)), list(range(n, 2 * n))[::-1]]
+    faces += [[n + i, n + (i + 1) % n, (i + 1) % n, i] for i in range(n)]
     mesh = bpy.data.meshes.new(name)
     mesh.from_pydata(verts, [], faces)
     mesh.update()
@@ -131,6 +141,7 @@ def traffic_origin(scene, requested=None):
     from-net``, or traffic imported before), else (0, 0), network coordinates. A
     requested origin other than the recorded one is refused: the traffic would miss the
     roads."""
+    check_origin(requested)
     recorded = scene.get("rls_sumo_origin")
     recorded = None if recorded is None else (float(recorded[0]), float(recorded[1]))
     if requested is None:
@@ -145,6 +156,22 @@ def traffic_origin(scene, requested=None):
     return requested
 
 
+def scene_ground(scene):
+    """The scene's ground surfaces (``core.traffic.ground``: objects labelled road,
+    sidewalk, terrain or ground, as rendered now) to stand people and bicycles on."""
+    from ..core.casting import caster_factory
+    from ..core.labels import label_id
+    from ..core.scene.instances import object_table, world_geometry
+    from ..core.traffic.ground import GROUND_LABELS, GroundSurface
+    from .extract import read_instances
+
+    instances, materials, _ = read_instances(bpy.context.evaluated_depsgraph_get())
+    labels = {label_id(n) for n in GROUND_LABELS}
+    flat = [i for i in instances if i.label in labels]
+    geo = world_geometry(flat, object_table(flat), materials)
+    return GroundSurface(geo.vertices, geo.triangles, caster_factory("auto")[0])
+
+
 def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
                    progress=None, ground=None):
     """Animated objects for every track of ``fcd`` (``core.traffic.fcd.Fcd``) with
@@ -152,16 +179,14 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     ``scene.frame_start`` is simulation time ``begin`` (default: the FCD's first step);
     frames are keyed up to ``end`` (default its last step), and the scene's last frame
     is set to the last keyed one. ``progress(done, total)`` is called as objects are
-    made. ``ground(xy (N, 2)) -> (N,)`` heights added to FCD's z (a scene's kerbs, which
-    SUMO's flat network does not have). Returns a summary dict."""
+    made. ``ground(xy (N, 2)) -> (N,)`` heights added to FCD's z of every object (a
+    sample scene's own kerbs); without it, pedestrians and cyclists stand on the scene's
+    ground surfaces under them (``scene_ground``; vehicles keep FCD's z). Returns a
+    summary dict."""
     fps = scene.render.fps / scene.render.fps_base
-    begin = fcd.first if begin is None else float(begin)
-    end = fcd.last if end is None else float(end)
-    n = int(math.floor((end - begin) * fps + 1e-6)) + 1
-    if n < 1:
-        from ..core.errors import InputError
-
-        raise InputError(f"--end {end:g} s is before --begin {begin:g} s")
+    begin, end, n = keyed_frames(fcd, fps, scene.frame_start, begin, end)
+    check_origin(origin)
+    check_positions(fcd, types, origin)  # all before anything is added to the scene
     times = frame_times(n, fps, begin)
     frames = scene.frame_start + np.arange(n)
     coll = bpy.data.collections.new(COLLECTION)
@@ -170,6 +195,7 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     counts = {"vehicle": 0, "pedestrian": 0, "cyclist": 0}
     object_frames = 0
     keys = sorted(fcd.tracks)
+    surface = scene_ground(scene) if ground is None else None
     for j, key in enumerate(keys):
         tr = fcd.tracks[key]
         vt = types[tr.type]
@@ -180,6 +206,8 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
             continue
         if ground is not None:
             motion.xyz[:, 2] += ground(motion.xyz[:, :2])
+        elif vt.label in STANDING_LABELS:
+            motion.xyz[:, 2] = surface.heights(motion.xyz[:, :2], motion.xyz[:, 2])
         mesh = meshes.get(vt.id)
         if mesh is None:
             mesh = meshes[vt.id] = profile_mesh(f"SUMO {vt.id}", vt.shape, vt.size)
@@ -198,6 +226,8 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     scene["rls_sumo_begin_s"] = float(begin)
     if progress is not None:
         progress(len(keys), len(keys))
+    notice = step_notice(fps, fcd.step, begin, scene.frame_start)
     return {"collection": coll.name, "objects": sum(counts.values()), **counts,
             "frames": n, "first_frame": int(frames[0]), "last_frame": int(frames[-1]),
-            "object_frames": object_frames, "begin_s": begin, "end_s": end}
+            "object_frames": object_frames, "begin_s": begin, "end_s": end,
+            "fps": fps, "fcd_step_s": fcd.step, "notices": [notice] if notice else []}

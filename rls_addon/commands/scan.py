@@ -12,12 +12,12 @@ from ..core.choices import (
     DETECTION,
     FIELDS,
     FOOTPRINT,
-    FORMATS,
     FRAME_SPACES,
     MOTION,
     RETURN_MODES,
 )
 from ..core.errors import SceneError
+from ..core.output.io.formats import FORMATS
 from ..core.output.io.point_types import POINT_TYPES
 from .distribute import add_arguments as add_cluster_arguments
 
@@ -222,8 +222,9 @@ def scan_run(args):
     if not sensors:
         raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > LiDAR)")
     changes = overrides(args)
-    if changes["format"] == "mcap" and changes["frame_space"] is None:
-        changes["frame_space"] = "sensor"  # bags hold sensor-frame clouds
+    if changes["format"] is not None and changes["frame_space"] is None:
+        # a format whose clouds are in one frame (bags: the sensor's) sets it
+        changes["frame_space"] = FORMATS.get(changes["format"]).frame_space
     jobs = []
     for obj in sensors:
         settings = read_settings(obj).override(**changes)

@@ -8,11 +8,7 @@ file is only read. Prints a JSON summary; progress on stderr. See docs/roads.md.
 
 import argparse
 import json
-import os
 import sys
-import time
-
-from ..core.errors import OutputError
 
 
 def add_parser(sub):
@@ -27,7 +23,7 @@ def add_parser(sub):
     fn.add_argument("--out", required=True, help="the scene file to write (.blend)")
     fn.add_argument("--junction", metavar="ID",
                     help="the junction the mounts and the InfraLOB are at (default: the "
-                         "largest by area)")
+                         "signalised one with the most incoming lanes, named on stderr)")
     fn.add_argument("--origin", choices=("net", "junction"), default="net",
                     help="the scene's (0, 0): 'net' (default) keeps SUMO's network "
                          "coordinates; 'junction' puts the chosen junction at the origin")
@@ -40,32 +36,20 @@ def _say(text):
 
 
 def run(args):
-    from ..core.roads.layout import build_layout
-    from ..core.roads.network import read_network
+    from ..core.roads.scene import FromNetSettings, scene_from_net
 
-    out = os.path.abspath(args.out)
-    if os.path.exists(out) and not args.overwrite:
-        raise OutputError(f"{out} already exists; pass --overwrite to replace it")
-    if not os.path.isdir(os.path.dirname(out)):
-        raise OutputError(f"cannot write {out}: folder {os.path.dirname(out)} does not exist")
-    t0 = time.perf_counter()
-    net = read_network(args.net)
-    layout = build_layout(net, args.junction, args.origin)
-    t_read = time.perf_counter() - t0
+    settings = FromNetSettings(net=args.net, out=args.out, junction=args.junction,
+                               origin=args.origin, overwrite=args.overwrite)
 
-    import bpy
+    def blender_scene():
+        import bpy
 
-    from ..blender.files import save_blend
-    from ..blender.roads import build_roads
+        from ..blender.roads import BlenderRoadScene
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    args.prepare_blender()
-    _say(f"{len(net.lanes)} lanes, {len(net.junctions)} junctions read in {t_read:.2f} s; "
-         f"junction {layout.junction.id}")
-    info = build_roads(bpy.context.scene, layout, progress=_say)
-    _say(f"writing {out}")
-    save_blend(out, overwrite=args.overwrite)
-    info.update(scene=out, network=os.path.abspath(args.net),
-                seconds=round(time.perf_counter() - t0, 3))
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        args.prepare_blender()
+        return BlenderRoadScene(bpy.context.scene)
+
+    info = scene_from_net(settings, blender_scene, _say)
     print(json.dumps(info, indent=1))
     return 0

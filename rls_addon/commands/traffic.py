@@ -12,8 +12,11 @@ eclipse-sumo wheel, or SUMO_HOME). See docs/traffic.md.
 import argparse
 import json
 import os
+import sys
+import time
 
 from ..core.errors import InputError, OutputError
+from ..core.roads.layout import STEP_S
 
 
 def add_parser(sub):
@@ -45,8 +48,9 @@ def add_parser(sub):
                      help="vehicles inserted per hour")
     gen.add_argument("--seed", type=int, required=True, metavar="N")
     gen.add_argument("--out", required=True, metavar="FCD.xml")
-    gen.add_argument("--step", type=float, default=0.1, metavar="S",
-                     help="SUMO's step length and FCD period (default 0.1 s)")
+    gen.add_argument("--step", type=float, default=STEP_S, metavar="S",
+                     help=f"SUMO's step length and FCD period (default {STEP_S:g} s: one "
+                          f"frame of a scene from rls scene from-net)")
     gen.add_argument("--pedestrians", choices=("auto", "yes", "no"), default="auto",
                      help="persons walking: 'auto' where the network has sidewalks")
     gen.add_argument("--ped-rate", type=float, metavar="PER_H",
@@ -56,11 +60,12 @@ def add_parser(sub):
 
 
 def run_generate(args):
-    from ..core.traffic.sumo_run import generate
+    from ..core.traffic.sumo_run import GenerateSettings, generate_traffic
 
-    info = generate(args.net, args.out, args.duration, args.rate, args.seed, step=args.step,
-                    pedestrians=args.pedestrians, ped_rate=args.ped_rate,
-                    overwrite=args.overwrite)
+    info = generate_traffic(GenerateSettings(
+        net=args.net, out=args.out, duration=args.duration, rate=args.rate, seed=args.seed,
+        step=args.step, pedestrians=args.pedestrians, ped_rate=args.ped_rate,
+        overwrite=args.overwrite))
     print(json.dumps(info, indent=2))
     return 0
 
@@ -75,25 +80,50 @@ def check_out(scene_path, out, overwrite):
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
 
 
+def _say(text):
+    print(f"rls: traffic: {text}", file=sys.stderr, flush=True)
+
+
 def run_import(args):
-    from ..core.traffic.fcd import load
+    from ..core.progress import Throttled, eta
+    from ..core.traffic.fcd import check_origin, load
 
     if not os.path.isfile(args.blend):
         raise InputError(f"scene file not found: {args.blend}")
     check_out(args.blend, args.out, args.overwrite)
-    fcd, types = load(args.fcd, args.vtypes, args.begin, args.end)  # before Blender
+    check_origin(args.origin)
+    tell = Throttled(_say)
+
+    def reading(share):
+        spent = tell.elapsed()
+        tell(f"reading {args.fcd}: {share:.0%} in {spent:.0f} s, about "
+             f"{eta(share, 1.0, spent):.0f} s left")
+
+    fcd, types = load(args.fcd, args.vtypes, args.begin, args.end, reading)  # before Blender
+    tell(f"{len(fcd.tracks)} vehicles and persons read in {tell.elapsed():.1f} s",
+         final=True)
     from ..blender.traffic import import_traffic, traffic_origin
     from .scan import open_scene
 
     scene = open_scene(args.blend, args.prepare_blender)
+    t_keys = time.perf_counter()
+
+    def keying(done, total):
+        spent = time.perf_counter() - t_keys
+        tell(f"keying objects: {done} of {total}, about {eta(done, total, spent):.0f} s left",
+             final=done == total)
+
     info = import_traffic(scene, fcd, types, origin=traffic_origin(scene, args.origin),
-                          begin=args.begin, end=args.end)
+                          begin=args.begin, end=args.end, progress=keying)
+    tell(f"writing {args.out}", final=True)
     from ..blender.files import save_blend
     from ..core.output.io.atomic import ensure_directory
 
     ensure_directory(os.path.dirname(os.path.abspath(args.out)))
     save_blend(args.out, overwrite=args.overwrite)
     info["out"] = args.out
+    for notice in info["notices"]:
+        print(f"rls: notice: {notice}", file=sys.stderr)
     print(json.dumps(info, indent=2))
     return 0
 

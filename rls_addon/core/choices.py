@@ -4,8 +4,13 @@ Blender's ``EnumProperty`` items and argparse's ``choices`` are made from it.
     MOTION.ids                 ('exact', 'substeps', 'snapshot')
     MOTION.items()             [(id, label, description), ...] for an EnumProperty
     MOTION.check("fast")       SettingsError: unknown motion mode 'fast'; choose one of ...
+
+The extension points are ``Registry`` objects, choices that can grow: the device
+families (``device.families.FAMILIES``) and the output formats
+(``output.io.formats.FORMATS``), each entry holding what the core and the UI need of it.
 """
 
+import re
 from dataclasses import dataclass
 
 from .errors import SettingsError
@@ -24,10 +29,16 @@ class Choices:
     def __init__(self, what, choices):
         self.what = what
         self.choices = tuple(Choice(*c) for c in choices)
-        self.ids = tuple(c.id for c in self.choices)
+
+    @property
+    def ids(self):
+        return tuple(c.id for c in self.choices)
 
     def __iter__(self):
         return iter(self.choices)
+
+    def __len__(self):
+        return len(self.choices)
 
     def __contains__(self, value):
         return value in self.ids
@@ -45,6 +56,60 @@ class Choices:
             raise SettingsError(f"unknown {self.what} {value!r}; choose one of "
                                 + ", ".join(self.ids))
         return value
+
+
+REGISTRY_ID = re.compile(r"^[a-z][a-z0-9_]{0,31}$")
+
+
+class Registry(Choices):
+    """Choices that can grow: one entry per extension (any object with ``id``,
+    ``label`` and ``description``), in the order added. ``add`` one, ``remove`` it
+    again; whoever shows the list (the UI's menus) ``subscribe``s to hear of changes.
+    An id is lower-case letters, digits and '_' (it names Blender enum items and
+    menus), at most 32."""
+
+    def __init__(self, what, entries=()):
+        super().__init__(what, ())
+        self._watchers = []
+        for entry in entries:
+            self.add(entry)
+
+    def add(self, entry):
+        """Add ``entry`` (after the others); returns it. A taken or malformed id is a
+        ``SettingsError``."""
+        eid = getattr(entry, "id", None)
+        if not isinstance(eid, str) or not REGISTRY_ID.match(eid):
+            raise SettingsError(f"a {self.what} id must be lower-case letters, digits and '_' "
+                                f"(at most 32, starting with a letter), got {eid!r}")
+        if eid in self.ids:
+            raise SettingsError(f"{self.what} {eid!r} is already registered")
+        self.choices += (entry,)
+        self._changed()
+        return entry
+
+    def remove(self, eid):
+        """Take the entry ``eid`` out again (``SettingsError`` when there is none)."""
+        self.check(eid)
+        self.choices = tuple(c for c in self.choices if c.id != eid)
+        self._changed()
+
+    def get(self, eid):
+        """The entry ``eid``, else ``SettingsError`` naming the ids there are."""
+        self.check(eid)
+        return next(c for c in self.choices if c.id == eid)
+
+    def subscribe(self, watcher):
+        """Call ``watcher(registry)`` after every change (once per watcher)."""
+        if watcher not in self._watchers:
+            self._watchers.append(watcher)
+
+    def unsubscribe(self, watcher):
+        if watcher in self._watchers:
+            self._watchers.remove(watcher)
+
+    def _changed(self):
+        for watcher in tuple(self._watchers):
+            watcher(self)
 
 
 MOTION = Choices("motion mode", [
@@ -99,22 +164,6 @@ BACKENDS = Choices("ray-casting backend", [
     ("embree", "Embree", "Intel Embree from the bundled embreex or pyemblite wheel (falls back "
                          "to BVHTree with a notice where neither is)"),
 ])
-
-FORMATS = Choices("cloud format", [
-    ("pcd_binary", "PCD binary", "PCD v0.7, binary"),
-    ("pcd_binary_compressed", "PCD binary compressed", "PCD v0.7, LZF-compressed binary"),
-    ("pcd_ascii", "PCD ASCII", "PCD v0.7, text"),
-    ("ply_binary", "PLY binary", "PLY, binary little endian"),
-    ("ply_ascii", "PLY ASCII", "PLY, text"),
-    ("las", "LAS 1.4", "ASPRS LAS 1.4 in world coordinates, GPS time, ASPRS classes, "
-                       "ring/label/instance/ghost as extra bytes (needs laspy)"),
-    ("mcap", "ROS 2 bag (MCAP)", "One rosbag2 per run: PointCloud2 on /<sensor>/points, "
-                                 "/tf and /tf_static (needs rosbags)"),
-])
-
-# Files that hold one cloud each, and those a run writes as a whole
-FILE_FORMATS = FORMATS.ids[:-1]
-RUN_FORMATS = ("mcap",)
 
 FRAME_SPACES = Choices("coordinate frame", [
     ("sensor", "Sensor", "Point coordinates in the sensor frame (as the device reports them)"),

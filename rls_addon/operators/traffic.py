@@ -66,6 +66,8 @@ class RLS_OT_import_sumo_traffic(bpy.types.Operator):
                 wm.progress_end()
         except RLSError as exc:
             return cancelled(self, exc)
+        for notice in info["notices"]:
+            self.report({"WARNING"}, notice)
         self.report({"INFO"}, f"Imported {info['vehicle']} vehicles, {info['cyclist']} "
                               f"cyclists and {info['pedestrian']} pedestrians over frames "
                               f"{info['first_frame']}-{info['last_frame']}")

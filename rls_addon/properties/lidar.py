@@ -2,8 +2,10 @@
 with the device preset list its enums show.
 
 Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
-``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
-the core validates with and the command line offers.
+``LidarSettings`` in one place. Enumerations come from ``core.choices`` and the
+registries (the Format list from ``output.io.formats.FORMATS``, the preset list grouped
+by ``device.families.FAMILIES``), the same lists the core validates with and the
+command line offers.
 """
 
 import bpy
@@ -23,7 +25,6 @@ from ..core.choices import (
     DETECTION,
     FIELDS,
     FOOTPRINT,
-    FORMATS,
     FRAME_SPACES,
     MOTION,
     RETURN_MODES,
@@ -32,12 +33,14 @@ from ..core.choices import (
 )
 from ..core.errors import RLSError
 from ..core.output.io import DEFAULT_FIELDS
+from ..core.output.io.formats import FORMATS
 from ..core.output.io.point_types import POINT_TYPE_CHOICES
 from ..core.labels import DEFAULT_LABELS, label_id
 
 COLOR_ITEMS = [(a, a.title(), f"Colour preview points by {a}") for a in COLOR_ATTRIBUTES]
 
-_ITEMS = {"presets": [], "old": []}  # enum items must stay referenced while Blender shows them
+_ITEMS = {"presets": [], "old": [], "formats": ((), [])}  # enum items must stay referenced
+# while Blender shows them
 
 
 def preset_items(self, context):
@@ -47,13 +50,27 @@ def preset_items(self, context):
         for fam, entries in preset_catalog.by_family():
             if items:
                 items.append(None)
-            items.append(("", preset_catalog.FAMILY_LABELS.get(fam, fam), ""))
+            items.append(("", fam.label, ""))
             for e in entries:
                 tag = "built-in" if e.builtin else "user preset"
                 items.append((e.id, e.name, f"{e.source} ({tag})", "NONE" if e.builtin else "USER", n))
                 n += 1
         _ITEMS["presets"] = items
     return _ITEMS["presets"]
+
+
+def format_items(self, context):
+    """Enum items of the output formats, as the registry has them now (``FORMATS``):
+    numbered in its order, so the built-in formats keep the numbers a .blend stored
+    before the list could grow."""
+    entries, items = _ITEMS["formats"]
+    if entries is not FORMATS.choices:
+        if items:
+            _ITEMS["old"].append(items)
+            del _ITEMS["old"][:-4]
+        items = [(f.id, f.label, f.description, i) for i, f in enumerate(FORMATS)]
+        _ITEMS["formats"] = (FORMATS.choices, items)
+    return items
 
 
 _MODE_ITEMS = {}  # preset id -> enum items (kept alive: Blender holds the strings)
@@ -240,7 +257,7 @@ class RLS_LidarSettings(bpy.types.PropertyGroup):
     output_dir: StringProperty(name="Output", subtype="DIR_PATH", default="//lidar/",
                                description="Folder the clouds and sidecars are written to "
                                            "('//' is the folder of the .blend file)")
-    file_format: EnumProperty(name="Format", items=FORMATS.items(), default="pcd_binary",
+    file_format: EnumProperty(name="Format", items=format_items, default=0,  # pcd_binary
                               description="Point cloud file format")
     fields: EnumProperty(name="Fields", items=FIELDS.items(), options={"ENUM_FLAG"},
                          default={f for f in DEFAULT_FIELDS if f not in ("x", "y", "z")},

@@ -1,9 +1,6 @@
-"""What the panels and menus share: the family icons and wrapped text."""
+"""What the panels and menus share: wrapped text."""
 
 import textwrap
-
-FAMILY_ICONS = {"spinning": "LIGHTPROBE_SPHERE", "mems": "LIGHTPROBE_PLANE",
-                "risley": "LIGHTPROBE_VOLUME", "custom": "FILE_TEXT"}
 
 
 def wrapped(layout, text, width=48):

@@ -7,7 +7,7 @@ from ..blender import preset_catalog
 from ..blender.sensor import is_lidar
 from ..core.casting import backend_status
 from ..properties import lidar_mode_items
-from .common import FAMILY_ICONS, wrapped
+from .common import wrapped
 
 
 class RLS_PT_device_presets(bpy.types.Panel):
@@ -23,7 +23,7 @@ class RLS_PT_device_presets(bpy.types.Panel):
         obj = context.object
         current = obj.rls_lidar.preset_id if obj is not None and is_lidar(obj) else None
         for fam, entries in preset_catalog.by_family():
-            layout.label(text=preset_catalog.FAMILY_LABELS[fam], icon=FAMILY_ICONS[fam])
+            layout.label(text=fam.label, icon=fam.icon)
             col = layout.column(align=True)
             for e in entries:
                 row = col.row(align=True)
@@ -75,7 +75,7 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
             box.label(text=f"Unknown preset '{s.preset_id}': choose a device", icon="ERROR")
         else:
             kind = "built-in" if e.builtin else "user preset"
-            box.label(text=f"{preset_catalog.FAMILY_LABELS.get(e.family, e.family)}, {kind}",
+            box.label(text=f"{preset_catalog.family_label(e.family)}, {kind}",
                       icon="INFO")
             wrapped(box, f"Source: {e.source}")
         row = layout.row(heading="Field of View")

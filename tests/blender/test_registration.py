@@ -25,17 +25,19 @@ def _state():
         "import_menu": any(getattr(f, "__name__", "") == "draw_import_menu" for f in
                            getattr(bpy.types.TOPBAR_MT_file_import.draw, "_draw_funcs", [])),
     }
-    from rls_addon import registration
+    from rls_addon import registration, ui
 
+    state["family_menus"] = len(ui.family_menus()) == 4
     state.update({c.__name__: c.is_registered for c in registration.CLASSES})
     state.update({n: hasattr(bpy.types, n) for n in NAMES if not n.endswith("Settings")})
     return state
 
 
 def test_register_unregister_register_leaves_nothing(addon):
-    from rls_addon import registration
+    from rls_addon import registration, ui
 
-    assert {c.__name__ for c in registration.CLASSES} == set(NAMES)
+    menus = {c.__name__ for c in ui.family_menus()}  # one per device family, apart
+    assert {c.__name__ for c in registration.CLASSES} | menus == set(NAMES)
     assert all(_state().values()), _state()
     addon.unregister()
     assert not any(_state().values()), _state()

@@ -152,6 +152,9 @@ def test_written_scene_covers_the_lanes(tmp_path, scene, which):
         base = KERB_M if planned[o.name].on_sidewalk else 0.0
         assert z == pytest.approx(base + 6.0 + 0.25, abs=1e-4)
     assert any(m.on_sidewalk for m in layout.mounts)
+    # it runs at rls traffic generate's default step, 0.1 s: one frame per SUMO step
+    render = bpy.context.scene.render
+    assert render.fps / render.fps_base == 10 and bpy.context.scene["rls_sumo_step_s"] == 0.1
 
 
 def test_save_refuses_an_existing_file(tmp_path, scene):
@@ -164,3 +167,37 @@ def test_save_refuses_an_existing_file(tmp_path, scene):
     assert path.read_bytes() == b"keep"
     save_blend(path, overwrite=True)
     assert path.read_bytes()[:4] != b"keep" and os.listdir(tmp_path) == ["s.blend"]
+
+
+def test_tiles_make_the_same_surface_and_no_kerbs_on_their_seams(tmp_path, scene):
+    """The surface triangulated in 60 m tiles (the 3 x 3 grid is about 4 x 4 of them)
+    is the one of a single tile that holds everything: the same union per kind (1e-6),
+    the same sidewalk outline length (no kerb along a tile's side), and each tile's
+    CDT holds only a part of the pieces (issue #38: one CDT of a 30 x 30 grid's
+    1.3 million triangles took 2.9 GB)."""
+    from rls_addon.blender.roads import cdt
+    from rls_addon.core.roads import surface
+
+    layout = build_layout(read_network(grid_net(tmp_path)))
+    sizes = []
+
+    def counting(points, edges, centre):
+        sizes.append(len(points))
+        return cdt(points, edges, centre)
+
+    small = surface.triangulate(layout.pieces, counting, size=60.0)
+    tiles = len(sizes)
+    whole = surface.triangulate(layout.pieces, cdt, size=1e4)
+    assert tiles >= 12 and max(sizes[:tiles]) < 0.5 * len(np.concatenate(
+        [p.ring for p in layout.pieces]))
+    for i, k in enumerate(KINDS):
+        a = tri_union(small[0], small[1][small[2] == i])
+        b = tri_union(whole[0], whole[1][whole[2] == i])
+        assert a.symmetric_difference(b).area < 1e-6 * max(b.area, 1.0), k
+
+    def kerb_length(v, t, kind, tiling):
+        e = surface.kerb_edges(v, t, kind, tiling, 1e-3)
+        return float(np.linalg.norm(v[e[:, 1]] - v[e[:, 0]], axis=1).sum())
+
+    assert kerb_length(*small) == pytest.approx(kerb_length(*whole), rel=1e-6)
+    assert kerb_length(*whole) > 100.0

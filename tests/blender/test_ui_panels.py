@@ -139,10 +139,10 @@ def test_add_menu_groups_presets_by_family(scene, user_dir, no_heavy_work):
     assert menus == ["VIEW3D_MT_rls_add_spinning", "VIEW3D_MT_rls_add_mems", "VIEW3D_MT_rls_add_risley"]
     assert ("object.rls_add_infralob",) in [a for name, a, _ in top if name == "operator"]
     listed = {}
-    for menu in ui.FAMILY_MENUS:
+    for menu in ui.family_menus():
         log = _draw(menu, ctx)
         listed[menu.bl_idname.rsplit("_", 1)[1]] = [kw.get("text") for n, _, kw in log if n == "operator"]
-    by_family = {f: [e.name for e in es] for f, es in preset_catalog.by_family()}
+    by_family = {f.id: [e.name for e in es] for f, es in preset_catalog.by_family()}
     assert listed["spinning"] == by_family["spinning"] and "Team Sensor" in listed["spinning"]
     assert "Velodyne VLP-16" in listed["spinning"] and "Livox Mid-40" in listed["risley"]
     assert listed["custom"] == []

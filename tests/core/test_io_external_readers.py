@@ -7,7 +7,7 @@ import pytest
 
 from rls_addon.core.output.io import (
     DEFAULT_FIELDS,
-    FORMAT_EXT,
+    FORMATS,
     read_cloud,
     read_records,
     write_cloud,
@@ -27,7 +27,7 @@ def points():
 
 
 def _write(tmp_path, points, fmt, **kw):
-    return write_cloud(tmp_path / f"cloud{FORMAT_EXT[fmt]}", points, fmt, **kw)
+    return write_cloud(tmp_path / f"cloud{FORMATS.get(fmt).extension}", points, fmt, **kw)
 
 
 def _xyz(points):

@@ -9,7 +9,6 @@ import pytest
 
 from rls_addon.core.errors import InputError, OutputError
 from rls_addon.core.output.io import (
-    FORMAT_EXT,
     FORMATS,
     atomic_write_bytes,
     output_path,
@@ -164,15 +163,21 @@ def test_reading_garbage_is_input_error(tmp_path):
     truncated.write_bytes(write_cloud(tmp_path / "ok.ply", sample_cloud(10), "ply_binary").read_bytes()[:-5])
     with pytest.raises(InputError):
         read_cloud(truncated)
+    # a compressed PCD cut inside its sizes: struct's error, one InputError
+    blob = write_cloud(tmp_path / "c.pcd", sample_cloud(10), "pcd_binary_compressed").read_bytes()
+    cut = tmp_path / "cut.pcd"
+    cut.write_bytes(blob[:blob.index(b"DATA binary_compressed\n") + 26])
+    with pytest.raises(InputError, match="cut.pcd is not a readable PCD point cloud"):
+        read_cloud(cut)
 
 
 # ---- output templates -------------------------------------------------------
 
 
-@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("fmt", [f.id for f in FORMATS if f.extension])
 def test_output_path_renders_and_appends_extension(tmp_path, fmt):
     p = output_path(tmp_path, "{scene}/{sensor}/{frame:06d}", scene="Street 1", sensor="Pandar64.L", frame=7, fmt=fmt)
-    assert p == tmp_path / "Street_1" / "Pandar64.L" / f"000007{FORMAT_EXT[fmt]}"
+    assert p == tmp_path / "Street_1" / "Pandar64.L" / f"000007{FORMATS.get(fmt).extension}"
 
 
 def test_output_path_keeps_matching_extension(tmp_path):

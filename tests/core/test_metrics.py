@@ -268,6 +268,20 @@ def test_infra_nuc_formula():
     assert infra_nuc([0, 10], 10, 0.5) == 1.0
 
 
+def test_one_infra_nuc_for_a_cloud_and_for_a_study_set():
+    """The metrics command's InfraNUC of one cloud and the study's of a set of clouds
+    are one formula: the same bits for the same counts (the study sums its members'
+    counts first)."""
+    from rls_addon.core.study.placement import set_metrics
+
+    rng = np.random.default_rng(11)
+    counts = rng.poisson(3.0, (6, 500))
+    n = counts.sum(axis=1) + rng.integers(0, 400, 6)
+    _, nuc = set_metrics(n, counts, 250.0, 0.0013)
+    for row, k, got in zip(counts, n, nuc):
+        assert infra_nuc(row, int(k), 0.0013) == got
+
+
 def test_density_map_values_mask_and_png():
     L = as_polygon([[0, 0], [4, 0], [4, 2], [2, 2], [2, 4], [0, 4]])
     g = np.stack(np.meshgrid(np.arange(0.25, 4, 0.5), np.arange(0.25, 4, 0.5)), -1).reshape(-1, 2)

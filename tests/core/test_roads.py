@@ -152,7 +152,7 @@ def test_osm_network_reads(tmp_path):
 
 
 def test_junction_not_found_lists_ids(grid):
-    with pytest.raises(InputError, match=r"no junction 'nope' .*largest first\): B1, "):
+    with pytest.raises(InputError, match=r"no junction 'nope' .*most lanes in\): B1, "):
         build_layout(read_network(grid), "nope")
     with pytest.raises(InputError, match="--origin"):
         build_layout(read_network(grid), origin="centre")
@@ -216,3 +216,132 @@ def test_sumolib_missing(monkeypatch, grid):
     monkeypatch.setitem(sys.modules, "sumolib.net", None)
     with pytest.raises(InputError, match="pip install sumolib"):
         read_network(grid)
+
+
+def outside_region(xy, region):
+    """How far (m) ``xy`` lies outside the box ``region`` (x0, x1, y0, y1); 0 inside."""
+    x0, x1, y0, y1 = region
+    return float(np.hypot(max(x0 - xy[0], 0.0, xy[0] - x1), max(y0 - xy[1], 0.0, xy[1] - y1)))
+
+
+def test_poles_stand_at_the_chosen_junction_only(tmp_path):
+    """On the OSM fixture, junctions '1' and '6' have a gap between two roads that runs
+    along a road (its two ways diverge): the search along that bisector found no clear
+    ground and put a pole 68-73 m away, at the far end of the road. Every pole of every
+    junction is now within MOUNT_REACH_M (15 m) of the InfraLOB, and a gap with no
+    clear ground within reach gets no pole and a notice naming it."""
+    net = read_network(osm_net(tmp_path))
+    told = 0
+    for j in net.junctions:
+        lay = build_layout(net, j.id)
+        for m in lay.mounts:
+            assert outside_region(m.xy, lay.region) <= 15.0, (j.id, m.name, m.xy)
+        told += sum(f"junction {j.id}" in n and "no pole" in n for n in lay.notices)
+    lay1 = build_layout(net, "1")
+    assert len(lay1.mounts) >= 4  # the four real corners keep their poles
+    assert all(m.on_sidewalk for m in lay1.mounts)
+    assert told >= 2
+
+
+def test_the_default_junction_is_the_signalised_one(tmp_path):
+    """A 3 x 3 grid with one traffic light, at its corner A0: the default junction is A0
+    (it was B1, the largest by area, a priority junction), and the notice names it and
+    lists the others."""
+    net = read_network(grid_net(tmp_path, "--tls.set", "A0"))
+    lay = build_layout(net)
+    assert lay.junction.id == "A0" and lay.junction.signalised
+    told = [n for n in lay.notices if n.startswith("junction A0")]
+    assert told and "signalised" in told[0] and "B1 (priority, 4 lanes in)" in told[0]
+
+
+def test_the_default_junction_has_the_most_incoming_lanes():
+    """Among signalised junctions the one with the most lanes coming in wins over a
+    larger one; an unsignalised one with more lanes and area loses to both; without a
+    signalised junction the most lanes in wins and the notice says there is none."""
+    from rls_addon.core.roads.layout import choose_junction
+    from rls_addon.core.roads.network import Junction, RoadNetwork
+
+    def square(half):
+        return np.array([(-half, -half), (half, -half), (half, half), (-half, half)])
+
+    js = [Junction("big", "traffic_light", np.zeros(2), square(12.0), incoming_lanes=8),
+          Junction("busy", "traffic_light_right_on_red", np.zeros(2), square(8.0),
+                   incoming_lanes=12),
+          Junction("plain", "priority", np.zeros(2), square(20.0), incoming_lanes=16)]
+    notices = []
+    assert choose_junction(RoadNetwork("n.net.xml", [], js), None, notices).id == "busy"
+    assert "big (signalised, 8 lanes in), plain (priority, 16 lanes in)" in notices[0]
+    notices = []
+    unsignalised = [Junction(j.id, "priority", j.centre, j.shape,
+                             incoming_lanes=j.incoming_lanes) for j in js]
+    assert choose_junction(RoadNetwork("n.net.xml", [], unsignalised), None,
+                           notices).id == "plain"
+    assert "no signalised junction" in notices[0]
+
+
+BAD_LANES = [
+    # (what is changed in lane A0B0_0's or A0B0_1's line, words of the error)
+    ('width="2.00" shape="5.20,-4.20 72.80,-4.20"', 'width="nan" shape="5.20,-4.20 72.80,-4.20"',
+     r"lane A0B0_0 has width 'nan'|lane A0B0_0 has width nan"),
+    ('width="2.00" shape="5.20,-4.20 72.80,-4.20"', 'width="-2.00" shape="5.20,-4.20 72.80,-4.20"',
+     r"lane A0B0_0 has width -2"),
+    ('width="2.00" shape="5.20,-4.20 72.80,-4.20"', 'width="2.00" shape="5.20,-4.20"',
+     r"lane A0B0_0 has a shape of 1 point\(s\) but no length"),
+    ('shape="5.20,-1.60 72.80,-1.60"', 'shape="5.20,-1.60 1e15,-1.60"',
+     r"lane A0B0_1 lies 1e\+15 m from the scene's origin: RLS takes coordinates within "
+     r"100000 m of the scene's origin \(Blender stores coordinates as float32"),
+]
+
+
+@pytest.mark.parametrize("old, new, words", BAD_LANES)
+def test_a_bad_lane_is_refused_naming_it(grid, tmp_path, old, new, words):
+    """A lane whose width is NaN or negative, whose shape is one point, or with a vertex
+    at 1e15 m: each was dropped without a word (or, at 1e15, collapsed the whole
+    triangulation to 0 triangles); now one error names the lane."""
+    text = grid.read_text()
+    assert text.count(old) == 1
+    bad = tmp_path / "bad.net.xml"
+    bad.write_text(text.replace(old, new))
+    with pytest.raises(InputError, match=words):
+        build_layout(read_network(bad))
+    with pytest.raises(InputError, match=words):
+        build_layout(read_network(bad), origin="junction")
+
+
+def test_far_coordinates_are_fine_with_the_origin_at_the_junction(grid, tmp_path):
+    """A network 3e6 m from (0, 0), as UTM without netconvert's normalisation: refused
+    with the origin at the network's (0, 0), built with --origin junction."""
+    import re
+
+    text = grid.read_text()
+    shift = lambda m: f"{float(m.group(1)) + 3e6:.2f},{float(m.group(2)):.2f}"  # noqa: E731
+    far = re.sub(r'(?<=shape=")[^"]*', lambda m: re.sub(r"(-?[\d.]+),(-?[\d.]+)", shift,
+                                                       m.group(0)), text)
+    far = re.sub(r'(<junction [^>]*\bx=")([\d.]+)',
+                 lambda m: m.group(1) + f"{float(m.group(2)) + 3e6:.2f}", far)
+    path = tmp_path / "far.net.xml"
+    path.write_text(far)
+    with pytest.raises(InputError, match="--origin junction puts"):
+        build_layout(read_network(path))
+    lay = build_layout(read_network(path), origin="junction")
+    assert lay.junction.id == "B1" and len(lay.mounts) == 4
+
+
+NO_JUNCTION_ELEMENTS = """<?xml version="1.0" encoding="UTF-8"?>
+<net version="1.20">
+    <location netOffset="0.00,0.00" convBoundary="0.00,0.00,100.00,0.00" origBoundary="0.00,0.00,100.00,0.00" projParameter="!"/>
+    <edge id="a" from="J0" to="J1" priority="1">
+        <lane id="a_0" index="0" speed="13.89" length="100.00" shape="0.00,0.00 100.00,0.00"/>
+    </edge>
+</net>
+"""
+
+
+def test_a_network_without_junction_elements_is_one_error(tmp_path):
+    """Edges naming junctions that no <junction> defines: a TypeError from sumolib's
+    node without a position before; now an InputError naming the junction."""
+    path = tmp_path / "nojunctions.net.xml"
+    path.write_text(NO_JUNCTION_ELEMENTS)
+    with pytest.raises(InputError, match=r"junction 'J0' is named by edge 'a' but has no "
+                                         r"<junction> element"):
+        read_network(path)

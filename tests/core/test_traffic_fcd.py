@@ -183,3 +183,40 @@ def test_bad_values_named(tmp_path):
     f.write_text('<fcd-export></fcd-export>')
     with pytest.raises(InputError, match="no <timestep>"):
         read_fcd(str(f))
+
+
+def test_how_frames_map_to_sumo_steps_is_said():
+    """One frame per step says nothing; otherwise the mapping is named with the fps
+    that would make it one to one."""
+    from rls_addon.core.traffic.fcd import step_notice
+
+    assert step_notice(10, 0.1, 0.0, 1) is None
+    assert step_notice(10.0, 0.1 + 1e-9, 5.0, 1) is None
+    slow = step_notice(24, 0.1, 60.0, 1)
+    assert "step is 0.1 s" in slow and "24 fps" in slow and "2.4 frames" in slow
+    assert "60 + (f - 1) / 24 s" in slow and "10 fps" in slow
+    coarse = step_notice(10, 1.0, 0.0, 1)
+    assert "10 frames" in coarse and "set the scene to 1 fps" in coarse
+    assert "steps apart" in step_notice(5, 0.1, 0.0, 1)
+
+
+def test_ground_surface_heights():
+    """The first ground surface down from STEP_M above FCD's z, within 2 STEP_M; else
+    FCD's z (exact numpy caster; two stacked squares: 0.15 m over x >= 0, 3 m over
+    x >= 5, a level too far above a z of 0 to step onto)."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.traffic.ground import STEP_M, GroundSurface
+
+    quads = [(0.0, 0.15), (5.0, 3.0)]
+    v, t = [], []
+    for x0, z in quads:
+        k = len(v)
+        v += [(x0, -1, z), (10, -1, z), (10, 1, z), (x0, 1, z)]
+        t += [(k, k + 1, k + 2), (k, k + 2, k + 3)]
+    g = GroundSurface(np.array(v, float), np.array(t), NumpyCaster)
+    xy = np.array([(-1.0, 0.0), (1.0, 0.0), (6.0, 0.0), (6.0, 0.0), (1.0, 5.0)])
+    z = np.array([0.0, 0.0, 0.0, 2.8, 0.0])
+    assert g.heights(xy, z) == pytest.approx([0.0, 0.15, 0.15, 3.0, 0.0])
+    assert STEP_M == 0.5
+    assert GroundSurface(np.zeros((0, 3)), np.zeros((0, 3)), NumpyCaster).heights(
+        xy, 0.25) == pytest.approx([0.25] * 5)

@@ -151,15 +151,20 @@ def car(coll, name, mat, path, frames, size=(4.5, 1.8, 1.5)):
     return obj
 
 
-def _linear(action):
-    """Linear keyframe interpolation (Blender 5 keeps F-curves in layered actions)."""
+def action_curves(action):
+    """Every F-curve of ``action`` (Blender 5 keeps them in layered actions)."""
     curves = list(getattr(action, "fcurves", []) or [])
     if not curves:
         for layer in getattr(action, "layers", []):
             for strip in layer.strips:
                 for bag in getattr(strip, "channelbags", []):
                     curves += list(bag.fcurves)
-    for fc in curves:
+    return curves
+
+
+def _linear(action):
+    """Linear keyframe interpolation."""
+    for fc in action_curves(action):
         for kp in fc.keyframe_points:
             kp.interpolation = "LINEAR"
 

@@ -13,7 +13,8 @@ from pathlib import Path
 from . import schema as sch
 from .angle_tables import ORIGIN_COLUMNS
 from .calibration_files import FORMATS, read_calibration
-from .presets import channel_count, get_preset, load_preset, spinning_beam_origins
+from .families.spinning import channel_count, spinning_beam_origins
+from .presets import get_preset, load_preset
 from .user_presets import dumps_preset, preset_to_dict, refuse_builtin_id
 from ..errors import OutputError, PresetError
 from ..output.io.atomic import atomic_write_bytes

@@ -25,6 +25,7 @@ import re
 import threading
 
 from . import schema as sch
+from .families.spinning import check_spinning
 from ..errors import PresetError, SettingsError
 
 MODES_KEYS = {"rotation_hz", "rotation_range_hz", "lidar_mode", "return_mode"}
@@ -227,7 +228,7 @@ def _derive(preset, modes, rotation_hz, lidar_mode):
                                                  float(scan.get("firing_time_zero_us", 0.0)))
     rows = None if preset.table is None else len(preset.table.elevations_deg)
     try:
-        rays = sch.check_spinning(scan, where, freq, rows, offsets)
+        rays = check_spinning(scan, where, freq, rows, offsets)
     except PresetError as exc:
         raise SettingsError(f"'{preset.id}' cannot run at {freq:g} Hz: {exc}") from None
     out = dataclasses.replace(preset, frequency_hz=freq, scan=scan, rays_per_frame=rays)

@@ -3,8 +3,8 @@
 A preset file describes one device: identity and source, range model, dropout,
 intensity attenuation and the scan pattern parameters of its family. ``load_preset``
 validates a file and returns a ``DevicePreset``; every error names the file and key.
-The file format is described in docs/presets.md; the [scan] schema of each family lives
-in ``preset_schema``.
+The file format is described in docs/presets.md; the ``[scan]`` table of each family is
+checked, and its pattern built, by the family's module (``families``).
 """
 
 import math
@@ -16,18 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from . import schema as sch
-from .angle_tables import AngleTable, ccw_offsets_deg, read_angle_table, resolve_table_path
-from .firing_times import read_firing_times
+from .angle_tables import AngleTable
+from .families import FAMILIES, family_of
+# scan/session.py reads a spinning preset's channel elevations from here
+from .families.spinning import spinning_elevations_offsets  # noqa: F401
 from .modes import check_modes
 from ..physics.detection import DetectionModel
 from ..errors import PatternError, PresetError
 from .patterns.base import ScanPattern
-from .patterns.custom import read_pattern_csv
-from .patterns.mems import blickfeld_pattern, lissajous_zones_pattern
-from .patterns.risley import risley_pattern
-from .patterns.spinning import spinning_pattern, uniform_elevations_deg
 
-FAMILIES = ("spinning", "mems", "risley", "custom")
 SCHEMA_VERSION = 1
 MAX_PRESET_BYTES = 2_000_000
 TOP_KEYS = {"schema", "id", "name", "family", "source", "fitted", "frequency_hz", "range",
@@ -95,11 +92,12 @@ class DevicePreset:
         families: Risley prisms and MEMS mirrors keep moving between frames). Results
         are cached per preset object and read-only; calling again is cheap."""
         cache = self.__dict__.setdefault("_pattern_cache", OrderedDict())
-        key = int(frame) if self.family in ("risley", "mems") else 0
+        family = family_of(self)
+        key = int(frame) if family.changes_per_frame else 0
         if key in cache:
             cache.move_to_end(key)
             return cache[key]
-        pat = _build_pattern(self, key)
+        pat = family.build(self, key)
         for a in (pat.directions, pat.times, pat.channels, pat.origins):
             if a is not None:
                 a.setflags(write=False)
@@ -107,101 +105,6 @@ class DevicePreset:
         while len(cache) > PATTERN_CACHE_FRAMES:
             cache.popitem(last=False)
         return pat
-
-
-# ---- pattern construction --------------------------------------------------------------
-
-def spinning_elevations_offsets(preset):
-    """(elevations_deg, azimuth offsets in our ccw convention) of a spinning preset."""
-    s = preset.scan
-    if preset.table is not None:
-        el = np.asarray(preset.table.elevations_deg, dtype=np.float64)
-        off = ccw_offsets_deg(preset.table.azimuth_offsets_deg, s["azimuth_convention"])
-    elif "elevations_deg" in s:
-        el = np.asarray(s["elevations_deg"], dtype=np.float64)
-        raw = s.get("azimuth_offsets_deg", [0.0] * len(el))
-        off = ccw_offsets_deg(raw, s.get("azimuth_convention", "ccw"))
-    else:
-        el = uniform_elevations_deg(s["channels"], s["upper_fov_deg"], s["lower_fov_deg"])
-        off = np.zeros_like(el)
-    return el, off
-
-
-def channel_count(s, table):
-    """Channels of a spinning ``[scan]`` ``s`` with its resolved angle ``table``."""
-    if table is not None:
-        return len(table.elevations_deg)
-    return len(s["elevations_deg"]) if "elevations_deg" in s else int(s["channels"])
-
-
-def spinning_beam_origins(preset):
-    """Where each beam of a spinning preset leaves from, (C or 1, 3) metres in the head
-    frame (table origin columns or ``beam_origins_m``), or None: all from the origin."""
-    if preset.table is not None and preset.table.origins_m is not None:
-        return np.asarray(preset.table.origins_m, np.float64)
-    if "beam_origins_m" in preset.scan:
-        return np.asarray(preset.scan["beam_origins_m"], np.float64).reshape(-1, 3)
-    return None
-
-
-def _firing_offsets_s(s, c, preset=None):
-    times = getattr(preset, "firing_times", None)
-    if times is not None:
-        zero = float(s.get("firing_time_zero_us", 0.0))
-        return np.asarray(times.offsets_us(preset.table.channel_ids, zero)) * 1e-6
-    if "firing_offsets_us" in s:
-        return np.asarray(s["firing_offsets_us"], dtype=np.float64) * 1e-6
-    if "firing_step_us" in s:
-        if "firing_groups" in s:
-            groups = np.asarray(s["firing_groups"], dtype=np.float64)
-        else:
-            groups = np.arange(c) // int(s.get("firing_group_size", 1))
-        return groups * float(s["firing_step_us"]) * 1e-6
-    return None
-
-
-def _build_pattern(p, frame):
-    s = p.scan
-    if p.family == "spinning":
-        el, off = spinning_elevations_offsets(p)
-        cycle = s.get("firing_cycle_us")
-        return spinning_pattern(
-            el, p.frequency_hz, s.get("points_per_second"), off,
-            horizontal_resolution_deg=s.get("horizontal_resolution_deg"),
-            firing_cycle_s=None if cycle is None else cycle * 1e-6,
-            firings_per_rotation=s.get("firings_per_rotation"),
-            firing_offsets_s=_firing_offsets_s(s, len(el), p),
-            origins_head_m=spinning_beam_origins(p))
-    if p.family == "mems":
-        if s["model"] == "blickfeld":
-            return blickfeld_pattern(p.frequency_hz, s["points_per_second"], s["mirror_hz"],
-                                     s["h_fov_deg"], s["v_fov_deg"], s.get("phase_deg", 90.0), frame)
-        return lissajous_zones_pattern(
-            p.frequency_hz, s["points_per_second"], s["zones"], s["h_mirror_hz"],
-            s["v_mirror_hz"], s["h_amplitude_deg"], s["upper_amplitude_deg"],
-            s["lower_amplitude_deg"], s.get("v_phase_deg", 90.0), frame)
-    if p.family == "risley":
-        return risley_pattern(p.frequency_hz, s["pulse_rate_hz"], s["rotation_hz"], s["wedge_deg"],
-                              s["refractive_index"], s.get("fan_deg", [0.0]), s.get("phase_deg"),
-                              frame)
-    if p.family == "custom":
-        path = custom_pattern_path(p)
-        try:
-            return read_pattern_csv(path, p.frequency_hz)
-        except PatternError as exc:
-            raise PatternError(f"{p.path or p.id} [scan] file: {exc}") from None
-    raise PresetError(f"{p.path or p.id}: family '{p.family}' has no pattern")
-
-
-def custom_pattern_path(preset):
-    """The resolved pattern CSV of a custom-family preset."""
-    if not preset.base_dir:
-        raise PresetError(f"{preset.path or preset.id} [scan]: key 'file' needs a preset file "
-                          f"to resolve it against")
-    try:
-        return resolve_table_path(preset.scan["file"], preset.base_dir, f"{preset.path} [scan]")
-    except PresetError as exc:
-        raise PresetError(str(exc).replace("key 'table'", "key 'file'")) from None
 
 
 # ---- validation -------------------------------------------------------------------------
@@ -223,7 +126,7 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
         raise PresetError(f"{where}: key 'id' must be lower-case letters, digits, '_', '-' or '.' "
                           f"(at most 64, starting with a letter or digit), got '{pid}'")
     name = sch.string(data, "name", where, max_len=200)
-    family = sch.choice(data, "family", where, FAMILIES)
+    family = sch.choice(data, "family", where, FAMILIES.ids)
     source = sch.string(data, "source", where, max_len=4000)
     fitted = data.get("fitted", False)
     if not isinstance(fitted, bool):
@@ -255,49 +158,23 @@ def preset_from_dict(data, where="<preset>", base_dir=None):
         raise PresetError(f"{where}: missing table [scan] (the scan pattern parameters)")
     scan = sch.table_of(data, "scan", where)
     sw = f"{where} [scan]"
-    table = None
-    if family == "spinning":
-        if "table" in scan:
-            if base_dir is None:
-                raise PresetError(f"{sw}: key 'table' needs a preset file to resolve it against")
-            tpath = resolve_table_path(scan["table"], base_dir, sw)
-            table = read_angle_table(tpath, f"{sw} table '{scan['table']}'")
-        firing, offsets = None, None
-        if "firing_times" in scan and table is not None:
-            fpath = resolve_table_path(scan["firing_times"], base_dir, sw)
-            firing = read_firing_times(fpath, table.channel_ids,
-                                       f"{sw} firing_times '{scan['firing_times']}'")
-            zero = sch.num(scan, "firing_time_zero_us", sw, -1e6, 1e6, default=0.0)
-            offsets = firing.offsets_us(table.channel_ids, zero)
-        rays = sch.check_spinning(scan, sw, freq, None if table is None else len(table.elevations_deg),
-                                  offsets)
-        sch.check_beam_origins(scan, sw, channel_count(scan, table),
-                               table is not None and table.origins_m is not None)
-    elif family == "mems":
-        rays = sch.check_mems(scan, sw, freq)
-    elif family == "risley":
-        rays = sch.check_risley(scan, sw, freq)
-    else:
-        rays = sch.check_custom(scan, sw)
-        if base_dir is None:
-            raise PresetError(f"{sw}: key 'file' needs a preset file to resolve it against")
-        try:
-            resolve_table_path(scan["file"], base_dir, sw)
-        except PresetError as exc:
-            raise PresetError(str(exc).replace("key 'table'", "key 'file'")) from None
+    fam = FAMILIES.get(family)
+    sch.no_unknown(scan, fam.scan_keys, sw)
+    rays, resolved = fam.check(scan, sw, freq, base_dir)
     modes = check_modes(data["modes"], f"{where} [modes]", family, freq, scan, beam) \
         if "modes" in data else None
     return DevicePreset(
         id=pid, name=name, family=family, source=source, frequency_hz=freq, range=rm, dropout=dm,
         attenuation_per_m=sch.num(data, "attenuation_per_m", where, 0.0, 1.0, default=0.0),
-        scan=dict(scan), path=where, fitted=fitted, table=table,
+        scan=dict(scan), path=where, fitted=fitted,
         base_dir="" if base_dir is None else str(base_dir), rays_per_frame=rays,
-        detection=detection, beam=beam, firing_times=firing if family == "spinning" else None,
-        modes=modes,
+        detection=detection, beam=beam, modes=modes, **resolved,
     )
 
 
 _LOAD_CACHE = {}
+# a family added or removed changes what a file validates to
+FAMILIES.subscribe(lambda families: _LOAD_CACHE.clear())
 
 
 def load_preset(path):
@@ -420,8 +297,7 @@ def pattern_span(preset, duration_s):
 
 
 __all__ = [
-    "FAMILIES", "RangeModel", "DropoutModel", "DevicePreset", "ScanPattern", "preset_from_dict",
+    "RangeModel", "DropoutModel", "DevicePreset", "ScanPattern", "preset_from_dict",
     "load_preset", "builtin_presets_dir", "builtin_presets", "presets_in", "readable_presets_in",
-    "get_preset", "pattern_span", "spinning_elevations_offsets", "spinning_beam_origins",
-    "custom_pattern_path", "channel_count",
+    "get_preset", "pattern_span",
 ]

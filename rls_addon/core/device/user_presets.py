@@ -12,7 +12,8 @@ import shutil
 from pathlib import Path
 
 from ..errors import OutputError, PresetError
-from .presets import builtin_presets, custom_pattern_path, load_preset, presets_in
+from .families.custom import custom_pattern_path
+from .presets import builtin_presets, load_preset, presets_in
 
 TOP_ORDER = ("schema", "id", "name", "family", "source", "fitted", "frequency_hz", "attenuation_per_m")
 

@@ -181,8 +181,25 @@ def infra_d(n_points, area_m2):
     return n_points / area_m2
 
 
+def infra_nuc_rows(disk_counts, n_points, p):
+    """The InfraNUC formula, once for every caller: per row, the standard deviation of
+    ``n_i / (N p)`` over the disks.
+
+    disk_counts  (..., D) points in each disk
+    n_points     (...)    points N of the cloud (or set of clouds) each row counts
+    p            the share of the region one disk covers
+    Returns (...) float64, NaN for a row with no points or no point in any disk (no
+    estimate, not 'perfectly uniform')."""
+    n = np.asarray(n_points, dtype=np.float64)
+    c = np.asarray(disk_counts, dtype=np.float64)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        x = c / (n[..., None] * p)
+        nuc = np.sqrt(np.mean((x - x.mean(axis=-1, keepdims=True)) ** 2, axis=-1))
+    return np.where((n == 0) | (c.sum(axis=-1) == 0), np.nan, nuc)
+
+
 def infra_nuc(disk_counts, n_points, p):
-    """Standard deviation of ``n_i / (N p)`` over the disks.
+    """InfraNUC of one cloud: ``infra_nuc_rows`` of its disk counts.
 
     Raises RegionError when no disk holds a point: the spread of all-zero counts is 0,
     which would read as perfectly uniform when it is no estimate at all."""
@@ -191,9 +208,7 @@ def infra_nuc(disk_counts, n_points, p):
         raise RegionError(
             f"none of the {len(counts)} disks holds any of the {n_points} points, so InfraNUC "
             "cannot be estimated: use larger or more disks (--radius, --disks)")
-    x = counts / (n_points * p)
-    avg = x.mean()
-    return math.sqrt(float(np.mean((x - avg) ** 2)))
+    return float(infra_nuc_rows(counts[None, :], [n_points], p)[0])
 
 
 @dataclasses.dataclass

@@ -29,6 +29,9 @@ from ..errors import InputError
 
 FLAT_TOLERANCE_M = 0.01
 PEDESTRIAN = "pedestrian"
+# SUMO's node types with traffic lights (sumo.dlr.de/docs/Networks/PlainXML.html,
+# "Node types"); rail_signal is a railway's, not a road junction's.
+SIGNALISED = ("traffic_light", "traffic_light_unregulated", "traffic_light_right_on_red")
 
 
 @dataclass(frozen=True)
@@ -48,6 +51,11 @@ class Junction:
     centre: np.ndarray   # (2,) the node's position
     shape: np.ndarray    # (n, 2) outline, possibly empty
     roads: tuple = ()    # unit vectors from the centre along each road that meets here
+    incoming_lanes: int = 0  # lanes of the edges that end here, sidewalks left out
+
+    @property
+    def signalised(self):
+        return self.type in SIGNALISED
 
 
 @dataclass
@@ -78,7 +86,8 @@ def _xy(points, what):
     if arr.size == 0:
         return np.zeros((0, 2))
     if arr.ndim != 2 or arr.shape[1] < 2 or not np.isfinite(arr).all():
-        raise InputError(f"{what} has a malformed shape")
+        raise InputError(f"{what} has a malformed shape (a coordinate that is not a "
+                         "finite number)")
     return arr
 
 
@@ -152,11 +161,10 @@ def read_network(path):
         for lane in edge.getLanes():
             _check_flat(lane.getShape3D(), f"lane {lane.getID()}", path)
             kind = lane_kind(function, lane.getPermissions())
-            lanes.append(Lane(id=lane.getID(), edge=edge.getID(), kind=kind,
-                              shape=_xy(lane.getShape(), f"lane {lane.getID()}"),
-                              width=float(lane.getWidth()), internal=bool(function)))
+            lanes.append(_lane(lane, edge, kind, function, path))
     junctions = []
     for node in net.getNodes():
+        _check_defined(node, path)
         if node.getType() == "internal":
             continue
         _check_flat(node.getShape3D(), f"junction {node.getID()}", path)
@@ -165,12 +173,48 @@ def read_network(path):
         roads = [_road_direction(e, centre, incoming)
                  for incoming, edges in ((True, node.getIncoming()), (False, node.getOutgoing()))
                  for e in edges if not e.getFunction()]
+        lanes_in = sum(1 for e in node.getIncoming() if not e.getFunction()
+                       for lane in e.getLanes()
+                       if lane_kind("", lane.getPermissions()) == "road")
         junctions.append(Junction(id=node.getID(), type=node.getType(), centre=centre,
                                   shape=_xy(node.getShape(), f"junction {node.getID()}"),
-                                  roads=tuple(r for r in roads if r is not None)))
+                                  roads=tuple(r for r in roads if r is not None),
+                                  incoming_lanes=lanes_in))
     offset = tuple(float(v) for v in net.getLocationOffset()[:2])
     return RoadNetwork(path=path, lanes=lanes, junctions=junctions, net_offset=offset,
                        by_id={j.id: j for j in junctions})
+
+
+def _lane(lane, edge, kind, function, path):
+    """A ``Lane``; ``InputError`` for a width that is not a positive number or a centre
+    line of fewer than two distinct points (a walking area's outline excepted): such a
+    lane would be left out of the scene, and SUMO writes none."""
+    lid = lane.getID()
+    shape = _xy(lane.getShape(), f"{path}: lane {lid}")
+    width = float(lane.getWidth())
+    if not (np.isfinite(width) and width > 0):
+        raise InputError(f"{path}: lane {lid} has width {lane.getWidth()!r}: a lane needs a "
+                         "positive width in metres")
+    if kind != "walkingarea":
+        steps = np.linalg.norm(np.diff(shape, axis=0), axis=1) if len(shape) > 1 else []
+        if not np.any(np.asarray(steps) > 0):
+            raise InputError(f"{path}: lane {lid} has a shape of {len(shape)} point(s) "
+                             "but no length: a lane's centre line needs two distinct points")
+    return Lane(id=lid, edge=edge.getID(), kind=kind, shape=shape, width=width,
+                internal=bool(function))
+
+
+def _check_defined(node, path):
+    """``InputError`` for a junction that edges name but no ``<junction>`` defines
+    (sumolib makes it without a position)."""
+    try:
+        node.getCoord()
+    except TypeError:
+        edges = [e.getID() for e in node.getIncoming() + node.getOutgoing()]
+        raise InputError(f"{path}: junction {node.getID()!r} is named by edge "
+                         f"{edges[0] if edges else '?'!r} but has no <junction> element: "
+                         "is the network cut short or edited by hand? Write it again "
+                         "with netconvert") from None
 
 
 ROAD_PROBE_M = 30.0

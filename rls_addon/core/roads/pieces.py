@@ -51,39 +51,55 @@ def _dedupe(points):
     return pts[keep]
 
 
+def _areas(polys):
+    """(k,) signed shoelace areas of (k, m, 2) polygons."""
+    x, y = polys[..., 0], polys[..., 1]
+    return 0.5 * np.sum(x * np.roll(y, -1, axis=1) - y * np.roll(x, -1, axis=1), axis=1)
+
+
 def lane_pieces(shape, width):
     """Convex counter-clockwise (k, 2) polygons whose union is the lane's surface."""
-    pts = _dedupe(shape)
-    h = 0.5 * float(width)
-    if len(pts) < 2 or h <= 0:
-        return []
-    d = np.diff(pts, axis=0)
+    return lanes_pieces([shape], [width])[0]
+
+
+def lanes_pieces(shapes, widths):
+    """``lane_pieces`` of many lanes at once (one numpy pass over every segment and
+    bend of all of them): per lane, its segments' rectangles, then its bends' wedges."""
+    out = [[] for _ in shapes]
+    if not len(shapes):
+        return out
+    pts = [_dedupe(sh) for sh in shapes]
+    counts = np.array([len(p) for p in pts])
+    h = 0.5 * np.asarray(widths, dtype=np.float64)
+    P = np.concatenate([p for p in pts if len(p)]) if counts.sum() else np.zeros((0, 2))
+    lane = np.repeat(np.arange(len(shapes)), counts)
+    usable = (counts >= 2) & (h > 0)
+    # segments: consecutive points of one usable lane
+    seg = np.flatnonzero((lane[:-1] == lane[1:]) & usable[lane[:-1]])
+    a, b, sl = P[seg], P[seg + 1], lane[seg]
+    d = b - a
     d /= np.linalg.norm(d, axis=1)[:, None]
-    n = np.c_[-d[:, 1], d[:, 0]]  # left normals
-    out = []
-    for i in range(len(d)):
-        a, b = pts[i], pts[i + 1]
-        rect = np.array([a - n[i] * h, b - n[i] * h, b + n[i] * h, a + n[i] * h])
-        r = _ccw(rect)
-        if r is not None:
-            out.append(r)
-    cos_limit = np.cos(np.radians(MITER_LIMIT_DEG))
-    for i in range(1, len(pts) - 1):
-        d1, d2, n1, n2, p = d[i - 1], d[i], n[i - 1], n[i], pts[i]
-        turn = d1[0] * d2[1] - d1[1] * d2[0]
-        if abs(turn) < 1e-12:
-            continue
-        side = -1.0 if turn > 0 else 1.0  # the outer side: right of a left turn
-        a, b = p + side * n1 * h, p + side * n2 * h
-        if float(np.dot(d1, d2)) >= cos_limit:
-            m = n1 + n2
-            tip = p + side * m * (2.0 * h / float(np.dot(m, m)))
-            wedge = np.array([p, a, tip, b])
-        else:
-            wedge = np.array([p, a, b])
+    n = np.c_[-d[:, 1], d[:, 0]] * h[sl][:, None]  # left normals, half a width long
+    rects = np.stack([a - n, b - n, b + n, a + n], axis=1)  # counter-clockwise
+    for i in np.flatnonzero(_areas(rects) >= MIN_PIECE_AREA_M2):
+        out[sl[i]].append(rects[i])
+    # bends: a segment and the next of the same lane
+    j = np.flatnonzero(sl[:-1] == sl[1:]) if len(sl) > 1 else np.zeros(0, np.int64)
+    d1, d2, n1, n2, p = d[j], d[j + 1], n[j], n[j + 1], b[j]
+    turn = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
+    side = np.where(turn > 0, -1.0, 1.0)[:, None]  # the outer side: right of a left turn
+    wa, wb = p + side * n1, p + side * n2
+    m = n1 + n2
+    mm = np.einsum("ij,ij->i", m, m)
+    hj = h[sl[j]]
+    tip = p + side * m * (2.0 * hj * hj / np.where(mm > 0, mm, 1.0))[:, None]
+    mitre = np.einsum("ij,ij->i", d1, d2) >= np.cos(np.radians(MITER_LIMIT_DEG))
+    for i in np.flatnonzero(np.abs(turn) >= 1e-12):
+        wedge = (np.array([p[i], wa[i], tip[i], wb[i]]) if mitre[i]
+                 else np.array([p[i], wa[i], wb[i]]))
         w = _ccw(wedge)
         if w is not None:
-            out.append(w)
+            out[sl[j[i]]].append(w)
     return out
 
 

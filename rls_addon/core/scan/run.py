@@ -20,6 +20,7 @@ from typing import Protocol
 from ..casting import caster_factory
 from ..errors import SceneError
 from ..scene.instances import check_ids
+from ..scene.traffic_keys import check_keyed, source_span
 from ..labels import label_id, label_name
 from .session import ScanSession, settings_record
 
@@ -106,6 +107,7 @@ class ScanRun:
                              f"(add one with Add > LiDAR)")
         if not frames:
             raise SceneError("no frames to scan (the frame range is empty)")
+        check_keyed(frames, source_span(source))
         self.source, self.sensors, self.frames = source, list(sensors), list(frames)
         self.writer, self.progress, self.on_result = writer, progress, on_result
         self._cancelled = cancelled or (lambda: False)

@@ -17,13 +17,13 @@ from ..choices import (
     DETECTION,
     FIELDS,
     FOOTPRINT,
-    FORMATS,
     FRAME_SPACES,
     MOTION,
     RETURN_MODES,
 )
 from ..errors import SettingsError
 from ..output.io.fields import DEFAULT_FIELDS, resolve_fields
+from ..output.io.formats import FORMATS
 from ..output.io.point_types import POINT_TYPE_CHOICES
 from ..labels import OBJECT_CLASSES, label_id, label_name
 from ..physics.weather import weather_spec
@@ -129,7 +129,7 @@ class OutputSettings:
     """Where and how a LiDAR's clouds are written (its Output panel)."""
 
     directory: str = DEFAULT_OUTPUT_DIR  # '//' is the folder of the .blend file
-    format: str = "pcd_binary"           # see choices.FORMATS
+    format: str = "pcd_binary"           # see output.io.formats.FORMATS
     fields: tuple = DEFAULT_FIELDS  # x, y, z and every field but 'range'
     template: str = DEFAULT_TEMPLATE
     # Ground truth in the sidecar: boxes of the objects of these classes (label names)

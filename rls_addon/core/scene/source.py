@@ -83,6 +83,9 @@ class SceneSource(Protocol):
 
     def sweep(self, frame: int, period: float) -> Sweep: ...
 
+    # May offer ``traffic_span() -> (first, last) | None``: the frames over which its
+    # road users are keyed (``traffic_keys``); frames outside are refused.
+
 
 class StudyScene(Protocol):
     """What a study asks of a scene."""
@@ -106,3 +109,5 @@ class StudyScene(Protocol):
     def traffic(self, frames: tuple, labels: set) -> dict:
         """{frame: source.SceneRead} of the objects with these label ids at each frame
         (their meshes in their own frames, their matrices at that frame)."""
+
+    # May offer ``traffic_span()``, as a ``SceneSource`` may.

@@ -13,6 +13,7 @@ from ..casting import caster_factory
 from ..errors import SceneError, SettingsError
 from ..metrics.infra import density_map
 from ..metrics.visibility import VisibilityCounts, ranks
+from ..scene.traffic_keys import check_keyed, source_span
 from .placement import CandidateCounts, DiskLayout
 from .config import StudyConfig
 from .evaluation import StudyEvaluation
@@ -69,6 +70,9 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
     one after another here; a sharded run hands them to workers); it calls
     ``on_scan(CandidateScan)`` for each, in any order."""
     t0 = time.perf_counter()
+    span = source_span(scene)
+    check_keyed(cfg.traffic_frames, span, "traffic frames")
+    check_keyed(cfg.evaluate_frames, span, "evaluation frames")
     inputs = study_inputs(scene, cfg)
     preset, polygon, layout, cands = inputs.preset, inputs.polygon, inputs.layout, inputs.candidates
     scanner = StudyScanner(scene, cfg, preset, polygon, layout, cands, factory)

@@ -26,7 +26,8 @@ import numpy as np
 
 from ..metrics.disk_counter import DiskCounter
 from ..errors import InputError, RegionError, SettingsError
-from ..metrics.infra import DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, disk_rng, select_xy
+from ..metrics.infra import (DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED, disk_rng,
+                             infra_nuc_rows, select_xy)
 from ..metrics.polygon import PreparedPolygon, as_polygon, sample_in_polygon, shoelace_area
 
 DEFAULT_WEIGHTS = tuple(np.round(np.linspace(0.0, 1.0, 11), 2))
@@ -105,14 +106,8 @@ def set_metrics(n_points, disk_counts, area_m2, p):
     Returns (infra_d (S,), infra_nuc (S,)); InfraNUC is NaN for a set with no points or
     with no point in any disk (no estimate, not 'perfectly uniform').
     """
-    n = np.asarray(n_points, dtype=np.float64)
-    c = np.asarray(disk_counts, dtype=np.float64)
-    d = n / area_m2
-    with np.errstate(invalid="ignore", divide="ignore"):
-        x = c / (n[:, None] * p)
-        nuc = np.sqrt(np.mean((x - x.mean(axis=1, keepdims=True)) ** 2, axis=1))
-    nuc[(n == 0) | (c.sum(axis=1) == 0)] = np.nan
-    return d, nuc
+    d = np.asarray(n_points, dtype=np.float64) / area_m2
+    return d, infra_nuc_rows(disk_counts, n_points, p)
 
 
 def pareto_front(infra_d, infra_nuc):

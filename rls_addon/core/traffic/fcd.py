@@ -42,6 +42,9 @@ from .xml_errors import parse_reason
 GAP_STEPS = 1.5
 TIME_EPS = 1e-6
 READ_MARGIN_S = 5.0
+# SUMO writes angles in [0, 360); beyond ten turns either way an angle is not a heading
+# (at 1e20 degrees float64 cannot tell headings 16,384 degrees apart).
+ANGLE_LIMIT_DEG = 3600.0
 
 
 @dataclass
@@ -63,6 +66,7 @@ class Fcd:
     step: float          # the FCD period (s)
     first: float         # the first and last timestep (s)
     last: float
+    path: str = "the FCD"
 
     @property
     def types(self):
@@ -82,11 +86,14 @@ def _root_tag(path):
     return m.group(1).decode("ascii", "replace") if m else None
 
 
-def read_fcd(path, begin=None, end=None):
+PROGRESS_STEPS = 500  # timesteps between two calls of read_fcd's progress
+
+
+def read_fcd(path, begin=None, end=None, progress=None):
     """Read an FCD file, streamed (``iterparse``: a timestep's objects are read when it
     ends, then it is cleared). Keeps the steps within [begin, end] seconds when given. A
     file that is not XML, is cut short, or is not FCD raises ``InputError`` naming the
-    line."""
+    line. ``progress(share of the file read)`` every ``PROGRESS_STEPS`` timesteps."""
     if not os.path.isfile(path):
         raise InputError(f"FCD file not found: {path}")
     try:
@@ -97,15 +104,12 @@ def read_fcd(path, begin=None, end=None):
         rows, steps = {}, []
         lo = -math.inf if begin is None else begin - TIME_EPS
         hi = math.inf if end is None else end + TIME_EPS
-        for _, el in ET.iterparse(path, events=("end",)):
-            if el.tag != "timestep":
-                continue
-            t = _num(el.get("time"), "time", path, "timestep")
-            steps.append(t)
-            if lo <= t <= hi:
-                for obj in el:
-                    _add(rows, obj, t, path)
-            el.clear()
+        fh = open(path, "rb")
+        size = max(1, os.fstat(fh.fileno()).st_size)
+        with fh:
+            for t in _timesteps(fh, path, rows, steps, lo, hi):
+                if progress is not None and len(steps) % PROGRESS_STEPS == 0:
+                    progress(fh.tell() / size)
     except ET.ParseError as exc:
         raise InputError(f"{path} is not complete, well-formed XML (cut short or not "
                          f"FCD): {parse_reason(exc)}") from None
@@ -128,12 +132,40 @@ def read_fcd(path, begin=None, end=None):
         if not all(np.isfinite(v).all() for v in (tr.x, tr.y, tr.z, tr.angle)):
             raise InputError(f"{path}: <{kind} id={oid!r}> has a position or angle that "
                              f"is not finite")
+        wild = np.abs(tr.angle) > ANGLE_LIMIT_DEG
+        if wild.any():
+            i = int(np.argmax(wild))
+            raise InputError(f"{path}: <{kind} id={oid!r}> at time {tr.times[i]:g} has angle "
+                             f"{tr.angle[i]:g}: SUMO writes angles in [0, 360) degrees; RLS "
+                             f"takes angles within +-{ANGLE_LIMIT_DEG:g}")
         order = np.argsort(tr.times, kind="stable")
         if (np.diff(order) != 1).any():
             for name in ("times", "x", "y", "z", "angle"):
                 setattr(tr, name, getattr(tr, name)[order])
         tracks[key] = tr
-    return Fcd(tracks, step, float(times[0]), float(times[-1]))
+    return Fcd(tracks, step, float(times[0]), float(times[-1]), path)
+
+
+def _timesteps(fh, path, rows, steps, lo, hi):
+    """Each timestep's time as it is read from ``fh``, its objects (within [lo, hi])
+    added to ``rows``; a repeated or backward timestep is an ``InputError``."""
+    for _, el in ET.iterparse(fh, events=("end",)):
+        if el.tag != "timestep":
+            continue
+        t = _num(el.get("time"), "time", path, "timestep")
+        if steps and t <= steps[-1] + TIME_EPS:
+            raise InputError(
+                f"{path}: <timestep time={el.get('time')!r}> (the {len(steps) + 1}th) "
+                + ("repeats the timestep before it" if abs(t - steps[-1]) <= TIME_EPS
+                   else f"goes back in time after time={steps[-1]:g}")
+                + ": SUMO writes each step once, in time order; was the file joined "
+                "from several runs?")
+        steps.append(t)
+        if lo <= t <= hi:
+            for obj in el:
+                _add(rows, obj, t, path)
+        el.clear()
+        yield t
 
 
 def _num(value, name, path, tag):
@@ -162,6 +194,16 @@ def _add(rows, el, t, path):
                              f"FCD in network coordinates (without --fcd-output.geo)")
         typ = a.get("type") or ("DEFAULT_PEDTYPE" if tag == "person" else "DEFAULT_VEHTYPE")
         row = rows[key] = (tag, oid, typ, [], [], [], [], [])
+    else:
+        if row[3][-1] == t:
+            raise InputError(f"{path}: <{tag} id={oid!r}> appears twice in the timestep at "
+                             f"time {t:g}: an id names one {tag} (two objects with one id "
+                             f"would be merged into one that jumps between them)")
+        typ = a.get("type")
+        if typ is not None and typ != row[2]:
+            raise InputError(f"{path}: <{tag} id={oid!r}> changes its type from {row[2]!r} "
+                             f"to {typ!r} at time {t:g}: RLS sizes an object once, by one "
+                             f"vType")
     try:
         row[4].append(a["x"])
         row[5].append(a["y"])
@@ -206,9 +248,44 @@ class Motion:
         return self.first + len(self.present)
 
 
+# Blender's last frame (the hard maximum of Scene.frame_end in Blender 5.0: MAXFRAME).
+MAX_FRAME = 1_048_574
+
+
+def keyed_frames(fcd, fps, frame_start, begin=None, end=None):
+    """(begin s, end s, number of frames) that an import keys: frame ``frame_start`` at
+    ``begin`` (default the FCD's first step), one every 1/``fps`` s up to ``end``
+    (default its last step); ``InputError`` when they would pass Blender's last frame."""
+    check_times(begin, end)
+    begin = fcd.first if begin is None else float(begin)
+    end = fcd.last if end is None else float(end)
+    n = int(math.floor((end - begin) * fps + 1e-6)) + 1
+    if n < 1:
+        raise InputError(f"--end {end:g} s is before --begin {begin:g} s")
+    if frame_start + n - 1 > MAX_FRAME:
+        raise InputError(f"{begin:g}-{end:g} s at {fps:g} fps is {n} frames from frame "
+                         f"{frame_start}, past Blender's last frame ({MAX_FRAME}): choose a "
+                         f"shorter stretch with --begin and --end")
+    return begin, end, n
+
+
 def frame_times(n_frames, fps, begin):
     """Simulation time (s) of each of ``n_frames`` frames from ``begin``."""
     return float(begin) + np.arange(int(n_frames)) / float(fps)
+
+
+def step_notice(fps, step, begin, frame_start):
+    """None when each frame is one FCD step (``fps`` x ``step`` = 1); else a line saying
+    how the scene's frames map to SUMO's steps, and how to make them one to one."""
+    per = float(fps) * float(step)
+    if abs(per - 1.0) <= 1e-6:
+        return None
+    how = (f"each step spans {per:.3g} frames, interpolated between steps" if per > 1
+           else f"frames are {1 / per:.3g} steps apart, the steps between them unkeyed")
+    return (f"the FCD's step is {step:g} s and the scene runs at {fps:g} fps: frame f is "
+            f"simulation time {begin:g} + (f - {frame_start}) / {fps:g} s, so {how}; set "
+            f"the scene to {1 / step:g} fps to key one frame per SUMO step (a scene from "
+            f"rls scene from-net runs at 10 fps, for rls traffic generate's 0.1 s)")
 
 
 def resample(track, length, times, step, origin=(0.0, 0.0)):
@@ -260,14 +337,50 @@ def default_vtypes_path(fcd_path):
     return path if os.path.isfile(path) else None
 
 
-def load(fcd_path, vtypes_paths=(), begin=None, end=None):
+def check_times(begin, end):
+    """``InputError`` for a ``--begin`` or ``--end`` that is not a finite number of
+    seconds, or an end before the begin."""
+    for flag, v in (("--begin", begin), ("--end", end)):
+        if v is not None and not math.isfinite(v):
+            raise InputError(f"{flag} {v!r} is not a number of seconds")
+    if begin is not None and end is not None and end < begin:
+        raise InputError(f"--end {end:g} s is before --begin {begin:g} s")
+
+
+def check_origin(origin):
+    """``InputError`` for an ``--origin`` whose coordinates are not finite numbers."""
+    if origin is not None and not all(math.isfinite(float(v)) for v in origin):
+        raise InputError(f"--origin {' '.join(f'{float(v):g}' for v in origin)}: the "
+                         f"origin's x and y must be finite numbers (network metres)")
+
+
+def check_positions(fcd, types, origin):
+    """``InputError`` naming the object and time when a box centre lands farther than
+    ``extent.SPAN_M`` from the scene's origin: float32 keys would round it (a 1 m step
+    is lost at 1e12 m) or overflow (1e300)."""
+    from ..scene.extent import SPAN_M, check_span
+
+    for tr in fcd.tracks.values():
+        cx, cy, _ = box_centre(tr.x, tr.y, tr.angle, types[tr.type].length, origin)
+        far = np.maximum(np.abs(cx), np.abs(cy))
+        if far.max() > SPAN_M or not np.isfinite(far).all():
+            i = int(np.argmax(np.where(np.isfinite(far), far, np.inf)))
+            check_span([cx[i], cy[i], np.max(np.abs(tr.z))],
+                       f"{fcd.path}: <{tr.kind} id={tr.id!r}> at time {tr.times[i]:g}",
+                       "; --origin X Y names the network point at the scene's origin")
+        check_span(tr.z, f"{fcd.path}: <{tr.kind} id={tr.id!r}>'s z")
+
+
+def load(fcd_path, vtypes_paths=(), begin=None, end=None, progress=None):
     """(Fcd, {type id: VType}) of an FCD file with the vTypes of ``vtypes_paths`` (or
-    of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError."""
+    of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError.
+    ``progress(share of the FCD read)`` as it is read."""
     from .vtypes import read_vtypes, resolve
 
+    check_times(begin, end)
     # steps a little outside [begin, end] are kept for the interpolation at its ends
     fcd = read_fcd(fcd_path, None if begin is None else begin - READ_MARGIN_S,
-                   None if end is None else end + READ_MARGIN_S)
+                   None if end is None else end + READ_MARGIN_S, progress)
     if not fcd.tracks:
         raise InputError(f"{fcd_path} has no vehicle or person"
                          + (" between --begin and --end" if begin is not None

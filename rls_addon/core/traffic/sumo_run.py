@@ -22,15 +22,18 @@ Next to ``OUT.xml`` it writes ``OUT.vtypes.xml`` (the vTypes; ``rls traffic impo
 reads it by itself) and ``OUT.rou.xml`` (the routes SUMO ran).
 """
 
+import math
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
 import xml.etree.ElementTree as ET
+from dataclasses import dataclass, fields
 
 from ..errors import InputError, RLSError
-from ..output.io.atomic import atomic_write_bytes
+from ..output.io.atomic import atomic_write_files
+from ..roads.layout import STEP_S
 from .xml_errors import parse_reason
 
 
@@ -144,7 +147,45 @@ def _run(cmd, env, what):
     return proc
 
 
-def generate(net, out, duration, rate, seed, step=0.1, pedestrians="auto", ped_rate=None,
+# SUMO's --seed is a C++ int (and randomTrips.py passes it on): 0 to 2**31 - 1.
+MAX_SEED = 2**31 - 1
+
+
+def check_numbers(duration, rate, step, ped_rate=None, seed=0):
+    """``InputError`` naming the flag whose value SUMO would fail on, or run on
+    wrongly: durations, rates and steps must be finite and positive, the seed an integer
+    SUMO takes."""
+    for flag, v in (("--duration", duration), ("--rate", rate), ("--step", step),
+                    ("--ped-rate", ped_rate)):
+        if v is None and flag == "--ped-rate":
+            continue
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise InputError(f"{flag} {v!r}: must be a positive number")
+    if not (isinstance(seed, int) and 0 <= seed <= MAX_SEED):
+        raise InputError(f"--seed {seed}: SUMO takes seeds from 0 to {MAX_SEED} (a C++ int)")
+
+
+@dataclass(frozen=True)
+class GenerateSettings:
+    """What ``rls traffic generate`` (and a UI panel) asks for: see ``generate``."""
+    net: str
+    out: str
+    duration: float
+    rate: float
+    seed: int
+    step: float = STEP_S
+    pedestrians: str = "auto"   # auto, yes, no
+    ped_rate: float | None = None
+    overwrite: bool = False
+
+
+def generate_traffic(settings, keep=None):
+    """``generate`` with one ``GenerateSettings``: the command's core entry point."""
+    return generate(**{f.name: getattr(settings, f.name) for f in fields(settings)},
+                    keep=keep)
+
+
+def generate(net, out, duration, rate, seed, step=STEP_S, pedestrians="auto", ped_rate=None,
              overwrite=False, keep=None):
     """Random traffic over ``net`` simulated by SUMO; writes ``out`` (FCD),
     ``OUT.vtypes.xml`` and ``OUT.rou.xml``. Returns a dict of what ran (counts, seconds
@@ -153,10 +194,7 @@ def generate(net, out, duration, rate, seed, step=0.1, pedestrians="auto", ped_r
 
     if not os.path.isfile(net):
         raise InputError(f"network file not found: {net}")
-    if duration <= 0 or rate <= 0:
-        raise InputError("--duration and --rate must be positive")
-    if step <= 0:
-        raise InputError("--step must be positive")
+    check_numbers(duration=duration, rate=rate, step=step, ped_rate=ped_rate, seed=seed)
     outs = [out, sibling(out, ".vtypes.xml"), sibling(out, ".rou.xml")]
     if not overwrite:
         for p in outs:
@@ -203,9 +241,9 @@ def generate(net, out, duration, rate, seed, step=0.1, pedestrians="auto", ped_r
         merged = _merge_routes(routes)
         with open(fcd, "rb") as fh:
             fcd_bytes = strip_header(fh.read())
-        atomic_write_bytes(outs[1], vtypes_xml().encode("utf-8"), overwrite=overwrite)
-        atomic_write_bytes(outs[2], merged, overwrite=overwrite)
-        atomic_write_bytes(out, fcd_bytes, overwrite=overwrite)
+        # one set: all three take their names only once all are written
+        atomic_write_files({outs[1]: vtypes_xml().encode("utf-8"), outs[2]: merged,
+                            out: fcd_bytes}, overwrite=overwrite)
         return {"fcd": out, "vtypes": outs[1], "routes": outs[2], "pedestrians": peds,
                 "trips_s": t_trips, "sumo_s": t_sumo,
                 "vehicles": merged.count(b"<vehicle "), "persons": merged.count(b"<person ")}

@@ -1,11 +1,12 @@
-"""Point-cloud files: PCD (ascii, binary, binary_compressed) and PLY (ascii,
-binary_little_endian) that PCL, Open3D and plyfile read; atomic writes;
-output file names from templates; JSON sidecars. Pure numpy + stdlib.
+"""Point-cloud files: the output formats (``formats.FORMATS``: PCD ascii, binary,
+binary_compressed; PLY ascii, binary_little_endian; LAS; ROS 2 bags) and the scan run's
+writers; atomic writes; output file names from templates; JSON sidecars.
 """
 
 from .atomic import atomic_write_bytes, ensure_directory, writable_folder
 from .cloud import encode_cloud, read_cloud, read_records, write_cloud
-from .fields import DEFAULT_FIELDS, FILE_TYPES, FORMAT_EXT, FORMATS
+from .fields import DEFAULT_FIELDS, FILE_TYPES
+from .formats import FORMATS
 from .paths import output_path, sanitize_name
 from .sidecar import read_sidecar, sidecar_path, write_sidecar
 
@@ -13,7 +14,6 @@ __all__ = [
     "DEFAULT_FIELDS",
     "FILE_TYPES",
     "FORMATS",
-    "FORMAT_EXT",
     "atomic_write_bytes",
     "encode_cloud",
     "ensure_directory",

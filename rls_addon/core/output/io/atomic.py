@@ -213,3 +213,10 @@ def _link_no_clobber(tmp, path):
         return
     os.unlink(tmp)
 
+
+def parts_writer(parts):
+    """A writer of ``parts`` (buffers, one after another) for ``atomic_write_bytes``."""
+    def write(fh):
+        for part in parts:
+            fh.write(part)
+    return write

@@ -1,19 +1,13 @@
-"""Write and read whole point-cloud files in any of ``FORMATS``."""
+"""Write and read whole point-cloud files in the record formats of ``formats.FORMATS``
+(PCD, PLY and any added with ``formats.record_format``)."""
 
 import pathlib
+import struct
 
 from ...errors import InputError, SettingsError
-from . import pcd, ply
-from .atomic import atomic_write_bytes
-from .fields import FORMAT_EXT, check_format, pack, resolve_fields, unpack
-
-_ENCODING = {
-    "pcd_ascii": (pcd, "ascii"),
-    "pcd_binary": (pcd, "binary"),
-    "pcd_binary_compressed": (pcd, "binary_compressed"),
-    "ply_ascii": (ply, "ascii"),
-    "ply_binary": (ply, "binary_little_endian"),
-}
+from .atomic import atomic_write_bytes, parts_writer
+from .fields import pack, resolve_fields, unpack
+from .formats import FORMATS, readable_format
 
 
 def encode_cloud(points, fmt="pcd_binary", fields=None, time_dtype="float64"):
@@ -22,27 +16,18 @@ def encode_cloud(points, fmt="pcd_binary", fields=None, time_dtype="float64"):
 
 
 def encode_records(records, fmt):
-    """The bytes of a PCD or PLY file of packed records (any fields, e.g. a driver's
-    point type)."""
+    """The bytes of a file of packed records (any fields, e.g. a driver's point type) in
+    the record format ``fmt``."""
     return b"".join(record_parts(records, fmt))
 
 
 def record_parts(records, fmt):
     """``encode_records`` as buffers to write one after another (no joined copy)."""
-    check_format(fmt)
-    if fmt not in _ENCODING:
+    entry = FORMATS.get(fmt)
+    if entry.encode is None:
         raise SettingsError(f"{fmt} files are written by the scan run's writers "
                             "(io.writer), not encode_records")
-    module, encoding = _ENCODING[fmt]
-    return module.encode_parts(records, encoding)
-
-
-def parts_writer(parts):
-    """A writer of ``parts`` for ``atomic_write_bytes``."""
-    def write(fh):
-        for part in parts:
-            fh.write(part)
-    return write
+    return entry.encode(records)
 
 
 def write_cloud(path, points, fmt="pcd_binary", fields=None, overwrite=False, time_dtype="float64"):
@@ -59,26 +44,28 @@ def write_cloud(path, points, fmt="pcd_binary", fields=None, overwrite=False, ti
 
 
 def read_records(path):
-    """The file's records with their own field types (PCD or PLY, by content)."""
+    """The file's records with their own field types, in the format its contents show
+    (``formats.readable_format``), whatever its name."""
     path = pathlib.Path(path)
     try:
         blob = path.read_bytes()
     except OSError as exc:
         raise InputError(f"cannot read point cloud {path}: {exc.strerror or exc}") from None
+    fmt = readable_format(blob, path)
     try:
-        if blob.startswith(b"ply"):
-            return ply.decode(blob)
-        return pcd.decode(blob)
-    except (InputError, ValueError, UnicodeDecodeError, IndexError) as exc:
-        raise InputError(f"{path} is not a readable PCD/PLY point cloud: {exc}") from None
+        return fmt.decode(blob)
+    except (InputError, ValueError, IndexError, struct.error) as exc:
+        kind = fmt.extension.lstrip(".").upper() or fmt.label
+        raise InputError(f"{path} is not a readable {kind} point cloud: {exc}") from None
 
 
 def read_cloud(path):
-    """Read a PCD or PLY cloud into a ``POINT_DTYPE`` array.
+    """Read a cloud file into a ``POINT_DTYPE`` array.
 
     Fields missing from the file (e.g. ``range``) are zero.
     """
     return unpack(read_records(path))
 
 
-__all__ = ["FORMAT_EXT", "encode_cloud", "read_cloud", "read_records", "write_cloud"]
+__all__ = ["encode_cloud", "encode_records", "read_cloud", "read_records", "record_parts",
+           "write_cloud"]

@@ -10,22 +10,9 @@ little-endian.
 
 import numpy as np
 
-from ...choices import FIELDS, FORMATS as FORMAT_CHOICES
+from ...choices import FIELDS
 from ...errors import OutputError
 from ...points import POINT_DTYPE
-
-# The formats a cloud encodes to by itself (``cloud.encode_cloud``); LAS and bags are
-# written by the scan run's writers (``writer``). Every format: ``choices.FORMATS``.
-FORMATS = tuple(f for f in FORMAT_CHOICES.ids if f.startswith(("pcd", "ply")))
-FORMAT_EXT = {
-    "pcd_ascii": ".pcd",
-    "pcd_binary": ".pcd",
-    "pcd_binary_compressed": ".pcd",
-    "ply_ascii": ".ply",
-    "ply_binary": ".ply",
-    "las": ".las",
-    "mcap": "",  # a bag directory of the run (io.bag_writer)
-}
 
 DEFAULT_FIELDS = ("x", "y", "z", "intensity", "ring", "time", "label", "instance", "ghost")
 REQUIRED_FIELDS = ("x", "y", "z")
@@ -53,11 +40,6 @@ assert set(FILE_TYPES) == set(REQUIRED_FIELDS) | set(FIELDS.ids)  # one list of 
 # 32-bit unsigned columns (label, instance) are stored as int32, and uint16 is spelled
 # "uint16" (ply.py). PCD keeps FILE_TYPES.
 _INT32_MAX = np.iinfo(np.int32).max
-
-
-def check_format(fmt):
-    """``fmt`` when it is a known cloud format, else ``SettingsError`` naming them."""
-    return FORMAT_CHOICES.check(fmt)
 
 
 def resolve_fields(fields):

@@ -247,6 +247,38 @@ class LasWriter:
         return las
 
 
+# The fields a scan's LAS file holds (``write_scan``), as its sidecar lists them
+SCAN_FIELDS = ("x", "y", "z", "intensity", "gps_time", "classification", "point_source_id",
+               "ring", "label", "instance", "ghost")
+
+
+def write_scan(cloud):
+    """Write one scan's cloud (``formats.Cloud``) as a LAS file in world coordinates:
+    its point source id from the run's sensors, the output's offset and CRS. Returns
+    the fields written."""
+    from .sidecar import points_to_world
+
+    names = cloud.sensors if cloud.sensor in cloud.sensors else cloud.sensors + (cloud.sensor,)
+    writer = LasWriter(names, offset=cloud.output.las_offset, crs=cloud.output.crs,
+                       overwrite=cloud.overwrite)
+    writer.write(cloud.path, cloud.sensor,
+                 points_to_world(cloud.points, cloud.info, str(cloud.path)),
+                 cloud.info.get("timestamp_s", 0.0))
+    return list(SCAN_FIELDS)
+
+
+def check_output(output):
+    """Before a run: laspy is there (and pyproj for a CRS), the offset and CRS valid."""
+    _laspy()
+    LasWriter(("sensor",), offset=output.las_offset, crs=output.crs)
+
+
+def count_points(path):
+    """Points in a LAS file, from its header."""
+    with _laspy().open(str(path)) as f:
+        return int(f.header.point_count)
+
+
 def _date(unix_s):
     """The UTC date of Unix time ``unix_s``; ``OutputError`` beyond the dates a LAS
     header (and Python) holds."""
@@ -267,4 +299,5 @@ def class_table():
 assert set(_STANDARD) <= set(NAME_TO_ID)
 
 __all__ = ["ASPRS_CLASS", "ASPRS_NAMES", "DEFAULT_SCALE", "EXTRA_DIMS", "LEAP_SECONDS",
-           "LasWriter", "asprs_classes", "auto_offset", "class_table", "gps_time"]
+           "LasWriter", "SCAN_FIELDS", "asprs_classes", "auto_offset", "check_output",
+           "class_table", "count_points", "gps_time", "write_scan"]

@@ -5,10 +5,11 @@ import pathlib
 import re
 
 from ...errors import OutputError
-from .fields import FORMAT_EXT, check_format
 
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
-_KNOWN_EXT = {".pcd", ".ply", ".bin", ".las", ".laz", ".xyz", ".npy"}
+# Point files of other kinds: a template ending in one of these (or in another output
+# format's extension) is a mistake, not part of the name
+_OTHER_EXT = {".bin", ".laz", ".xyz", ".npy"}
 
 
 def sanitize_name(name):
@@ -25,8 +26,9 @@ def output_path(directory, template, *, scene, sensor, frame, fmt):
     sub-directories; a result that is absolute or climbs out of ``directory``
     through ``..`` is refused with ``OutputError``.
     """
-    check_format(fmt)
-    ext = FORMAT_EXT[fmt]
+    from .formats import FORMATS  # here: the formats' writers name their files with this
+
+    ext = FORMATS.get(fmt).extension
     try:
         rendered = str(template).format(
             scene=sanitize_name(scene), sensor=sanitize_name(sensor), frame=int(frame)
@@ -47,7 +49,7 @@ def output_path(directory, template, *, scene, sensor, frame, fmt):
         raise OutputError(f"output template {template!r} names a directory, not a file ({rendered!r})")
     suffix = rel.suffix.lower()
     if suffix != ext:
-        if suffix in _KNOWN_EXT:
+        if suffix in _OTHER_EXT | {f.extension for f in FORMATS if f.extension}:
             raise OutputError(
                 f"output template {template!r} ends in {rel.suffix} but the format {fmt} writes {ext} files"
             )

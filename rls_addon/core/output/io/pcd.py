@@ -69,6 +69,23 @@ def encode_parts(records, encoding):
     return [head, struct.pack("<II", len(packed), len(raw)), packed]
 
 
+HEADER_KEYS = (b"VERSION", b"FIELDS", b"SIZE", b"TYPE", b"COUNT", b"WIDTH", b"HEIGHT",
+               b"VIEWPOINT", b"POINTS", b"DATA")
+
+
+def recognise(blob):
+    """Whether ``blob`` starts as a PCD file: comment lines, then a header key."""
+    pos = 0
+    while True:
+        end = blob.find(b"\n", pos)
+        line = blob[pos:len(blob) if end < 0 else end].strip()
+        if line and not line.startswith(b"#"):
+            return line.split()[0].upper() in HEADER_KEYS
+        if end < 0:
+            return False
+        pos = end + 1
+
+
 def _parse_header(blob):
     meta, pos = {}, 0
     while True:

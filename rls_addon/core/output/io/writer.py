@@ -1,22 +1,22 @@
 """Writing a scan run's files.
 
-``CloudWriter``: one file per (sensor, frame) in the sensor's format (PCD, PLY with its
-fields or a driver's point type; LAS in world coordinates), and the JSON sidecar
-beside it. ``BagWriter``: one ROS 2 bag (MCAP) per run. Both atomic (complete or
-absent), checked before the first scan; clouds are resumable.
+``CloudWriter``: one file per (sensor, frame) in the sensor's format (its entry in
+``formats.FORMATS`` writes it: PCD, PLY with its fields or a driver's point type; LAS
+in world coordinates), and the JSON sidecar beside it; atomic (complete or absent),
+checked before the first scan, resumable. ``make_writer`` chooses it, or the run writer
+of a format written once per run (``bag_writer``: one ROS 2 bag).
 """
 
 import os
 
 from ....version import VERSION
-from ...errors import OutputError, RLSError, SettingsError
+from ...choices import FRAME_SPACES
+from ...errors import RLSError, SettingsError
 from ...labels import DEFAULT_LABELS
-from .sidecar import points_to_world
 from .atomic import atomic_write_bytes, writable_folder
 from .behind import WRITES_BEHIND, WritesBehind  # noqa: F401 - WRITES_BEHIND: the bound
-from .cloud import parts_writer, read_records, record_parts, write_cloud
+from .formats import FORMATS, Cloud
 from .paths import output_path, sanitize_name
-from .point_types import to_point_type
 from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
 
 
@@ -66,13 +66,15 @@ class CloudWriter:
     def check(self, sensor, output, frame):
         """Fail now, before anything is scanned, when ``sensor``'s files cannot be
         written: the folder, the template and the format are checked."""
-        if output.format == "mcap":
-            raise SettingsError("a ROS 2 bag holds a whole run: write it with BagWriter "
-                                "(rls scan --format mcap)")
+        fmt = FORMATS.get(output.format)
+        if fmt.run_writer is not None:
+            raise SettingsError(f"the format '{fmt.id}' ({fmt.label}) holds a whole run, not a "
+                                f"file per scan: write it with its run writer (make_writer; "
+                                f"rls scan --format {fmt.id})")
         writable_folder(output.directory)
         self.path(sensor, output, frame)
-        if output.format == "las":
-            self._las(output)  # laspy (and pyproj for a CRS) present, settings valid
+        if fmt.check is not None:
+            fmt.check(output)  # its library present, its settings valid
         if self.preview:
             from ..pictures import _plt
 
@@ -94,7 +96,10 @@ class CloudWriter:
                 return None
             if settings is not None and settings_differences(info, self._record(output, settings)):
                 return None
-            n = _count(path)
+            count = FORMATS.get(output.format).count
+            if count is None:  # a format that cannot count its files is scanned again
+                return None
+            n = count(path)
         except (RLSError, OSError, ValueError):
             return None
         return n if info.get("points") == n else None
@@ -112,7 +117,7 @@ class CloudWriter:
     @staticmethod
     def _record(output, settings):
         rec = dict(settings, format=output.format, point_type=output.point_type)
-        if output.format != "las" and output.point_type == "rls":
+        if FORMATS.get(output.format).encode is not None and output.point_type == "rls":
             rec["fields"] = list(output.fields)
         return rec
 
@@ -120,9 +125,7 @@ class CloudWriter:
         """Clouds of another format beside the outputs of ``planned`` [(sensor, output,
         frame)] (an earlier run in another format): the same name but the extension.
         One listing per folder."""
-        from .fields import FORMAT_EXT
-
-        exts = {e for e in FORMAT_EXT.values() if e}
+        exts = {f.extension for f in FORMATS if f.extension}
         names = {}
         for sensor, output, frame in planned:
             p = self.path(sensor, output, frame)
@@ -186,24 +189,9 @@ class CloudWriter:
         # resuming replaces what it scans again, a sidecar left by a cloud of another
         # format included
         overwrite = self.overwrite or (self.resume and (existed or sidecar_path(path).exists()))
-        fields = list(output.fields)
         try:
-            if output.format == "las":
-                self._las(output, overwrite, sensor).write(
-                    path, sensor, points_to_world(points, info, str(path)),
-                    info.get("timestamp_s", 0.0))
-                fields = ["x", "y", "z", "intensity", "gps_time", "classification",
-                          "point_source_id", "ring", "label", "instance", "ghost"]
-            elif output.point_type != "rls":
-                records = to_point_type(points, output.point_type,
-                                        start_time_s=info.get("timestamp_s", 0.0),
-                                        channel_elevations_deg=info.get("channel_elevations_deg"))
-                atomic_write_bytes(path, parts_writer(record_parts(records, output.format)),
-                                   overwrite=overwrite)
-                fields = list(records.dtype.names)
-            else:
-                write_cloud(path, points, fmt=output.format, fields=output.fields,
-                            overwrite=overwrite)
+            fields = FORMATS.get(output.format).write(
+                Cloud(path, sensor, points, info, output, overwrite, self.sensors))
             write_sidecar(path, dict(info, format=output.format, fields=fields,
                                      point_type=output.point_type,
                                      software=f"rls {VERSION}"), overwrite=overwrite)
@@ -221,12 +209,6 @@ class CloudWriter:
             raise
         return path
 
-    def _las(self, output, overwrite=False, sensor="sensor"):
-        from .las import LasWriter
-
-        names = self.sensors if sensor in self.sensors else self.sensors + (sensor,)
-        return LasWriter(names, offset=output.las_offset, crs=output.crs, overwrite=overwrite)
-
     def abort(self):
         """A run ended early: every file written is complete (the write under way ends
         first), nothing to drop."""
@@ -240,110 +222,25 @@ def picture_path(cloud_path):
     return pathlib.Path(cloud_path).with_suffix(".png")
 
 
-def _count(path):
-    """Points in a cloud file: PCD and PLY read back; LAS from its header."""
-    if str(path).lower().endswith(".las"):
-        from .las import _laspy
-
-        with _laspy().open(str(path)) as las:
-            return int(las.header.point_count)
-    return len(read_records(path))
-
-
-class BagWriter:
-    """The scan run's writer of one ROS 2 bag (MCAP storage, ``io.rosbag``) for the
-    whole run: ``<folder>/<scene>_rosbag2/``, the sensors' clouds (sensor frame, the
-    output's point type) on ``/<sensor>/points``, their poses on ``/tf_static`` or
-    ``/tf``, stamped ``start_time_s + (frame - first frame) / fps``. Written under a
-    temporary name and renamed when the run ends; a run that stops early leaves no bag
-    (``abort``). A bag is not resumable and a run that writes one is not split over
-    workers (``shardable``)."""
-
-    shardable = False
-    per_scan = False  # one file for every scan of the run
-
-    def __init__(self, scene_name, folder, point_type="rls", fps=24.0, first_frame=1,
-                 start_time_s=0.0, overwrite=False, resume=False):
-        if resume:
-            raise SettingsError("a ROS 2 bag cannot be resumed: run it again with --overwrite")
-        self.scene_name, self.folder = scene_name, folder
-        self.point_type, self.fps, self.first_frame = point_type, float(fps), int(first_frame)
-        self.start_time_s = float(start_time_s)
-        self.overwrite, self.resume = bool(overwrite), False
-        self.bag = None
-
-    @property
-    def bag_path(self):
-        return os.path.join(self.folder, f"{sanitize_name(self.scene_name)}_rosbag2")
-
-    def path(self, sensor, output, frame):
-        return self.bag_path
-
-    def planned_files(self, sensor, output, frame):
-        return [self.bag_path]
-
-    def check(self, sensor, output, frame):
-        if output.format != "mcap":
-            raise SettingsError("a run writes one bag for all its LiDARs: give every LiDAR "
-                                "the format 'mcap' (rls scan --format mcap)")
-        writable_folder(self.folder)
-        if os.path.exists(self.bag_path) and not self.overwrite:
-            raise OutputError(f"{self.bag_path} already exists; pass --overwrite to replace it")
-        from . import rosbag
-
-        rosbag._rosbags()  # the library is there
-        # the run's first frame has a bag stamp (later ones are checked as written)
-        rosbag.frame_stamp_ns(self.start_time_s, frame, self.first_frame, self.fps)
-
-    def existing(self, sensor, output, frame, settings=None):
-        return None
-
-    def write(self, sensor, output, frame, points, info):
-        from . import rosbag
-
-        if info.get("frame_space") != "sensor":
-            raise SettingsError("a bag holds sensor-frame clouds: scan with the sensor frame "
-                                "(--frame-space sensor)")
-        if self.bag is None:
-            self.bag = rosbag.BagWriter(self.bag_path, point_type=self.point_type,
-                                        overwrite=self.overwrite)
-        stamp = rosbag.frame_stamp_ns(self.start_time_s, frame, self.first_frame, self.fps)
-        records = to_point_type(points, self.point_type, start_time_s=stamp * 1e-9,
-                                channel_elevations_deg=info.get("channel_elevations_deg"))
-        self.bag.write(sensor, frame, stamp, records, info["sensor_pose_start"],
-                       bool(info.get("sensor_moves")))
-        return self.bag_path
-
-    def finish(self, run):
-        if self.bag is not None:
-            self.bag.close()
-
-    def abort(self):
-        if self.bag is not None:
-            self.bag.abort()
-
-    def flush(self):
-        """Every message is in the bag as it is written: nothing to wait for."""
-
-
 def make_writer(jobs, scene_name, fps, first_frame, overwrite=False, resume=False,
                 preview=False, background=False):
-    """The writer of a run of ``jobs`` (``run.SensorJob``): a ``BagWriter`` when their
-    format is 'mcap' (one bag for all, in the first LiDAR's folder), else a
-    ``CloudWriter`` (writing in the ``background``, see there)."""
-    bags = [j for j in jobs if j.settings.output.format == "mcap"]
-    if not bags:
+    """The writer of a run of ``jobs`` (``run.SensorJob``): the run writer of their
+    format when it is one written once per run (a ROS 2 bag: one for all, in the first
+    LiDAR's folder), else a ``CloudWriter`` (writing in the ``background``, see there)."""
+    formats = [FORMATS.get(j.settings.output.format) for j in jobs]
+    whole = [f for f in formats if f.run_writer is not None]
+    if not whole:
         return CloudWriter(scene_name, overwrite, resume, sensors=[j.name for j in jobs],
                            preview=preview, background=background)
-    if len(bags) != len(jobs):
-        raise SettingsError("a run writes one bag for all its LiDARs: give every LiDAR the "
-                            "format 'mcap' (rls scan --format mcap), or none")
-    moving_frames = [j.name for j in bags if j.settings.scan.frame_space != "sensor"]
-    if moving_frames:
-        raise SettingsError(f"a bag holds sensor-frame clouds (TF gives their poses): set the "
-                            f"Frame of {', '.join(moving_frames)} to Sensor "
-                            f"(--frame-space sensor)")
-    out = bags[0].settings.output
-    return BagWriter(scene_name, out.directory, out.point_type, fps, first_frame,
-                     out.start_time_s, overwrite, resume)
-
+    fmt = whole[0]
+    if len(whole) != len(jobs) or any(f is not fmt for f in whole):
+        raise SettingsError(f"a run writes one {fmt.label} for all its LiDARs: give every "
+                            f"LiDAR the format '{fmt.id}' (rls scan --format {fmt.id}), or none")
+    if fmt.frame_space is not None:
+        others = [j.name for j in jobs if j.settings.scan.frame_space != fmt.frame_space]
+        if others:
+            raise SettingsError(f"{fmt.label} holds {fmt.frame_space}-frame clouds: set the "
+                                f"Frame of {', '.join(others)} to "
+                                f"{FRAME_SPACES.label(fmt.frame_space)} "
+                                f"(--frame-space {fmt.frame_space})")
+    return fmt.run_writer(jobs, scene_name, fps, first_frame, overwrite, resume)
