@@ -9,7 +9,7 @@ import threading
 
 from .commands import load_commands
 from .core.errors import RLSError, interrupt_exit_code
-from .core.signals import deliver
+from .core.signals import deliver, held, raise_noted, stop_raised, stop_signals
 from .version import VERSION
 
 
@@ -45,36 +45,57 @@ def main(argv=None, prepare_blender=None):
     """Run one command; return the process exit code. ``prepare_blender`` registers
     the extension in this Blender (the entry points pass ``ensure_registered``); the
     commands that open a scene call it (``args.prepare_blender``)."""
-    parser = build_parser()
-    try:
-        args = parser.parse_args(joined_negative_values(sys.argv[1:] if argv is None else argv))
-    except SystemExit as exc:  # --help, --version, usage errors
-        return int(exc.code or 0)
-    args.prepare_blender = prepare_blender or _nothing
     previous = _stop_on_signals()
     try:
+        raise_noted()  # a stop signal that came while Python loaded RLS stops it here
+        with held():  # the commands' modules (numpy, ...) are imported whole
+            parser = build_parser()
+        try:
+            args = parser.parse_args(joined_negative_values(sys.argv[1:] if argv is None
+                                                            else argv))
+        except SystemExit as exc:  # --help, --version, usage errors
+            return int(exc.code or 0)
+        args.prepare_blender = _held(prepare_blender or _nothing)
         return int(args.func(args) or 0)
-    except RLSError as exc:
+    except KeyboardInterrupt as exc:
+        return _interrupted(interrupt_exit_code(exc))
+    except Exception as exc:
+        if stop_raised() is not None:  # a library turned the stop into its own error (an
+            return _interrupted(128 + stop_raised())  # import into an ImportError): a stop
+        if not isinstance(exc, RLSError):
+            raise
         print(f"rls: error: {exc}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as exc:
-        print("rls: interrupted: files already written are complete, none is left half-written",
-              file=sys.stderr)
-        return interrupt_exit_code(exc)
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
 
-STOP_SIGNALS = tuple(getattr(signal, n) for n in ("SIGTERM", "SIGHUP") if hasattr(signal, n))
+STOP_SIGNALS = stop_signals()
+
+
+def _interrupted(code):
+    print("rls: interrupted: files already written are complete, none is left half-written",
+          file=sys.stderr)
+    return code
+
+
+def _held(prepare_blender):
+    """``prepare_blender`` (registering the extension: Blender runs its own scripts)
+    with stop signals held until it is done."""
+    def prepare():
+        with held():
+            prepare_blender()
+    return prepare
 
 
 def _stop_on_signals():
-    """SIGTERM and SIGHUP raise ``Interrupted`` (a KeyboardInterrupt) as Ctrl-C does, so
-    every command stops the way it stops on Ctrl-C: the write under way ends or its
-    temporary is removed, and the exit code is 128 + the signal. The first signal
-    counts; a repeat while the run winds down is ignored. Returns the handlers
-    replaced (restored when the command ends)."""
+    """SIGINT (Ctrl-C), SIGTERM and SIGHUP raise ``Interrupted`` (a KeyboardInterrupt),
+    or wait for the end of a step that must not be cut (``core.signals.held``: loading
+    Blender), so every command stops the same way: the write under way ends or its
+    temporary is removed, and the exit code is 128 + the signal (130, 143, 129). The
+    first signal counts; a repeat while the run winds down is ignored. Returns the
+    handlers replaced (restored when the command ends)."""
     if threading.current_thread() is not threading.main_thread():
         return {}
 

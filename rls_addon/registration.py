@@ -19,7 +19,9 @@ def register():
     properties.register_properties()
     _refresh_presets()
     bpy.types.VIEW3D_MT_add.append(ui.draw_add_menu)
+    bpy.types.TOPBAR_MT_file_import.append(operators.roads.draw_import_menu)
     bpy.types.TOPBAR_MT_file_import.append(operators.traffic.draw_import_menu)
+    bpy.types.TOPBAR_MT_file_export.append(operators.dataset.draw_export_menu)
     _state["cli"] = bpy.utils.register_cli_command("rls", blender_command)
 
 
@@ -52,7 +54,9 @@ def unregister():
     if _state["cli"] is not None:
         bpy.utils.unregister_cli_command(_state["cli"])
         _state["cli"] = None
+    bpy.types.TOPBAR_MT_file_export.remove(operators.dataset.draw_export_menu)
     bpy.types.TOPBAR_MT_file_import.remove(operators.traffic.draw_import_menu)
+    bpy.types.TOPBAR_MT_file_import.remove(operators.roads.draw_import_menu)
     bpy.types.VIEW3D_MT_add.remove(ui.draw_add_menu)
     properties.unregister_properties()
     FAMILIES.unsubscribe(_families_changed)

@@ -5,10 +5,23 @@ import os
 import subprocess
 from pathlib import Path
 
-import pytest
+from tests.core.external_tools import require_module
 
 FIXTURES = Path(__file__).resolve().parent / "fixtures"
 OSM_FIXTURE = FIXTURES / "osm" / "crossing.osm"
+
+# SUMO's FCD of one car driving 10 m north past the grid's middle crossing in 1 s (as
+# ``sumo --fcd-output`` writes it, without its comment).
+ONE_CAR_FCD = """<?xml version="1.0" encoding="UTF-8"?>
+<fcd-export>
+    <timestep time="0.00">
+        <vehicle id="a" x="60.00" y="70.00" angle="0.00" type="DEFAULT_VEHTYPE" speed="10" pos="5" lane="e_0" slope="0.00"/>
+    </timestep>
+    <timestep time="1.00">
+        <vehicle id="a" x="60.00" y="80.00" angle="0.00" type="DEFAULT_VEHTYPE" speed="10" pos="15" lane="e_0" slope="0.00"/>
+    </timestep>
+</fcd-export>
+"""
 
 # A 3 x 3 grid: its middle junction is a four-way crossing, with sidewalks and crossings.
 GRID_OPTIONS = ("--grid", "--grid.number", "3", "--grid.length", "80",
@@ -20,7 +33,7 @@ OSM_OPTIONS = ("--osm.sidewalks", "--osm.crossings", "--sidewalks.guess", "--cro
 
 
 def sumo_home():
-    sumo = pytest.importorskip("sumo")
+    sumo = require_module("sumo", "eclipse-sumo==1.28.0")
     return sumo.SUMO_HOME
 
 

@@ -13,11 +13,14 @@ then casts Embree packets from Python (slower with several threads).
 For the zips: ``build/native/<platform>/`` (Blender's platform names), cross-compiled
 from this Linux machine with Zig's C compiler (``python -m ziglang cc``, the ``ziglang``
 wheel pinned in requirements-build.txt): Linux against glibc 2.28 (Blender's own
-minimum; gcc here would need this machine's newer glibc), Windows through MinGW-w64
-(KERNEL32 and the Universal CRT only), macOS 11.0 and later. A platform that cannot be
-built is reported, never fatal: its zip then has no compiled loop and Embree runs from
-Python there. A build is redone only when the sources or the command change
-(``build.json`` beside each build records both).
+minimum), Windows through MinGW-w64 (KERNEL32 and the Universal CRT only), macOS 11.0
+and later. Without Zig, this machine's own compiler builds its own platform's zip; on
+Linux the sources bind the pthread calls to their first glibc version
+(``rls_threads.h``: glibc 2.34 gave them a new one) and the build is checked to need
+nothing newer than glibc 2.28 (``GLIBC_MAX``), else the zip goes without a loop. A
+platform that cannot be built is reported, never fatal: its zip then has no compiled
+loop and Embree runs from Python there. A build is redone only when the sources or the
+command change (``build.json`` beside each build records both).
 
 Every build uses ``-ffp-contract=off`` (no fused multiply-add on any target, so float64
 refinement gives the same bits everywhere) and ``-fvisibility=hidden`` (only the
@@ -30,6 +33,7 @@ import json
 import os
 import platform as _platform
 import shutil
+import struct
 import subprocess
 import sys
 import tempfile
@@ -49,6 +53,8 @@ SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "boxes.c", NATIVE / "tracks.c"]
 HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h", NATIVE / "rls_sectors.h"]
 BUILD = ROOT / "build" / "native"
+# The newest glibc a Linux loop may need: Blender 4.2's (its minimum, and the Zig target's).
+GLIBC_MAX = (2, 28)
 ZIG_CACHE = ROOT / "build" / "zig-cache"
 
 # Blender platform -> (Zig target, sys.platform of that system: names the file).
@@ -73,6 +79,52 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_echo_group", "rls_echo_choose", "rls_echoes_abi",
            "rls_box_counts", "rls_boxes_abi",
            "rls_track_positions", "rls_tracks_abi")
+
+
+def _cstr(data, off):
+    return data[off:data.index(b"\0", off)].decode()
+
+
+def read_elf(data):
+    """(architecture, type, exported functions, versions needed) of a 64-bit
+    little-endian ELF file's bytes; AssertionError for anything else."""
+    assert data[:4] == b"\x7fELF", "not ELF"
+    assert data[4] == 2 and data[5] == 1, "not 64-bit little-endian"
+    e_type, e_machine = struct.unpack_from("<HH", data, 16)
+    shoff, = struct.unpack_from("<Q", data, 0x28)
+    shentsize, shnum = struct.unpack_from("<HH", data, 0x3A)
+    sections = [struct.unpack_from("<IIQQQQIIQQ", data, shoff + i * shentsize)
+                for i in range(shnum)]
+    exports, needed = set(), set()
+    for sh in sections:
+        _, sh_type, _, _, off, size, link, info, _, entsize = sh
+        if sh_type == 11:  # SHT_DYNSYM
+            strtab = sections[link][4]
+            for i in range(size // entsize):
+                name, st_info, st_other, shndx, _, _ = struct.unpack_from("<IBBHQQ", data,
+                                                                          off + i * entsize)
+                if shndx != 0 and st_info >> 4 == 1 and st_info & 0xF == 2 and st_other & 3 == 0:
+                    exports.add(_cstr(data, strtab + name))
+        if sh_type == 0x6FFFFFFE:  # SHT_GNU_verneed
+            strtab = sections[link][4]
+            at = off
+            for _ in range(info):
+                _, cnt, _, aux, nxt = struct.unpack_from("<HHIII", data, at)
+                a = at + aux
+                for _ in range(cnt):
+                    _, _, _, vname, anext = struct.unpack_from("<IHHII", data, a)
+                    needed.add(_cstr(data, strtab + vname))
+                    a += anext
+                at += nxt
+    arch = {62: "x86-64", 183: "arm64"}.get(e_machine, str(e_machine))
+    return arch, {3: "shared object"}.get(e_type, str(e_type)), exports, needed
+
+
+def glibc_needed(data):
+    """The newest glibc version (a tuple) an ELF library's bytes need, or None."""
+    versions = [tuple(int(x) for x in v[6:].split(".")) for v in read_elf(data)[3]
+                if v.startswith("GLIBC_") and v[6:].replace(".", "").isdigit()]
+    return max(versions) if versions else None
 
 
 def library_name(sys_platform):
@@ -126,12 +178,25 @@ def build_host():
     newest = max(p.stat().st_mtime for p in [*SOURCES, *HEADERS])
     if out.exists() and out.stat().st_mtime >= newest and _loads(out):
         return ""
-    cmd = [cc, *FLAGS, "-pthread", "-o", str(out), *map(str, SOURCES), "-lm"]
+    cmd = [cc, *FLAGS, "-pthread", "-o", str(out), *map(str, SOURCES), "-lm",
+           *_pthread_library(cc)]
     proc = subprocess.run(cmd, capture_output=True, text=True)
     if proc.returncode != 0:
         return ("build_native: compiling failed; the Python packet loop will be used\n"
                 + proc.stderr)
     return f"build_native: {out.relative_to(ROOT)}"
+
+
+def _pthread_library(cc):
+    """On glibc, libpthread.so.0 named as needed: before glibc 2.34 the pthread calls the
+    sources bind to their first version live there, not in libc (as Zig's 2.28 build
+    names it); since, it is an empty library kept for this."""
+    if not sys.platform.startswith("linux"):
+        return []
+    found = subprocess.run([cc, "-print-file-name=libpthread.so.0"], capture_output=True,
+                           text=True).stdout.strip()
+    return ["-Wl,--no-as-needed", "-l:libpthread.so.0", "-Wl,--as-needed"] \
+        if os.path.isabs(found) else []
 
 
 def zig_command():
@@ -168,6 +233,12 @@ def build_platform(name, zig=None, out_root=BUILD):
         host = NATIVE / library_name(sys.platform)
         if not host.exists() or "failed" in msg:
             return None, f"{version}; {msg or 'no host build'}"
+        if name.startswith("linux-"):
+            newest = glibc_needed(host.read_bytes())
+            if newest is not None and newest > GLIBC_MAX:
+                return None, (f"{version}; this machine's C compiler made a loop that needs "
+                              f"glibc {'.'.join(map(str, newest))}, newer than Blender's "
+                              f"{'.'.join(map(str, GLIBC_MAX))}")
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "build.json").unlink(missing_ok=True)
         shutil.copy2(host, out)

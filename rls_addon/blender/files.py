@@ -2,12 +2,14 @@
 on."""
 
 import os
+import shutil
 import sys
 
 import bpy
 
 from ..core.errors import OutputError, SceneError
-from ..core.output.io.atomic import temporary_name
+from ..core.output.io.atomic import place, temporary_name
+from ..core.output.io.blend_file import incomplete_blend
 from ..core.signals import held
 from .quiet import blender_output_silenced
 
@@ -27,6 +29,14 @@ def open_blend(path, error=SceneError):
         print(f"rls: warning: {warning}", file=sys.stderr)
 
 
+def factory_reset():
+    """Blender's factory settings with an empty scene (as ``rls scene from-net`` and
+    ``rls demo`` start from). Blender unregisters and registers its add-ons on the way:
+    a stop signal waits for it."""
+    with held():
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
 def newer_file_warning(path, file_version, app_file_version):
     """The warning for a file saved by a newer Blender than this one (None otherwise):
     Blender reads it, but data that version added is dropped or misread."""
@@ -40,7 +50,9 @@ def newer_file_warning(path, file_version, app_file_version):
 
 def save_blend(path, overwrite=False):
     """Write the current file to ``path`` all at once: a temporary in the same folder,
-    then a rename (without ``overwrite``, refused when ``path`` exists)."""
+    checked whole (Blender's save does not always raise when the disk fills: it left a
+    truncated file and returned), then a rename (without ``overwrite``, refused when
+    ``path`` exists). A stop signal waits for the file to be placed or removed."""
     path = os.path.abspath(os.fspath(path))
     folder = os.path.dirname(path)
     if os.path.isdir(path):
@@ -50,23 +62,29 @@ def save_blend(path, overwrite=False):
     if not os.path.isdir(folder):
         raise OutputError(f"cannot write {path}: folder {folder} does not exist")
     tmp = os.path.join(folder, temporary_name(os.path.basename(path), os.urandom(6).hex()))
-    try:
-        with blender_output_silenced():
-            bpy.ops.wm.save_as_mainfile(filepath=tmp, compress=True, copy=True)
-        if not os.path.isfile(tmp):
-            raise OutputError(f"Blender did not write {path}")
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            try:
-                os.link(tmp, path)
-            except FileExistsError:
-                raise OutputError(f"{path} already exists; pass --overwrite to "
-                                  "replace it") from None
-            os.unlink(tmp)
-    except RuntimeError as exc:
-        raise OutputError(f"cannot write {path}: {str(exc).strip()}") from None
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    with held():
+        try:
+            with blender_output_silenced():
+                bpy.ops.wm.save_as_mainfile(filepath=tmp, compress=True, copy=True)
+            if not os.path.isfile(tmp):
+                raise OutputError(f"Blender did not write {path}")
+            broken = incomplete_blend(tmp)
+            if broken:
+                raise OutputError(f"cannot write {path}: Blender's save left an incomplete "
+                                  f"file ({broken}) with {_free_space(folder)}; nothing was "
+                                  f"written: free some space or choose another folder")
+            place(tmp, path, overwrite)
+        except RuntimeError as exc:
+            raise OutputError(f"cannot write {path}: {str(exc).strip()}") from None
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
     return path
+
+
+def _free_space(folder):
+    try:
+        free = shutil.disk_usage(folder).free
+    except OSError:
+        return f"an unknown free space in {folder}"
+    return f"{free:,} bytes left in {folder}"

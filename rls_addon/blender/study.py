@@ -1,6 +1,8 @@
 """A Blender scene as a placement study's scene (``core.scene.source.StudyScene``): its
 InfraLOB, its mounts and its static geometry. The study itself runs in the core."""
 
+import os
+
 import bpy
 
 from ..core.study.loop import run_study as core_run_study
@@ -48,6 +50,7 @@ class BlenderStudyScene:
     def __init__(self, scene):
         self.scene = scene
         self.name = scene.name
+        self.file = os.path.basename(bpy.data.filepath)  # '' for an unsaved file
 
     def current_frame(self):
         return self.scene.frame_current

@@ -4,7 +4,7 @@ registers its parser and sets ``func`` to a ``run(args) -> int`` callable."""
 import importlib
 
 # Module names under this package, in the order ``--help`` lists them.
-COMMAND_MODULES = ("scan", "dataset", "study", "demo", "presets", "pattern", "metrics",
+COMMAND_MODULES = ("scan", "lidar", "dataset", "study", "demo", "presets", "pattern", "metrics",
                    "detect", "evaluate", "scene", "traffic")
 
 

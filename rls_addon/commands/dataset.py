@@ -8,6 +8,7 @@ import sys
 from ..core.choices import BACKENDS, MOTION
 from ..core.output.datasets import LAYOUTS
 from ..core.errors import SceneError
+from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import _print_step, interrupted_at, open_scene, parse_frames
 
@@ -55,6 +56,10 @@ def add_parser(sub):
     kitti.add_argument("--split-seed", type=int, default=0)
     kitti.add_argument("--val-frames", default=None,
                        help="frames A-B for validation instead of a random share")
+    p.add_argument("--background-sweeps", type=int, default=BACKGROUND_SWEEPS, metavar="N",
+                   help="sweeps of the scene with every road user hidden stored per still "
+                        "LiDAR under background/ (what 'rls detect' learns its background "
+                        f"from; default {BACKGROUND_SWEEPS}, 0: none)")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
     p.add_argument("--resume", action="store_true",
                    help="keep complete frames of an earlier run, scan the rest")
@@ -62,77 +67,60 @@ def add_parser(sub):
     p.set_defaults(func=run)
 
 
-def carrier_of(obj, classes):
-    """The object a LiDAR rides on, when it is an object of ``classes`` (its parent, or
-    a parent's parent): that vehicle is the LiDAR's OPV2V agent."""
-    from ..blender.labels import object_label
+def dataset_settings(args, current_frame):
+    """The ``DatasetSettings`` of these flags (frames default to ``current_frame``)."""
+    from ..core.output.datasets.settings import DatasetSettings
 
-    o = obj.parent
-    while o is not None:
-        if object_label(o) in classes:
-            return o.name
-        o = o.parent
-    return None
-
-
-def dataset_writer(args, scene, sensors, classes):
-    from ..core.output.datasets.common import Split
-    from ..core.output.datasets.kitti import KittiWriter
-    from ..core.output.datasets.opv2v import Opv2vWriter, agents_for
-
-    if args.layout == "kitti":
-        val = None
-        if args.val_frames:
-            frames = parse_frames(args.val_frames, 0)
-            val = (frames[0], frames[-1])
-        return KittiWriter(args.out, scene.name,
-                           intensity_scale=255.0 if args.intensity == "0-255" else 1.0,
-                           points_format=args.points_format, level=args.level,
-                           min_points=args.min_points,
-                           split=Split(args.val_share, args.split_seed, val),
-                           overwrite=args.overwrite, resume=args.resume, background=True)
-    carriers = {o.name: carrier_of(o, classes) for o in sensors}
-    return Opv2vWriter(args.out, scene.name, agents_for([o.name for o in sensors], carriers),
-                       {k: v for k, v in carriers.items() if v}, overwrite=args.overwrite,
-                       resume=args.resume)
+    val = None
+    if args.val_frames:
+        frames = parse_frames(args.val_frames, 0)
+        val = (frames[0], frames[-1])
+    return DatasetSettings(
+        layout=args.layout, out=args.out, frames=parse_frames(args.frames, current_frame),
+        sensors=tuple(args.sensor), classes=args.classes, seed=args.seed, motion=args.motion,
+        substeps=args.substeps, backend=args.backend,
+        ghosting=None if args.ghosting is None else args.ghosting == "on",
+        sweep_start_deg=args.sweep_start, rotation_hz=args.rotation_hz,
+        lidar_mode=args.lidar_mode, intensity=args.intensity,
+        points_format=args.points_format, level=args.level, min_points=args.min_points,
+        val_share=args.val_share, split_seed=args.split_seed, val_frames=val,
+        background_sweeps=args.background_sweeps, overwrite=args.overwrite,
+        resume=args.resume)
 
 
 def dataset_run(args):
-    from ..blender.sensor import find_lidar, lidar_objects, read_settings, sensor_job
-    from ..blender.source import BlenderScene
-    from ..core.labels import label_ids, label_name
-    from ..core.scan.run import ScanRun
+    from ..blender.dataset import dataset_run as blender_dataset_run
 
-    scene = open_scene(args.blend, args.prepare_blender)
-    sensors = [find_lidar(scene, n) for n in args.sensor] or lidar_objects(scene)
-    if not sensors:
-        raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > LiDAR)")
-    if args.substeps is not None and args.substeps < 0:
+    if args.substeps is not None and args.substeps < 0:  # before Blender is loaded
         raise SceneError(f"--substeps must be >= 0, got {args.substeps}")
-    classes = label_ids(args.classes)
-    changes = {"seed": args.seed, "motion": args.motion, "substeps": args.substeps,
-               "backend": args.backend, "frame_space": "sensor", "ground_truth": True,
-               "object_classes": tuple(label_name(c) for c in classes),
-               "ghosting": None if args.ghosting is None else args.ghosting == "on",
-               "sweep_start_deg": args.sweep_start, "rotation_hz": args.rotation_hz,
-               "lidar_mode": args.lidar_mode}
-    jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
-    writer = dataset_writer(args, scene, sensors, set(classes))
-    frames = parse_frames(args.frames, scene.frame_current)
-    # a background Blender: nobody edits the file (as rls scan's source)
-    return (ScanRun(BlenderScene(scene, edited=False), jobs, frames, writer=writer,
-                    progress=_print_step), writer)
+    if args.background_sweeps < 0:
+        raise SceneError(f"--background-sweeps must be 0 or more, got {args.background_sweeps}")
+    scene = open_scene(args.blend, args.prepare_blender)
+    # a background Blender nobody edits (as rls scan's source); the frames' files written
+    # behind the scan (as rls scan's clouds)
+    return blender_dataset_run(scene, dataset_settings(args, scene.frame_current),
+                               progress=_print_step, sweep_progress=_print_sweep,
+                               edited=False, write_behind=True)
+
+
+def _print_sweep(step):
+    print(f"[background] {step.sensor}: a sweep of the scene without road users, "
+          f"{step.points} points in {step.seconds:.2f} s", file=sys.stderr, flush=True)
+    for w in step.warnings:
+        print(f"rls: warning: {w}", file=sys.stderr)
 
 
 def run(args):
     from ..core.errors import interrupt_exit_code
+    from ..core.scan.background_sweeps import run_all
     from .distribute import run_scan, scene_file
 
     job = None
     try:
-        job, writer = dataset_run(args)
-        for notice in job.notices:
+        job, writer, (sweeps, hidden, sweep_notices) = dataset_run(args)
+        for notice in job.notices + sweep_notices:
             print(f"rls: notice: {notice}", file=sys.stderr)
+        run_all(sweeps)
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
@@ -142,6 +130,10 @@ def run(args):
     for notice in writer.notices:
         print(f"rls: notice: {notice}", file=sys.stderr)
     summary = job.summary()
-    summary.update(layout=args.layout, dataset=str(args.out))
+    summary.update(layout=args.layout, dataset=str(args.out), background=None if not sweeps else {
+        "sweeps": len(sweeps), "sensors": [j.name for j in sweeps[0].sensors],
+        "scene_frame": sweeps[0].frames[0], "hidden_objects": len(hidden.hidden),
+        "seconds": [round(s.seconds, 4) for run in sweeps for s in run.outputs],
+        "what": "sweeps of the scene with every road user hidden, under background/"})
     print(json.dumps(summary, indent=2))
     return 0

@@ -3,16 +3,13 @@ traffic-light pole looking into the junction, scan one frame, and run a small
 placement study on the sample T-junction."""
 
 import json
-import math
 import os
 import time
 
 from .scan import check_output_dir
 
-DEMO_SCENE = "intersection"
-DEMO_MOUNT = "TL SW"      # a traffic-light pole at a corner of the junction
+DEMO_SCENE = "intersection"  # with its LiDAR (scenes.SAMPLE_LIDARS): on the pole TL SW
 DEMO_FRAME = 24           # its first four cars are near the junction then
-DEMO_PITCH_DEG = 12.0     # nose down: the junction's far side within the upper beams
 
 
 def add_parser(sub):
@@ -30,11 +27,10 @@ def add_parser(sub):
 
 
 def run(args):
-    import bpy
-
+    from ..blender import bpy  # loaded with stop signals held
+    from ..blender.files import factory_reset
     from ..blender.quiet import blender_output_silenced
-    from ..blender.scenes import build_scene
-    from ..blender.scenes.build import mount_position
+    from ..blender.scenes import SAMPLE_LIDARS, add_sample_lidar, build_scene
     from ..blender.sensor import read_settings, sensor_job
     from ..blender.source import BlenderScene
     from ..core.casting import backend_status
@@ -44,19 +40,12 @@ def run(args):
 
     preset = get_preset(args.device)
     check_output_dir(args.out)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    factory_reset()
     args.prepare_blender()
     scene = bpy.context.scene
     build_scene(DEMO_SCENE, scene)
-    x, y, z = mount_position(bpy.data.objects[DEMO_MOUNT])
-    lidar = bpy.data.objects.new("LiDAR", None)
-    lidar.empty_display_type = "ARROWS"
-    lidar.location = (x, y, z)
-    yaw = math.atan2(-y, -x)  # toward the junction's centre
-    lidar.rotation_euler = (0.0, math.radians(DEMO_PITCH_DEG), yaw)
-    scene.collection.objects.link(lidar)
-    lidar.rls_lidar.is_lidar = True
-    lidar.rls_lidar.preset = preset.id
+    lidar = add_sample_lidar(DEMO_SCENE, scene, preset=preset.id)  # the sample scene's
+    mount = SAMPLE_LIDARS[DEMO_SCENE].mount
     blend = os.path.abspath(os.path.join(args.out, f"{DEMO_SCENE}.blend"))
     scene.frame_set(DEMO_FRAME)
     t0 = time.perf_counter()
@@ -75,13 +64,13 @@ def run(args):
         bpy.ops.wm.save_as_mainfile(filepath=blend)
     summary = {"device": preset.name, "points": len(result.points), "rays": result.rays,
                "triangles": result.triangles, "seconds": round(seconds, 3),
-               "frame": DEMO_FRAME, "mount": DEMO_MOUNT, "backend": backend,
+               "frame": DEMO_FRAME, "mount": mount, "backend": backend,
                "backend_why": why, "point_cloud": str(os.path.abspath(path)), "scene": blend,
                "picture": str(os.path.abspath(picture_path(path))) if preview else None}
     if not args.no_study:
         summary["study"] = run_demo_study(args.out, preset.id, args.prepare_blender)
     print(json.dumps(summary, indent=2))
-    print(f"Scanned {summary['points']} points ({preset.name} on the pole '{DEMO_MOUNT}', "
+    print(f"Scanned {summary['points']} points ({preset.name} on the pole '{mount}', "
           f"{result.rays} rays, frame {DEMO_FRAME}) in {seconds:.2f} s.\n"
           f"Ray casting: {why}.\nPoint cloud: {summary['point_cloud']}\nScene: {blend}")
     print(f"Picture of the cloud: {summary['picture']}" if preview else
@@ -110,15 +99,15 @@ def _has_matplotlib():
 def run_demo_study(out_dir, device, prepare_blender):
     """The paper's scenario A in small: the sample T-junction, its five corner and
     bar-side mounts, 1 to 3 sensors; report under ``out_dir/study``."""
-    import bpy
-
+    from ..blender import bpy
+    from ..blender.files import factory_reset
     from ..blender.quiet import blender_output_silenced
     from ..blender.scenes import build_scene
     from ..blender.study import run_study
     from ..core.study.config import StudyConfig
     from ..core.study.report import write_report
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    factory_reset()
     prepare_blender()
     build_scene("t_junction", bpy.context.scene)
     study_dir = os.path.join(out_dir, "study")

@@ -4,19 +4,21 @@
     rls detect out/ds/L_TL_SW out/ds/L_TL_NE --out out/det_fused   (early fusion)
 
 Each DATASET is a sensor root that ``rls dataset --layout kitti`` wrote. The detector
-learns each sensor's background from the frames (``--background-frames`` to choose
-them, e.g. frames without traffic), then finds the objects of every frame the datasets
-share: foreground in the sensor's own range image, clustered over every sensor
-(DBSCAN), an oriented box and a class by size per cluster. It reads only the points'
-x, y, z, never RLS's labels. The detections are written as one ``NNNNNN.txt`` per frame
-in the first dataset's label frame (``x y z dx dy dz heading Class score``), the format
-``rls evaluate --detections`` reads. It is not a learned detector: see docs/evaluate.md.
+learns each sensor's background from the sweeps of the scene with every road user hidden
+that the dataset stores (background/: what a deployed unit has; --background empty, the
+default), or from the frames themselves (--background frames, --background-frames to
+choose them), then finds the objects of every frame the datasets share: foreground in
+the sensor's own range image, clustered over every sensor (DBSCAN), an oriented box and a
+class by size per cluster. It reads only the points' x, y, z, never RLS's labels. The
+detections are written as one ``NNNNNN.txt`` per frame in the first dataset's label
+frame (``x y z dx dy dz heading Class score``), the format ``rls evaluate --detections``
+reads, with detector.json (the detector and its background) beside them. It is not a
+learned detector: see docs/evaluate.md.
 """
 
 import sys
-from pathlib import Path
 
-from ..core.errors import OutputError
+from ..core.choices import BACKGROUNDS
 
 
 def add_parser(sub):
@@ -26,36 +28,48 @@ def add_parser(sub):
     p.add_argument("datasets", nargs="+", metavar="DATASET",
                    help="sensor roots written by 'rls dataset --layout kitti'")
     p.add_argument("--out", required=True, help="folder for the detection files")
+    p.add_argument("--background", choices=BACKGROUNDS.ids, default=None,
+                   help="empty (default): learn each sensor's background from the dataset's "
+                        "sweeps of the scene without road users; frames: from the frames, "
+                        "traffic and all (standing vehicles become background)")
     p.add_argument("--background-frames", metavar="A-B[:STEP]",
-                   help="frames to learn the background from (default: every frame)")
+                   help="with --background frames: the frames to learn from (default: "
+                        "every frame; given alone, it implies --background frames)")
     p.add_argument("--noise-sigma", type=float, metavar="M",
-                   help="the device's range noise in m (default: its preset's)")
+                   help="the device's range noise in m, 0 to 1 (default: its preset's)")
     p.add_argument("--overwrite", action="store_true", help="replace existing detection files")
     p.set_defaults(func=run)
 
 
 def run(args):
-    from ..core.evaluate.detect_dataset import detect_datasets, write_dataset_detections
-    from .scan import parse_frames
+    from ..core.evaluate.runs import DetectSettings, check_detection_folder, run_detection
+    from ..core.scan.frames import parse_frames
 
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} is a file, not a folder")
-    if out.is_dir() and any(out.glob("*.txt")) and not args.overwrite:
-        raise OutputError(f"{out} already holds detection files: use --overwrite to replace "
-                          "them, or choose another folder")
-    frames = parse_frames(args.background_frames, None) if args.background_frames else None
+    check_detection_folder(args.out, args.overwrite)
+    frames = (parse_frames(args.background_frames, None, "--background-frames")
+              if args.background_frames else None)
 
     def progress(i, n, frame):
         print(f"[{i}/{n}] frame {frame}", file=sys.stderr, flush=True)
 
-    boxes, done, timing = detect_datasets(args.datasets, frames, args.noise_sigma, progress)
-    paths = write_dataset_detections(out, boxes, args.datasets, done, overwrite=True)
+    background = args.background or ("frames" if frames is not None else "empty")
+    found = run_detection(DetectSettings(tuple(args.datasets), args.out, frames,
+                                         args.noise_sigma, args.overwrite, background), progress)
+    timing, counts = found["timing"], found["counts"]
     per_frame = sorted(timing["detect_s"])[len(timing["detect_s"]) // 2] * 1000
-    counts = {name: int((boxes.label == lid).sum())
-              for name, lid in (("vehicle", 11), ("pedestrian", 12), ("cyclist", 18))}
-    print(f"{len(boxes)} detections in {len(done)} frames of {', '.join(timing['sensors'])} "
-          f"({', '.join(f'{v} {k}' for k, v in counts.items())}); background learned in "
-          f"{timing['learn_s']:.1f} s, {per_frame:.1f} ms a frame (median)\n"
-          f"Detections: {out} ({len(paths)} files)")
+    print(f"{len(found['boxes'])} detections in {len(found['frames'])} frames of "
+          f"{', '.join(timing['sensors'])} ({', '.join(f'{v} {k}' for k, v in counts.items())}); "
+          f"background learned in {timing['learn_s']:.1f} s, {per_frame:.1f} ms a frame "
+          f"(median)\nBackground: {_background_text(timing['background'])}\n"
+          f"Detections: {args.out} ({len(found['paths'])} files)")
     return 0
+
+
+def _background_text(b):
+    if b["kind"] == "empty":
+        sweeps = sorted(set(b["sweeps"].values()))
+        return (f"{BACKGROUNDS.label('empty').lower()}: {'/'.join(map(str, sweeps))} sweep(s) "
+                "per sensor of the scene with every road user hidden (the dataset's "
+                "background/)")
+    return (f"{BACKGROUNDS.label('frames').lower()}: learned from {len(b['frames'])} "
+            "frame(s), traffic and all")

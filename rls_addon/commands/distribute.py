@@ -43,7 +43,7 @@ def scene_file(args):
     """The .blend the workers open: the one named, else the one Blender has open."""
     if args.blend:
         return os.path.abspath(args.blend)
-    import bpy
+    from ..blender import bpy
 
     if bpy.data.filepath:
         return bpy.data.filepath
@@ -54,7 +54,7 @@ def _local_cluster_possible():
     """A local cluster starts Python processes of this interpreter that import the bpy
     module: not from inside the Blender program (its Python has no bpy module)."""
     try:
-        import bpy
+        from ..blender import bpy
 
         return not bpy.app.binary_path or os.path.basename(sys.executable).startswith("python")
     except ImportError:

@@ -15,7 +15,6 @@ all-point, as OpenCOOD) per class and IoU; --out writes everything as JSON (curv
 counts per frame, each detection's match). See docs/evaluate.md."""
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -97,67 +96,6 @@ def _check_out(args):
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
 
 
-def _kitti_roots(path):
-    """The kitti sensor roots at ``path`` (itself, or every sensor folder under it), or
-    [] when it is not a kitti dataset."""
-    p = Path(path)
-    if (p / "meta").is_dir():
-        return [p]
-    if p.is_dir():
-        return sorted(d for d in p.iterdir() if (d / "meta").is_dir())
-    return []
-
-
-def _sidecar_sensors(path):
-    """The sensors whose sidecars with ground truth are at ``path``."""
-    p = Path(path)
-    files = [p] if p.is_file() else sorted(p.rglob("*.json")) if p.is_dir() else []
-    names = []
-    for f in files:
-        try:
-            info = json.loads(f.read_text(encoding="utf-8"))
-        except (OSError, ValueError, UnicodeDecodeError):
-            continue  # the reader names what it cannot read
-        if isinstance(info, dict) and "objects" in info:
-            name = str(info.get("sensor", ""))
-            if name not in names:
-                names.append(name)
-    return names or [None]
-
-
-def read_truths(paths):
-    """([GroundTruth] one per sensor, [kitti sensor roots]) of the --truth paths."""
-    from ..core.evaluate.ground_truth_files import (ground_truth_from_kitti,
-                                                    ground_truth_from_sidecars)
-
-    truths, roots = [], []
-    for path in paths:
-        if not Path(path).exists():
-            raise InputError(f"--truth {path}: no such dataset or sidecar folder")
-        found = _kitti_roots(path)
-        if found:
-            truths += [ground_truth_from_kitti(r) for r in found]
-            roots += found
-        else:
-            truths += [ground_truth_from_sidecars(path, s) for s in _sidecar_sensors(path)]
-    return truths, roots
-
-
-def _dataset(args, fmt, roots, n_truth):
-    if args.dataset:
-        return args.dataset
-    if fmt == "opencood":
-        raise InputError("opencood predictions need --dataset: the OPV2V test root they were "
-                         "made on (the folder of scenario folders OpenCOOD read)")
-    if n_truth == 1 and len(roots) == 1:
-        return roots[0]
-    why = "several sensors' ground truth is given" if n_truth > 1 else \
-        "--truth is scan sidecars, not an RLS kitti dataset"
-    raise InputError(f"{fmt} detections are in the frame of the dataset the detector ran on, "
-                     f"and {why}: give --dataset, the RLS kitti sensor folder whose points "
-                     "the detector read")
-
-
 def _region(args):
     """(polygon or None, a description of it)."""
     if args.lob:
@@ -192,38 +130,46 @@ def summary(result, header):
                 for key in keys:
                     r = rec[kind][key]
                     rows.append(f"{name:<11}{scope:<11}{kind.upper():<4}{key:<6}"
-                                f"{_ap(r['ap_r40']):>8}{_ap(r['ap_voc']):>8}"
-                                f"{r['tp']:>7}{r['fp']:>7}{r['gt']:>7}")
+                                f"{_ap(r['ap_r40']):>8}{_ap(r.get('ap_r40_kitti')):>8}"
+                                f"{_ap(r['ap_voc']):>8}{r['tp']:>7}{r['fp']:>7}{r['gt']:>7}")
     if rows:
-        lines += ["", f"{'class':<11}{'range':<11}{'IoU':<10}{'AP_R40':>8}{'AP_VOC':>8}"
-                      f"{'tp':>7}{'fp':>7}{'gt':>7}"] + rows
+        lines += ["", f"{'class':<11}{'range':<11}{'IoU':<10}{'AP_R40':>8}{'KITTI':>8}"
+                      f"{'AP_VOC':>8}{'tp':>7}{'fp':>7}{'gt':>7}"] + rows
+    motion = []
+    for name, c in result["classes"].items():
+        for key in keys:
+            by = c["all"][kinds[0]][key].get("by_motion", {})
+            parts = [f"{what} {r['tp']}/{r['gt']}" + (f" ({r['recall']:.2f})" if r["gt"] else "")
+                     for what, r in by.items() if r["gt"]]
+            if parts:
+                motion.append(f"{name:<11}{kinds[0].upper():<4}{key:<6}{'; '.join(parts)}")
+    if motion:
+        lines += ["", "counted boxes found, standing (under 0.1 m/s) and moving:"] + motion
     if quiet:
         lines.append(f"no counted ground truth and no detections: {', '.join(quiet)} "
                      "(AP undefined)")
-    lines.append("AP_R40: KITTI's 40 recall points; AP_VOC: VOC all-point as OpenCOOD; "
-                 "fractions of 1; '-': no counted ground truth")
+    lines.append("AP_R40: KITTI's 40 recall points (Simonelli et al.); KITTI: the same as "
+                 "OpenPCDet's kitti_object_eval_python computes it; AP_VOC: VOC all-point "
+                 "as OpenCOOD; fractions of 1; '-': no counted ground truth")
     return "\n".join(lines)
 
 
 def run(args):
-    from ..core.evaluate.readers import detect_format, read_detection_files
-    from ..core.evaluate.scoring import frames_text, score
+    from ..core.evaluate.runs import EvaluateSettings, evaluate
+    from ..core.evaluate.scoring import frames_text
 
     _check_out(args)
     classes = [c for c in args.classes.split(",") if c.strip()]
     thresholds = _numbers(args.iou, "--iou")
     bins = _numbers(args.distance_bins, "--distance-bins") if args.distance_bins else None
     polygon, region_name = _region(args)
-    truths, roots = read_truths(args.truth)
-    fmt = detect_format(args.detections) if args.format == "auto" else args.format
-    dataset = _dataset(args, fmt, roots, len(truths))
-    files = read_detection_files(args.detections, fmt, dataset, args.scenario)
-    result = score(truths, files, region=polygon, min_points=args.min_points,
-                   classes=classes, iou_thresholds=thresholds, distance_bins=bins)
-    result["notices"] = files.notices + result["notices"]
-    result["inputs"] = {"truth": [str(p) for p in args.truth],
-                        "detections": str(args.detections), "format": fmt,
-                        "dataset": str(dataset), "region": region_name}
+    result = evaluate(EvaluateSettings(
+        truth=tuple(args.truth), detections=args.detections, format=args.format,
+        dataset=args.dataset, scenario=args.scenario,
+        region=None if polygon is None else tuple(map(tuple, polygon)),
+        region_name=region_name, min_points=args.min_points, classes=tuple(classes),
+        iou_thresholds=tuple(thresholds), distance_bins=None if bins is None else tuple(bins)))
+    fmt = result["inputs"]["format"]
     for notice in result["notices"]:
         print(f"rls: notice: {notice}", file=sys.stderr)
     g, d = result["ground_truth"], result["detections"]
@@ -236,14 +182,19 @@ def run(args):
         f"outside the region and {g['ignored_few_points']} with fewer points (don't-care)",
         f"detections ({fmt}): {d['boxes']}, {d['outside_region']} centred outside the "
         "region (dropped unless they find a counted box)"]
-    text = json.dumps(result, indent=1, allow_nan=False)
+    about = result["inputs"]["detector"]
+    if about and isinstance(about.get("background"), dict):
+        header.append(f"detector: {about.get('detector')}; background: "
+                      f"{about['background'].get('label')} "
+                      f"({about['background'].get('what')})")
     if args.out:
+        from ..core.evaluate.runs import result_json
         from ..core.output.io.atomic import atomic_write_bytes
 
-        atomic_write_bytes(args.out, (text + "\n").encode("utf-8"), overwrite=args.overwrite)
+        atomic_write_bytes(args.out, result_json(result), overwrite=args.overwrite)
         header.append(f"result: {args.out}")
     print(summary(result, header))
     return 0
 
 
-__all__ = ["add_parser", "parse_region", "read_truths", "run", "summary"]
+__all__ = ["add_parser", "parse_region", "run", "summary"]

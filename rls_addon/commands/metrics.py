@@ -8,7 +8,8 @@ says the points are in the sensor frame (``"frame_space": "sensor"``, or
 ``"frame": "sensor"``), its ``"sensor_to_world"`` 4x4 matrix maps them to world,
 or, for a sensor that moved during its sweep, its ``"sensor_poses"`` knots map each
 point with the sensor's pose at the point's own time. Clouds without a sidecar are
-taken as world-frame. Prints the result as JSON.
+taken as world-frame. Prints InfraD, InfraNUC and how they were measured as JSON; the
+density map's values (a line per cell) only with --grid, or written whole with --out.
 """
 
 import json
@@ -44,7 +45,13 @@ def add_parser(sub):
                    help="also write the density map as a PNG chart: points per m^2 per cell, "
                         "axes in world metres, colour bar, InfraD/InfraNUC in the title "
                         "(without matplotlib: the bare map)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing PNG")
+    p.add_argument("--grid", action="store_true",
+                   help="also print the density map's values (points per m^2 per cell, "
+                        "rows south to north: hundreds of lines) in the JSON")
+    p.add_argument("--out", metavar="RESULT.json",
+                   help="write the whole result, the density map's values included, as JSON")
+    p.add_argument("--overwrite", action="store_true",
+                   help="replace an existing PNG or RESULT.json")
     p.add_argument("clouds", nargs="+", metavar="CLOUD", help="PCD or PLY files")
     p.set_defaults(func=run)
 
@@ -69,7 +76,7 @@ def polygon_from_blend(spec):
     from ..core.signals import held
 
     with held():  # a stop signal waits for Blender to be loaded (as in open_scene)
-        import bpy  # only here: everything else in this command works without Blender
+        from ..blender import bpy  # only here: the rest of this command needs no Blender
 
         from ..blender.files import open_blend
         from ..blender.region import lob_polygon_world
@@ -160,7 +167,27 @@ def chart_title(args, result):
     return density_title(f"{clouds}, {region}", result.infra_d, result.infra_nuc, detail)
 
 
+def _check_out(args):
+    """Refuse an --out that is not JSON, or exists without --overwrite, before any work."""
+    if not args.out:
+        return
+    if not args.out.lower().endswith(".json"):
+        raise OutputError(f"--out must name a .json file, got {args.out}")
+    if os.path.exists(args.out) and not args.overwrite:
+        raise OutputError(f"{args.out} already exists; pass --overwrite to replace it")
+
+
+def printed(out, grid):
+    """What the command prints of the result ``out``: all of it with ``grid``, else
+    without the density map's values (its origin, cell and shape stay)."""
+    if grid or not out.get("density"):
+        return out
+    density = {k: v for k, v in out["density"].items() if k != "values"}
+    return {**out, "density": density}
+
+
 def run(args):
+    _check_out(args)
     poly = polygon_from_json(args.lob_polygon) if args.lob_polygon else polygon_from_blend(args.lob)
     clouds = [world_points(p) for p in args.clouds]
     result = infra_lob_metrics(clouds, poly, labels=args.labels, disks=args.disks, radius=args.radius,
@@ -180,6 +207,12 @@ def run(args):
             print(f"rls: notice: {notice}", file=sys.stderr)
         atomic_write_bytes(args.density_png, png, overwrite=args.overwrite)
         out["density_png"] = args.density_png
-    json.dump(out, sys.stdout, indent=2, allow_nan=False)
+    if args.out:
+        from ..core.output.io import atomic_write_bytes
+
+        out["result"] = args.out
+        text = json.dumps(out, indent=1, allow_nan=False) + "\n"
+        atomic_write_bytes(args.out, text.encode("utf-8"), overwrite=args.overwrite)
+    json.dump(printed(out, args.grid), sys.stdout, indent=2, allow_nan=False)
     sys.stdout.write("\n")
     return 0

@@ -42,11 +42,11 @@ def run(args):
                                origin=args.origin, overwrite=args.overwrite)
 
     def blender_scene():
-        import bpy
-
+        from ..blender import bpy  # loaded with stop signals held
+        from ..blender.files import factory_reset
         from ..blender.roads import BlenderRoadScene
 
-        bpy.ops.wm.read_factory_settings(use_empty=True)
+        factory_reset()
         args.prepare_blender()
         return BlenderRoadScene(bpy.context.scene)
 

@@ -32,7 +32,7 @@ import math
 import os
 import sys
 
-from ..core.choices import BACKENDS
+from ..core.choices import BACKENDS, BACKGROUNDS
 from ..core.errors import RegionError, SceneError
 from ..core.metrics.infra import (
     DEFAULT_CELL_M,
@@ -40,6 +40,7 @@ from ..core.metrics.infra import (
     DEFAULT_RADIUS_M,
     DEFAULT_SEED,
 )
+from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from ..core.study.placement import DEFAULT_EXHAUSTIVE_LIMIT
 from ..core.study.report import REPORT_FILES, write_report
 from .distribute import add_arguments as add_cluster_arguments
@@ -123,6 +124,18 @@ def add_parser(sub):
                         "RLS's roadside detector on each candidate and on the reported "
                         "sets (early fusion), vehicle AP_R40 at BEV IoU 0.5 in the "
                         "region, and how well InfraD, InfraNUC and visibility predict it")
+    p.add_argument("--background", choices=BACKGROUNDS.ids, default="empty",
+                   help="with --evaluate: the detector's background; empty (default): each "
+                        "candidate's sweeps of the scene with every road user hidden, as a "
+                        "deployed unit has; frames: learned from the evaluation frames, "
+                        "traffic and all")
+    p.add_argument("--background-sweeps", type=int, default=BACKGROUND_SWEEPS, metavar="N",
+                   help=f"with --background empty: sweeps per candidate (default "
+                        f"{BACKGROUND_SWEEPS})")
+    p.add_argument("--evaluate-sets", type=int, default=20, metavar="N",
+                   help="with --evaluate and k > 1: sets of each k scored beyond the "
+                        "reported ones (drawn from those the search looked at), for the "
+                        "correlation within k (default 20)")
     p.add_argument("--min-points", type=int, default=5,
                    help="with --evaluate: the returns the candidates together must put on "
                         "a box for it to count (default 5)")
@@ -154,7 +167,9 @@ def config_from_args(args):
         exhaustive_limit=args.exhaustive_limit,
         traffic_frames=tuple(parse_frames(args.traffic, 0)) if args.traffic else (),
         evaluate_frames=tuple(parse_frames(args.evaluate, 0)) if args.evaluate else (),
-        evaluate_min_points=args.min_points, rotation_hz=args.rotation_hz,
+        evaluate_min_points=args.min_points, evaluate_background=args.background,
+        background_sweeps=args.background_sweeps, evaluate_sets=args.evaluate_sets,
+        rotation_hz=args.rotation_hz,
         lidar_mode=args.lidar_mode,
         visibility_labels=tuple(label_name(i) for i in label_ids(args.visibility_labels)))
 

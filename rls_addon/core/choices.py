@@ -137,6 +137,15 @@ FOOTPRINT = Choices("beam footprint", [
     ("off", "Off", "Every ray is one thin line with one return (as before footprints)"),
 ])
 
+BACKGROUNDS = Choices("detector background", [
+    ("empty", "Empty Scene", "Each still LiDAR's sweeps of the scene with every road user "
+                             "hidden, the device's noise in each: the background a deployed "
+                             "roadside unit has after hours of watching (the default)"),
+    ("frames", "From the Frames", "Learned from the frames themselves, traffic and all, as a "
+                                  "deployed unit does over a long clip: vehicles standing "
+                                  "through most of them become background"),
+])
+
 RETURN_MODES = Choices("return mode", [
     ("preset", "Preset", "The device's own return mode (its preset's; strongest unless "
                          "it says otherwise)"),

@@ -21,6 +21,15 @@ class OutputError(RLSError):
     """An output path is invalid, unwritable, or would overwrite a file."""
 
 
+class OutputExists(OutputError):
+    """Files a run would write are there already (``paths``) and it may not replace
+    them: each entry point says how to allow it (--overwrite, the Overwrite option)."""
+
+    def __init__(self, message, paths):
+        super().__init__(message)
+        self.paths = list(paths)
+
+
 class RegionError(RLSError):
     """A region of interest (InfraLOB) is invalid or holds no points."""
 

@@ -2,8 +2,12 @@
 
 Objects get a label from a custom property (``rls_label``, a name or id) or from the
 name of a collection they are in; matching is case-insensitive on the names and the
-aliases below. Ids are stable across versions: new classes are only ever appended.
+aliases below, Blender's duplicate suffix left out (a collection "Road.001", made when
+a file already holds a "Road", is road). Ids are stable across versions: new classes
+are only ever appended.
 """
+
+import re
 
 from .errors import RLSError
 
@@ -71,9 +75,22 @@ ALIASES = {
 
 NAME_TO_ID = {name: i for i, name in DEFAULT_LABELS.items()}
 
+# Road users: the classes with ground-truth boxes, which a placement study leaves out of
+# its traffic-free scans and a deployed unit's background never holds.
+ROAD_USERS = ("vehicle", "pedestrian", "cyclist")
+
+
+# Blender's name for a second datablock of a taken name: "Road.001"
+DUPLICATE_SUFFIX = re.compile(r"\.\d{3,}$")
+
+
+def base_name(name):
+    """``name`` without Blender's duplicate suffix ("Road.001" -> "Road")."""
+    return DUPLICATE_SUFFIX.sub("", str(name))
+
 
 def _norm(name):
-    return str(name).strip().lower().replace(" ", "_").replace("-", "_")
+    return base_name(str(name).strip()).lower().replace(" ", "_").replace("-", "_")
 
 
 def match_label(name):

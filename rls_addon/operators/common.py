@@ -1,6 +1,6 @@
 """What the operators share: the active LiDAR, poll checks that say why a button is
-disabled, selection, and ``cancelled``: a domain error reported as the operator's one
-error line."""
+disabled, selection, ``cancelled``: a domain error reported as the operator's one
+error line, and ``status_text``: the status bar's text while one works."""
 
 
 
@@ -40,3 +40,13 @@ def cancelled(op, error):
     end it: ``return cancelled(self, exc)``."""
     op.report({"ERROR"}, str(error))
     return {"CANCELLED"}
+
+
+def status_text(context, text):
+    """Show ``text`` in the status bar (None clears it); nothing without a window."""
+    ws = getattr(context, "workspace", None)
+    if ws is not None:
+        try:
+            ws.status_text_set(text)
+        except (RuntimeError, AttributeError):
+            pass

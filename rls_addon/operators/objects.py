@@ -3,8 +3,9 @@
 import bpy
 from bpy.props import BoolProperty, EnumProperty, FloatProperty
 
+from ..blender.lidars import new_lidar
 from ..blender.region import LOB_PROPERTY
-from ..blender.sensor import DEFAULT_PRESET, lidar_props
+from ..blender.sensor import DEFAULT_PRESET
 from ..properties import preset_items
 from .common import _select_only
 
@@ -29,15 +30,9 @@ class OBJECT_OT_rls_add_lidar(bpy.types.Operator):
         return True
 
     def execute(self, context):
-        obj = bpy.data.objects.new("LiDAR", None)
-        obj.empty_display_type = "ARROWS"
-        obj.empty_display_size = 0.5
-        obj.location = context.scene.cursor.location
-        (context.collection or context.scene.collection).objects.link(obj)
-        s = lidar_props(obj)
-        s.is_lidar = True
-        s.preset_id = self.preset or DEFAULT_PRESET
-        s.show_fov = self.show_fov
+        obj = new_lidar(context.scene, "LiDAR", self.preset or DEFAULT_PRESET,
+                        context.scene.cursor.location, collection=context.collection,
+                        show_fov=self.show_fov, exact_name=False)
         _select_only(context, obj)
         return {"FINISHED"}
 

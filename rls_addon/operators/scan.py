@@ -11,41 +11,12 @@ from ..blender.sensor import is_lidar, lidar_objects, lidar_props
 from ..core.errors import RLSError
 from ..properties import COLOR_ITEMS
 from .common import _active_lidar, _poll_active_lidar, _poll_any_lidar, cancelled
+from .running import LAST_RUN, ModalRun
 
 
-# What the last scan operator did (for scripts and tests; reports go to the UI).
-LAST_RUN = {}
-
-
-def _report_run(op, run):
-    for w in run.warnings[:5]:
-        op.report({"WARNING"}, w)
-    if len(run.warnings) > 5:
-        op.report({"WARNING"}, f"... and {len(run.warnings) - 5} more warnings")
-    LAST_RUN.clear()
-    LAST_RUN.update(cancelled=run.cancelled, frames_done=list(run.frames_done),
-                    frames=list(run.frames), steps_done=run.index, steps=run.total,
-                    paths=[str(p) for p in run.paths], points=run.points,
-                    warnings=list(run.warnings))
-    where = f", {len(run.paths)} files written" if run.writer is not None else ""
-    if run.cancelled:
-        op.report({"WARNING"}, f"Scan cancelled: {len(run.frames_done)} of {len(run.frames)} "
-                               f"frames completed{where}")
-        return {"CANCELLED"}
-    if run.total == 1 and run.paths:
-        where = f" to {run.paths[0]}"
-    op.report({"INFO"}, f"{run.points} points from {len(run.sensors)} LiDAR(s) over "
-                        f"{len(run.frames)} frame(s){where}")
-    return {"FINISHED"}
-
-
-class _ScanOperator:
+class _ScanOperator(ModalRun):
     """What the scan operators share: they make one core scan run (``batch.make_run``)
-    of ``_sensors()`` x ``_frames()``. From the UI it runs modal, a step per timer
-    event, with Blender's progress bar and status text; Esc cancels after the step in
-    progress (files already written stay complete; nothing half-written is left).
-    Without a window (``blender -b``, scripts) it runs straight through in
-    ``execute()``."""
+    of ``_sensors()`` x ``_frames()``, modal from the UI (``ModalRun``)."""
 
     bl_options = {"REGISTER", "UNDO"}  # they create or replace preview objects
 
@@ -55,85 +26,14 @@ class _ScanOperator:
     preview: BoolProperty(name="Preview", default=True,
                           description="Show the points as an object in the scene after "
                                       "every scan")
-
-    _timer = None
-    _job = None
+    overwrite: BoolProperty(name="Overwrite Files", default=False,
+                            description="Replace files of earlier scans; without it a file "
+                                        "that exists is refused before anything is scanned, "
+                                        "as rls scan refuses it")
 
     def _make_run(self, context):
         return batch.make_run(context, self._sensors(context), self._frames(context),
-                              write=self.write, preview=self.preview)
-
-    def execute(self, context):
-        try:
-            run = self._make_run(context)
-        except RLSError as exc:
-            return cancelled(self, exc)
-        try:
-            run.run(interrupt_cancels=True)
-        except RLSError as exc:
-            return cancelled(self, exc)
-        finally:
-            batch.end_run(run)
-        return _report_run(self, run)
-
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        try:
-            self._job = self._make_run(context)
-        except RLSError as exc:
-            return cancelled(self, exc)
-        wm = context.window_manager
-        wm.progress_begin(0, self._job.total)
-        self._status(context, self._job.status())
-        self._timer = wm.event_timer_add(0.01, window=context.window)
-        wm.modal_handler_add(self)
-        return {"RUNNING_MODAL"}
-
-    def _status(self, context, text):
-        ws = getattr(context, "workspace", None)
-        if ws is not None:
-            try:
-                ws.status_text_set(text)
-            except (RuntimeError, AttributeError):
-                pass
-
-    def _end(self, context):
-        wm = context.window_manager
-        if self._timer is not None:
-            wm.event_timer_remove(self._timer)
-            self._timer = None
-        wm.progress_end()
-        self._status(context, None)
-        batch.end_run(self._job)
-
-    def modal(self, context, event):
-        job = self._job
-        if event.type == "ESC":
-            batch.request_cancel()
-            job.cancelled = True
-        if event.type == "TIMER" or job.cancelled:
-            try:
-                if not job.finished:
-                    job.step()
-            except RLSError as exc:
-                self._end(context)
-                return cancelled(self, exc)
-            except Exception:
-                self._end(context)
-                raise
-            if job.finished:
-                self._end(context)
-                return _report_run(self, job)
-            context.window_manager.progress_update(job.index)
-            self._status(context, job.status())
-            return {"RUNNING_MODAL"}
-        return {"PASS_THROUGH"}
-
-    def cancel(self, context):  # Blender quits or the window closes
-        if self._job is not None:
-            self._job.cancelled = True
-            self._end(context)
+                              write=self.write, preview=self.preview, overwrite=self.overwrite)
 
 
 class RLS_OT_scan_frame(_ScanOperator, bpy.types.Operator):
@@ -205,8 +105,10 @@ class RLS_OT_scan_range(_ScanOperator, bpy.types.Operator):
 
 def batch_command(context, all_lidars=True):
     """The command line that scans this scene's frame range (as the Scan Frame Range
-    box says) outside the UI, over every core (``--workers auto``); needs the saved
-    .blend."""
+    box says) outside the UI: this Blender run in the background on the saved .blend,
+    with the installed extension's ``rls`` command (``blender -b FILE -c rls scan``),
+    which a user who installed the zip can run as it is. ``--resume`` keeps frames a
+    stopped run finished."""
     import shlex
 
     sc = context.scene
@@ -214,20 +116,19 @@ def batch_command(context, all_lidars=True):
     a, b, step = ((sc.frame_start, sc.frame_end, sc.frame_step) if rs.use_scene_range
                   else (rs.frame_start, rs.frame_end, rs.frame_step))
     frames = f"{a}-{b}" + (f":{step}" if step > 1 else "")
-    parts = ["python", "-m", "rls_addon", "scan", bpy.data.filepath or "SCENE.blend",
-             "--frames", frames]
+    parts = [bpy.app.binary_path or "blender", "-b", bpy.data.filepath or "SCENE.blend",
+             "-c", "rls", "scan", "--frames", frames]
     if not all_lidars:
         obj = _active_lidar(context)
         if obj is not None:
             parts += ["--sensor", obj.name]
-    parts += ["--workers", "auto", "--resume"]
+    parts += ["--resume"]
     return " ".join(shlex.quote(p) for p in parts)
 
 
 class RLS_OT_batch_command(bpy.types.Operator):
-    """Copy the command line that scans this frame range in a batch run over every core
-    (or a Dask cluster with --scheduler) to the clipboard; the UI itself scans in
-    Blender's own process"""
+    """Copy the command line that scans this frame range with Blender in the background
+    (blender -b FILE -c rls scan ...) to the clipboard, to run outside the UI"""
 
     bl_idname = "rls.batch_command"
     bl_label = "Copy Batch Command"

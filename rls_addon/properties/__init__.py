@@ -1,5 +1,5 @@
 """Blender properties, a module per owner: ``Object.rls_lidar`` (lidar.py) and
-``Scene.rls`` (scene.py).
+``Scene.rls`` (scene.py, with Detect and Evaluate's in evaluation.py).
 
 Only plain values live here; ``blender.sensor.read_settings`` maps them into the core's
 ``LidarSettings`` in one place. Enumerations come from ``core.choices``, the same lists
@@ -12,12 +12,13 @@ from bpy.props import PointerProperty
 from ..blender import preset_catalog
 from .lidar import (_ITEMS, COLOR_ITEMS, RLS_LidarSettings, lidar_mode_items, preset_items,
                     refresh_preset_items)
+from .evaluation import RLS_APRow, RLS_EvaluationSettings
 from .scene import RLS_SceneSettings
 
 __all__ = ["CLASSES", "COLOR_ITEMS", "RLS_LidarSettings", "RLS_SceneSettings", "lidar_mode_items",
            "preset_items", "refresh_preset_items", "register_properties", "unregister_properties"]
 
-CLASSES = (RLS_LidarSettings, RLS_SceneSettings)
+CLASSES = (RLS_LidarSettings, RLS_APRow, RLS_EvaluationSettings, RLS_SceneSettings)
 
 
 def register_properties():

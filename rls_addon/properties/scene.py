@@ -1,10 +1,11 @@
 """The scene's properties (``Scene.rls``): the frame range to scan, the InfraLOB metric
-settings and the last metrics computed."""
+settings and the last metrics computed; Detect and Evaluate's (``evaluation.py``)."""
 
 import bpy
 from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from ..blender.region import is_lob
+from .evaluation import RLS_EvaluationSettings
 
 
 def _lob_poll(self, obj):
@@ -19,6 +20,9 @@ class RLS_SceneSettings(bpy.types.PropertyGroup):
                                   description="Scan the scene's frame range")
     range_all_lidars: BoolProperty(name="All LiDARs", default=False,
                                    description="Scan the frame range with every LiDAR in the scene")
+    overwrite: BoolProperty(name="Overwrite Files", default=False,
+                            description="Let the scan buttons replace files of earlier scans "
+                                        "(without it they refuse, as rls scan does)")
     lob: PointerProperty(name="InfraLOB", type=bpy.types.Object, poll=_lob_poll,
                          description="Region of interest for the placement metrics")
     metric_labels: StringProperty(name="Labels", default="road,sidewalk",
@@ -48,3 +52,5 @@ class RLS_SceneSettings(bpy.types.PropertyGroup):
                                    description="The LiDARs whose points were counted")
     metric_image: PointerProperty(name="Density Map", type=bpy.types.Image,
                                   description="Image of points per square metre in the InfraLOB")
+    evaluation: PointerProperty(type=RLS_EvaluationSettings, name="Detect and Evaluate",
+                                description="RLS's detector over a dataset, scored")

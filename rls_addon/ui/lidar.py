@@ -45,6 +45,20 @@ class RLS_PT_device_presets(bpy.types.Panel):
 
 # ---- LiDAR panel ------------------------------------------------------------------------------
 
+SOURCE_PEEK = 40  # characters of a preset's source shown while its fold is closed
+
+
+def draw_source(layout, source):
+    """A preset's source (8 to 36 lines wrapped for the shipped presets, once always
+    shown) folded under a one-line header that shows its start; open, the whole text.
+    Blender keeps the fold's state (a layout panel, Blender 4.1 on)."""
+    header, body = layout.panel("rls_preset_source", default_closed=True)
+    peek = source if len(source) <= SOURCE_PEEK else source[:SOURCE_PEEK].rstrip() + "..."
+    header.label(text=f"Source: {peek}")
+    if body is not None:
+        wrapped(body, source)
+
+
 class _LidarPanel:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
@@ -77,16 +91,17 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
             kind = "built-in" if e.builtin else "user preset"
             box.label(text=f"{preset_catalog.family_label(e.family)}, {kind}",
                       icon="INFO")
-            wrapped(box, f"Source: {e.source}")
+            draw_source(box, e.source)
         row = layout.row(heading="Field of View")
         row.prop(s, "show_fov", text="")
         sub = row.row()
         sub.active = s.show_fov
         sub.prop(s, "fov_length", text="")
-        col = layout.column(align=True)
-        col.operator("rls.scan_frame", icon="RENDER_STILL")
-        col.operator("rls.scan_all", icon="RENDERLAYERS")
         rs = context.scene.rls
+        col = layout.column(align=True)
+        col.operator("rls.scan_frame", icon="RENDER_STILL").overwrite = rs.overwrite
+        col.operator("rls.scan_all", icon="RENDERLAYERS").overwrite = rs.overwrite
+        col.prop(rs, "overwrite")
         box = layout.box()
         box.prop(rs, "use_scene_range")
         sub = box.column(align=True)
@@ -99,6 +114,7 @@ class OBJECT_PT_rls_lidar(_LidarPanel, bpy.types.Panel):
         op.use_scene_range = rs.use_scene_range
         op.frame_start, op.frame_end, op.frame_step = rs.frame_start, rs.frame_end, rs.frame_step
         op.all_lidars = rs.range_all_lidars
+        op.overwrite = rs.overwrite
         box.operator("rls.batch_command", icon="CONSOLE").all_lidars = rs.range_all_lidars
 
 

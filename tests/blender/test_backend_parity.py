@@ -10,13 +10,17 @@ from rls_addon.core.casting import BVHCaster
 from rls_addon.core.casting import embree as embree_caster
 from rls_addon.core.casting import NumpyCaster
 from tests import parity
+from tests.core.external_tools import require_backend
 
 pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
 
-needs_embree = pytest.mark.skipif(
-    not embree_caster.available(),
-    reason="embreex is not importable (" + embree_caster.unavailable_reason()
-    + "); 'make test' installs it from requirements-test.txt")
+
+@pytest.fixture
+def embreex():
+    require_backend(embree_caster, "embreex")
+
+
+needs_embree = pytest.mark.usefixtures("embreex")
 
 
 def rays():

@@ -185,7 +185,7 @@ def test_scan_range_cancel_keeps_only_complete_frames(scene, tmp_path):
         json.loads(f.read_text())  # every sidecar complete
     assert scene.frame_current == 1
     assert not batch.cancel_requested()  # the next job starts clean
-    assert bpy.ops.rls.scan_range(all_lidars=True) == {"FINISHED"}
+    assert bpy.ops.rls.scan_range(all_lidars=True, overwrite=True) == {"FINISHED"}
     assert LAST_RUN["frames_done"] == [1, 2, 3, 4, 5, 6]
 
 
@@ -270,6 +270,7 @@ def test_modal_path_progress_and_esc(scene, tmp_path):
     reports = []
     fake = SimpleNamespace(_timer=None, report=lambda kind, msg: reports.append((kind, msg)))
     fake._end = lambda c: Op._end(fake, c)
+    fake._report = lambda run: Op._report(fake, run)
     fake._status = lambda c, t: Op._status(fake, c, t)
     fake._job = batch.make_run(ctx, [bpy.context.active_object], [1, 2, 3, 4, 5])
     ctx.window_manager.progress_begin(0, fake._job.total)
@@ -337,11 +338,12 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
     add_lidar_op(out=tmp_path, location=(4, 0, 2))
     ctx = bpy.context
     reports = []
-    fake = SimpleNamespace(_timer=None, write=True, preview=True,
+    fake = SimpleNamespace(_timer=None, write=True, preview=True, overwrite=False,
                            report=lambda kind, msg: reports.append((kind, msg)))
     fake._sensors = lambda c: Op._sensors(fake, c)
     fake._frames = lambda c: Op._frames(fake, c)
     fake._end = lambda c: Op._end(fake, c)
+    fake._report = lambda run: Op._report(fake, run)
     fake._status = lambda c, t: Op._status(fake, c, t)
     fake._job = Op._make_run(fake, ctx)
     steps = fake._job.total
@@ -361,6 +363,12 @@ def test_single_frame_scans_show_progress_and_cancel_like_the_range(scene, tmp_p
 
 
 def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
+    """What Copy Batch Command gives runs where the zip was installed: Blender in the
+    background with the extension's rls command (it once gave python -m rls_addon, which
+    only a checkout with the bpy module can run); the same frames and LiDAR; it parses."""
+    import shlex
+
+    from rls_addon.cli import build_parser
     from rls_addon.operators.scan import batch_command
 
     labelled_ground()
@@ -369,9 +377,45 @@ def test_batch_command_is_the_command_line_of_the_frame_range(scene, tmp_path):
     blend = tmp_path / "my scene.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
     text = batch_command(bpy.context, all_lidars=False)
-    assert text == (f"python -m rls_addon scan '{blend}' --frames 5-40:5 --sensor LiDAR "
-                    "--workers auto --resume")
+    assert text == (f"blender -b '{blend}' -c rls scan --frames 5-40:5 --sensor LiDAR "
+                    "--resume")
+    words = shlex.split(text)
+    args = build_parser().parse_args(words[words.index("rls") + 1:])
+    assert (args.command, args.frames, args.sensor, args.resume) == ("scan", "5-40:5",
+                                                                     ["LiDAR"], True)
+    # and it runs: 'blender' here is the stand-in of tests/cli (Blender as the bpy module)
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    standin = Path(__file__).resolve().parents[1] / "cli" / "blender_standin.py"
+    proc = subprocess.run([sys.executable, str(standin), *words[1:]], capture_output=True,
+                          text=True, timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert len(list(tmp_path.glob("*_LiDAR_0000[0-4][05].pcd"))) == 8
     from rls_addon.operators import LAST_RUN
 
     assert bpy.ops.rls.batch_command() == {"FINISHED"}
-    assert LAST_RUN["batch_command"].endswith("--workers auto --resume")
+    assert LAST_RUN["batch_command"].startswith("blender -b ")
+    assert LAST_RUN["batch_command"].endswith("-c rls scan --frames 5-40:5 --resume")
+
+
+def test_scan_frame_refuses_to_replace_files_unless_overwrite(scene, tmp_path):
+    """Scan Frame once replaced the files of an earlier scan without a word, where rls
+    scan refuses: it refuses too, before scanning, naming the file and the option."""
+    from rls_addon.operators import LAST_RUN
+
+    labelled_ground()
+    add_lidar_op(out=tmp_path)
+    assert bpy.ops.rls.scan_frame() == {"FINISHED"}
+    cloud = tmp_path / "Scene_LiDAR_000001.pcd"
+    before = cloud.read_bytes()
+    cloud.write_bytes(b"an earlier scan's file")
+    with pytest.raises(RuntimeError, match="already exists .*Overwrite Files"):
+        bpy.ops.rls.scan_frame()
+    assert cloud.read_bytes() == b"an earlier scan's file"
+    with pytest.raises(RuntimeError, match="already exists"):
+        bpy.ops.rls.scan_range(use_scene_range=False, frame_start=1, frame_end=1)
+    assert bpy.ops.rls.scan_frame(overwrite=True) == {"FINISHED"}
+    assert cloud.read_bytes() == before and LAST_RUN["paths"] == [str(cloud)]
+    assert bpy.ops.rls.scan_frame(write=False) == {"FINISHED"}  # a preview writes nothing

@@ -100,42 +100,8 @@ def test_zip_holds_exactly_the_wheels_of_its_platform(platform):
 
 # ---- reading the compiled files' headers ------------------------------------------
 
-def _cstr(data, off):
-    return data[off:data.index(b"\0", off)].decode()
-
-
-def read_elf(data):
-    """(architecture, type, exported functions, GLIBC versions needed)."""
-    assert data[:4] == b"\x7fELF", "not ELF"
-    assert data[4] == 2 and data[5] == 1, "not 64-bit little-endian"
-    e_type, e_machine = struct.unpack_from("<HH", data, 16)
-    shoff, = struct.unpack_from("<Q", data, 0x28)
-    shentsize, shnum = struct.unpack_from("<HH", data, 0x3A)
-    sections = [struct.unpack_from("<IIQQQQIIQQ", data, shoff + i * shentsize)
-                for i in range(shnum)]
-    exports, glibc = set(), set()
-    for sh in sections:
-        _, sh_type, _, _, off, size, link, info, _, entsize = sh
-        if sh_type == 11:  # SHT_DYNSYM
-            strtab = sections[link][4]
-            for i in range(size // entsize):
-                name, st_info, st_other, shndx, _, _ = struct.unpack_from("<IBBHQQ", data,
-                                                                          off + i * entsize)
-                if shndx != 0 and st_info >> 4 == 1 and st_info & 0xF == 2 and st_other & 3 == 0:
-                    exports.add(_cstr(data, strtab + name))
-        if sh_type == 0x6FFFFFFE:  # SHT_GNU_verneed
-            strtab = sections[link][4]
-            at = off
-            for _ in range(info):
-                _, cnt, _, aux, nxt = struct.unpack_from("<HHIII", data, at)
-                a = at + aux
-                for _ in range(cnt):
-                    _, _, _, vname, anext = struct.unpack_from("<IHHII", data, a)
-                    glibc.add(_cstr(data, strtab + vname))
-                    a += anext
-                at += nxt
-    arch = {62: "x86-64", 183: "arm64"}.get(e_machine, str(e_machine))
-    return arch, {3: "shared object"}.get(e_type, str(e_type)), exports, glibc
+read_elf = build_native.read_elf  # (architecture, type, exports, versions needed)
+_cstr = build_native._cstr
 
 
 def read_pe(data):
@@ -264,6 +230,7 @@ def test_zip_holds_its_compiled_loop_only_of_the_right_format(platform):
         got_arch, kind, exports, glibc = read_elf(data)
         assert (got_arch, kind) == (arch, "shared object")
         # Blender 4.2+ runs on glibc 2.28: the loop must not need anything newer.
+        assert build_native.GLIBC_MAX == (2, 28)
         versions = [tuple(int(x) for x in v[6:].split(".")) for v in glibc
                     if v.startswith("GLIBC_")]
         assert versions and max(versions) <= (2, 28), sorted(glibc)
@@ -281,6 +248,28 @@ def test_zip_holds_its_compiled_loop_only_of_the_right_format(platform):
     assert ENTRY_POINTS <= exports, sorted(exports)
     # Nothing else but what the linker itself defines (ELF _init/_fini, Mach-O headers).
     assert exports <= ENTRY_POINTS | LINKER_SYMBOLS, sorted(exports)
+
+
+def test_a_linux_loop_built_without_zig_needs_no_newer_glibc(tmp_path, monkeypatch):
+    """make build-linux on a machine without the ziglang wheel builds the Linux zip's
+    loop with this machine's compiler: it too must load on Blender's glibc 2.28 (with
+    gcc on glibc 2.34+ it needed GLIBC_2.34 for pthread_create and pthread_join); a
+    build that still needs a newer glibc is left out of the zip, saying why."""
+    import shutil
+
+    if build_native.host_platform() != "linux-x64" or shutil.which("gcc") is None:
+        missing("building the Linux loop without Zig needs gcc on Linux x64")
+    lib, note = build_native.build_platform("linux-x64", zig=(None, "no Zig here"),
+                                            out_root=tmp_path)
+    assert lib is not None, note
+    assert "this machine's C compiler" in note
+    newest = build_native.glibc_needed(lib.read_bytes())
+    assert newest is not None and newest <= build_native.GLIBC_MAX == (2, 28), newest
+    embree_loop.load_native(str(lib))  # and it is a loop the loader takes
+    monkeypatch.setattr(build_native, "glibc_needed", lambda data: (2, 34))
+    lib, note = build_native.build_platform("linux-x64", zig=(None, "no Zig here"),
+                                            out_root=tmp_path / "again")
+    assert lib is None and "needs glibc 2.34, newer than Blender's 2.28" in note
 
 
 def test_header_readers_reject_other_formats():

@@ -9,15 +9,25 @@ import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
-shapely = pytest.importorskip("shapely")
-from shapely.geometry import LineString, Polygon  # noqa: E402
-from shapely.ops import unary_union  # noqa: E402
 
 from rls_addon.core.errors import OutputError  # noqa: E402
 from rls_addon.core.roads.layout import KERB_M, KINDS, build_layout  # noqa: E402
 from rls_addon.core.roads.network import read_network  # noqa: E402
 from rls_addon.core.roads.pieces import Piece, outline_piece  # noqa: E402
+from tests.core.external_tools import require_module  # noqa: E402
 from tests.sumo_nets import grid_net, osm_net  # noqa: E402
+
+try:  # the oracle: required by the fixture below (a skip, or a failure under make test)
+    import shapely
+    from shapely.geometry import LineString, Polygon
+    from shapely.ops import unary_union
+except ImportError:
+    shapely = None
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _shapely():
+    require_module("shapely", "shapely==2.2.0")
 
 SURFACES = ("Road", "Crossings", "Sidewalk")
 

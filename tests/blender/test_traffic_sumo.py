@@ -11,17 +11,21 @@ import numpy as np
 import pytest
 
 from .conftest import add_lidar, bpy, ground
+from tests.core.external_tools import require_module
 
-pytest.importorskip("sumo")
+from rls_addon.blender.sensor import read_settings, sensor_job
+from rls_addon.blender.source import BlenderScene
+from rls_addon.blender.traffic import COLLECTION, import_traffic
+from rls_addon.core.casting import caster_factory
+from rls_addon.core.labels import label_id
+from rls_addon.core.scan.session import ScanSession
+from rls_addon.core.traffic.fcd import box_centre, load
+from rls_addon.core.traffic.sumo_run import binary, generate, sumo_home
 
-from rls_addon.blender.sensor import read_settings, sensor_job  # noqa: E402
-from rls_addon.blender.source import BlenderScene  # noqa: E402
-from rls_addon.blender.traffic import COLLECTION, import_traffic  # noqa: E402
-from rls_addon.core.casting import caster_factory  # noqa: E402
-from rls_addon.core.labels import label_id  # noqa: E402
-from rls_addon.core.scan.session import ScanSession  # noqa: E402
-from rls_addon.core.traffic.fcd import box_centre, load  # noqa: E402
-from rls_addon.core.traffic.sumo_run import binary, generate, sumo_home  # noqa: E402
+
+@pytest.fixture(autouse=True, scope="module")
+def _sumo():
+    require_module("sumo", "eclipse-sumo==1.28.0")
 
 CLASSES = {label_id(n) for n in ("vehicle", "pedestrian", "cyclist")}
 ORIGIN = (60.0, 60.0)   # the grid's centre crossing lands on the scene's origin

@@ -12,14 +12,19 @@ from .ops_helpers import add_lidar_op, labelled_ground, user_dir  # noqa: F401 (
 
 
 class Recorder:
-    """Stands in for ``UILayout``: records calls, checks names against RNA."""
+    """Stands in for ``UILayout``: records calls, checks names against RNA. Layout
+    panels (``layout.panel``) are closed unless ``open_panels``."""
 
-    def __init__(self, log):
+    def __init__(self, log, open_panels=False):
         object.__setattr__(self, "log", log)
+        object.__setattr__(self, "open_panels", open_panels)
 
     def __getattr__(self, name):
         def call(*args, **kw):
             self.log.append((name, args, kw))
+            if name == "panel":
+                return (Recorder(self.log, self.open_panels),
+                        Recorder(self.log, self.open_panels) if self.open_panels else None)
             if name == "prop":
                 data, prop = args[0], args[1]
                 assert prop in data.bl_rna.properties, f"{type(data).__name__} has no {prop}"
@@ -32,14 +37,14 @@ class Recorder:
                 assert hasattr(bpy.types, ident), ident
             if name == "icon":
                 return 0
-            return Recorder(self.log)
+            return Recorder(self.log, self.open_panels)
         return call
 
 
-def _draw(cls, context, method="draw"):
+def _draw(cls, context, method="draw", open_panels=False):
     log = []
-    getattr(cls, method)(SimpleNamespace(layout=Recorder(log), bl_idname=getattr(cls, "bl_idname", "")),
-                         context)
+    getattr(cls, method)(SimpleNamespace(layout=Recorder(log, open_panels),
+                                         bl_idname=getattr(cls, "bl_idname", "")), context)
     return log
 
 
@@ -115,6 +120,27 @@ def test_lidar_panels_draw_without_heavy_work(scene, user_dir, no_heavy_work):
                       if name == "label"]
     assert "InfraD" in metrics_labels and "InfraNUC" in metrics_labels
     assert any(name == "template_icon" for name, _, _ in logs["OBJECT_PT_rls_lidar_metrics"])
+
+
+def test_preset_source_folds_to_one_line(scene):
+    """The device's source text (30 lines for a Pandar64) once filled the LiDAR panel:
+    folded it is one line, open the whole text."""
+    ui = _ui_classes()
+    obj = add_lidar_op("hesai_pandar64")
+    ctx = SimpleNamespace(object=obj, active_object=obj, scene=scene)
+
+    def labels(log):
+        return [kw.get("text", "") for name, _, kw in log if name == "label"]
+
+    folded, opened = (labels(_draw(ui.OBJECT_PT_rls_lidar, ctx, open_panels=o))
+                      for o in (False, True))
+    from rls_addon.blender import preset_catalog
+
+    source = preset_catalog.entry("hesai_pandar64").source
+    assert len(opened) - len(folded) >= 25  # the text, wrapped
+    assert [t for t in folded if t.startswith("Source:")] == [f"Source: {source[:40].rstrip()}..."]
+    assert " ".join(opened).count(source.split()[-1]) >= 1  # its end shows when open
+    assert len(folded) <= 3
 
 
 def test_panels_use_property_split():

@@ -13,6 +13,7 @@ import pytest
 from rls_addon.core.casting import BVHCaster
 from rls_addon.core.casting import embree as embree_caster
 from rls_addon.core.casting import WatertightCaster, cast_exact, triangle_planes
+from tests.core.external_tools import require_backend
 
 FACTORIES = {
     "bvhtree": BVHCaster,
@@ -46,8 +47,8 @@ def edge_and_vertex_targets(v, f, per_edge=40):
 @pytest.mark.parametrize("backend", sorted(FACTORIES))
 @pytest.mark.parametrize("kind", ["icosphere", "grid_cube"])
 def test_no_ray_escapes_a_closed_mesh(kind, backend):
-    if backend != "bvhtree" and not embree_caster.available():
-        pytest.skip("embreex is not installed")
+    if backend != "bvhtree":
+        require_backend(embree_caster, "embreex")
     factory = FACTORIES[backend]
     v, f = closed_mesh(kind)
     planes = triangle_planes(v, f)

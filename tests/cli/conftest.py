@@ -57,6 +57,38 @@ def rls(*args, cwd=None, timeout=600):
                           env=env, capture_output=True, text=True, timeout=timeout)
 
 
+def assert_complete(case, out):
+    """What a stopped run of ``case`` (a name that starts with its command: scan,
+    dataset, or else a study) may leave in ``out``: complete files only, no temporary."""
+    if not out.exists():
+        return
+    names = [p.name for p in out.rglob("*")]
+    assert not [n for n in names if n.startswith(".") or n.endswith(".tmp")], (case, names)
+    if case.startswith("scan"):
+        from rls_addon.core.output.io import read_cloud, read_sidecar
+
+        clouds = sorted(out.glob("*.pcd"))
+        sides = {p.stem for p in out.glob("*.json") if "_instances" not in p.name}
+        assert {p.stem for p in clouds} == sides, case  # a cloud has its sidecar
+        for p in clouds:
+            assert len(read_cloud(p)) == read_sidecar(p)["points"], (case, p)
+    elif case.startswith("dataset"):
+        import numpy as np
+
+        for meta in out.rglob("meta/*.json"):  # a frame's meta is written last
+            body = json.loads(meta.read_text())
+            root = meta.parent.parent
+            npy = root / "points" / f"{meta.stem}.npy"
+            pts = np.load(npy) if npy.is_file() else \
+                np.fromfile(root / "points" / f"{meta.stem}.bin", np.float32).reshape(-1, 4)
+            assert len(pts) == body["points"], (case, meta)
+            if root.name != "background":  # background sweeps have no labels
+                assert (root / "labels" / f"{meta.stem}.txt").is_file(), (case, meta)
+    else:  # a study's report is one set: all of it or none of it
+        report = {n for n in os.listdir(out)}
+        assert not report or {"study.json", "candidates.csv", "placements.csv"} <= report, report
+
+
 def one_line_error(proc):
     """Assert a failed run printed exactly one error line on stderr; return it."""
     assert proc.returncode != 0, proc.stdout

@@ -65,7 +65,7 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
     out = tmp_path / "kitti"
     frames = f"{FRAMES[0]}-{FRAMES[1]}"
     proc = rls("dataset", junction, "--layout", "kitti", "--frames", frames, "--out", out,
-               "--level", "--seed", "3")
+               "--level", "--seed", "3", "--val-share", "0.5", "--split-seed", "2")
     assert proc.returncode == 0, proc.stderr
     summary = json.loads(proc.stdout)
     assert summary["scanned"] == 2 * (FRAMES[1] - FRAMES[0] + 1)
@@ -81,6 +81,9 @@ def test_kitti_layout_boxes_hold_their_cars_points(junction, tmp_path):
         assert listed == [f"{f:06d}" for f in range(FRAMES[0], FRAMES[1] + 1)]
         info = json.loads((root / "dataset.json").read_text())
         assert info["class_names"] == ["Vehicle", "Pedestrian", "Cyclist"]
+        # --split-seed reaches the split (seed 0 draws 26 and 28 of these four frames)
+        assert info["split"] == {"val_share": 0.5, "seed": 2, "val_frames": None}
+        assert (root / "ImageSets" / "val.txt").read_text().split() == ["000028", "000029"]
         checked, seen = 0, set()
         for f in range(FRAMES[0], FRAMES[1] + 1):
             pts = np.load(root / "points" / f"{f:06d}.npy")
@@ -213,3 +216,60 @@ def test_opv2v_ego_pose_and_lidar_pose_are_taken_at_one_time(tmp_path):
     np.testing.assert_allclose(ego[:2, 3], xy, atol=1e-3)
     np.testing.assert_allclose(lidar[:3, 3], [*xy, ego[2, 3] + 1.9], atol=1e-3)
     assert params["predicted_ego_pos"] == params["true_ego_pos"]
+
+
+def test_background_sweeps_are_the_scene_without_its_road_users(junction, tmp_path):
+    """Issue 37: beside its frames a dataset holds each still LiDAR's sweeps of the scene
+    with every road user hidden (parked cars too), the device's noise in each, in the
+    frames' own format and frame: what a deployed unit's background holds. Of their
+    points at most a handful lie in a vehicle's, pedestrian's or cyclist's box of the
+    frame they were scanned at (a glossy facade's ghost lands where its bounce takes
+    it), where the frame itself has thousands."""
+    import yaml
+
+    out = tmp_path / "kitti"
+    proc = rls("dataset", junction, "--layout", "kitti", "--frames", "27-28", "--out", out,
+               "--background-sweeps", "3", "--level")  # boxes upright in the points' frame
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads(proc.stdout)["background"]
+    assert summary["sweeps"] == 3 and summary["scene_frame"] == 27
+    assert sorted(summary["sensors"]) == ["Pole NE", "Pole SW"]
+    for sensor in ("Pole_NE", "Pole_SW"):
+        root = out / sensor
+        about = json.loads((root / "dataset.json").read_text())
+        assert about["background"]["sweeps"] == 3
+        # the scene's own types of road users (the sizes its objects are modelled at),
+        # the commonest first: the car
+        types = about["class_types"]
+        assert {n: {tuple(t["size"]) for t in types[n]} for n in types} == {
+            "vehicle": {KINDS[k][1] for k in ("Car", "Van", "Truck")},
+            "pedestrian": {KINDS["Pedestrian"][1]}, "cyclist": {KINDS["Cyclist"][1]}}
+        assert types["vehicle"][0]["size"] == list(KINDS["Car"][1])
+        frame = json.loads((root / "meta" / "000027.json").read_text())
+        boxes = [b["frame_box"] for b in frame["objects"]]
+        own = np.load(root / "points" / "000027.npy")[:, :3]
+        def inside(p):  # in a box, clear of its bottom face (the road under it, its noise)
+            return sum(int((boxes_contain(p, b, 0.05)
+                            & (p[:, 2] > b["xyz"][2] - b["lwh"][2] / 2 + 0.15)).sum())
+                       for b in boxes)
+
+        assert inside(own) > 1000
+        sweeps = [np.load(root / "background" / "points" / f"{k:06d}.npy") for k in range(3)]
+        for k, pts in enumerate(sweeps):
+            meta = json.loads((root / "background" / "meta" / f"{k:06d}.json").read_text())
+            assert meta["scene_frame"] == 27 and meta["sweep"] == k and meta["objects"] == []
+            assert meta["hidden_labels"] == ["cyclist", "pedestrian", "vehicle"]
+            assert meta["frame_to_world"] == frame["frame_to_world"]
+            assert len(pts) == meta["points"] > 10_000 and inside(pts[:, :3]) <= 5
+        assert sweeps[0].tobytes() != sweeps[1].tobytes()  # each sweep its own noise
+    # OPV2V: in each agent's folder, where OpenCOOD lists neither
+    out = tmp_path / "opv2v"
+    proc = rls("dataset", junction, "--layout", "opv2v", "--frames", "27", "--out", out,
+               "--background-sweeps", "2")
+    assert proc.returncode == 0, proc.stderr
+    for agent in (out / "intersection").iterdir():
+        names = sorted(p.name for p in (agent / "background").iterdir())
+        assert names == ["000000.pcd", "000000.yaml", "000001.pcd", "000001.yaml"]
+        body = yaml.safe_load((agent / "background" / "000001.yaml").read_text())
+        assert body["rls"]["sweep"] == 1 and body["rls"]["scene_frame"] == 27
+        assert sorted(p.name for p in agent.glob("*.yaml")) == ["000027.yaml"]

@@ -56,10 +56,16 @@ def test_the_detector_finds_the_vehicles_in_the_region(loop):
 
 
 def test_detections_are_files_of_the_dataset_and_name_the_detector(loop):
-    files = sorted(p.name for p in loop["det"].iterdir())
+    files = sorted(p.name for p in loop["det"].glob("*.txt"))
     assert files[0] == "000001.txt" and files[-1] == "000060.txt" and len(files) == 60
     assert "60 frames of L_TL_SW" in loop["detect_stdout"]
-    lines = [ln.split() for p in loop["det"].iterdir() for ln in p.read_text().splitlines()]
+    # the background it learned is said, on stdout and in detector.json beside the files
+    assert "Background: empty scene: 5 sweep(s) per sensor" in loop["detect_stdout"]
+    about = json.loads((loop["det"] / "detector.json").read_text())
+    assert about["background"]["kind"] == "empty" and about["background"]["sweeps"] == {
+        "L_TL_SW": 5}
+    assert about["size_priors"].startswith("the scene's")
+    lines = [ln.split() for p in loop["det"].glob("*.txt") for ln in p.read_text().splitlines()]
     assert lines and all(len(ln) == 9 and ln[7] in ("Vehicle", "Pedestrian", "Cyclist")
                          for ln in lines)
     assert all(0.0 < float(ln[8]) <= 1.0 for ln in lines)

@@ -15,8 +15,12 @@ from pathlib import Path
 import pytest
 
 from .conftest import ROOT, SCENE_SCRIPT_HEAD, build_blend, rls
+from tests.core.external_tools import require_module
 
-distributed = pytest.importorskip("distributed")
+
+@pytest.fixture(autouse=True, scope="module")
+def _distributed():
+    require_module("distributed", "distributed==2026.8.0")
 
 BUILD = SCENE_SCRIPT_HEAD + r"""
 from rls_addon.blender.scenes import build_scene

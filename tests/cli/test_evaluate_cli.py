@@ -144,7 +144,9 @@ def test_ground_truth_as_detections_scores_one_in_every_format(data, tmp_path, f
     assert [f["frame"] for f in result["frames"]] == [1, 2]
     assert all(f["all"]["gt"] == 3 and f["all"]["3d"]["0.7"]["tp"] == 3
                for f in result["frames"])
-    assert "vehicle    all        3D  0.7     1.0000  1.0000      6      0      6" in \
+    # AP_R40, KITTI's official AP_R40 (as OpenPCDet computes it: with 6 counted boxes it
+    # samples 6 recall points and the other 34 of its 40 stay 0, so 5/40), AP_VOC
+    assert "vehicle    all        3D  0.7     1.0000  0.1250  1.0000      6      0      6" in \
         proc.stdout
 
 
@@ -232,6 +234,29 @@ def test_a_malicious_result_pkl_runs_nothing_and_writes_nothing(data, tmp_path):
     assert not marker.exists() and not (tmp_path / "r.json").exists()
 
 
+def another_scene(root, to, scene):
+    """A copy of the kitti sensor root ``root`` as a dataset of ``scene`` would name it
+    (its dataset.json and every frame's meta): what matters to the identity check."""
+    shutil.copytree(root, to)
+    for f in [to / "dataset.json", *sorted((to / "meta").glob("*.json"))]:
+        body = json.loads(f.read_text())
+        body["scene"] = scene
+        f.write_text(json.dumps(body))
+    return to
+
+
+def test_detect_refuses_a_bad_noise_sigma_and_datasets_of_two_scenes(data, tmp_path):
+    """--noise-sigma nan and -1 were taken and changed nothing (issue 38)."""
+    for bad in ("nan", "-1", "inf", "5"):
+        line = one_line_error(rls("detect", data["root"], "--out", tmp_path / "d",
+                                  "--noise-sigma", bad))
+        assert "--noise-sigma must be the device's range noise in metres, from 0 to 1" in line
+    other = another_scene(data["kitti"] / "Pole_S", tmp_path / "other" / "Pole_S", "intersection")
+    line = one_line_error(rls("detect", data["root"], other, "--out", tmp_path / "d"))
+    assert f"{data['root']} is a dataset of scene 'Scene' and {other} of scene" in line
+    assert not (tmp_path / "d").exists()
+
+
 def label_folder(tmp_path, text, frame=1):
     folder = tmp_path / "det"
     folder.mkdir(exist_ok=True)
@@ -255,6 +280,11 @@ CAR = "10.0 2.0 -4.0 4.5 1.8 1.5 0.0"
                            "region; of 5 boxes"),
     ("degenerate_region", "region outline has zero area"),
     ("existing_out", "already exists; pass --overwrite to replace it"),
+    # issue 38: AP 0 before, without a word
+    ("other_scene", "is a dataset of scene 'Scene' and --dataset "),
+    # issue 38: scored before, with an overflow warning from the overlap
+    ("far_box", "000001.txt, line 1: a box centre at 1e+308 2.0 -4.0 m, farther than"),
+    ("huge_heading", "000001.txt, line 1: heading 1e+30 rad is not an angle"),
 ])
 def test_bad_input_is_one_error_line_and_no_file(data, tmp_path, case, message):
     out = tmp_path / "r.json"
@@ -285,6 +315,13 @@ def test_bad_input_is_one_error_line_and_no_file(data, tmp_path, case, message):
         more = ["--region", "0,0 1,1 2,2"]
     elif case == "existing_out":
         out.write_text("keep")
+    elif case == "other_scene":  # the same frames, written from another scene
+        other = another_scene(data["root"], tmp_path / "other" / "Pole_N", "intersection")
+        more = ["--dataset", other]
+    elif case == "far_box":
+        det = label_folder(tmp_path, "1e308 2 -4 4.5 1.8 1.5 0 Vehicle 0.9\n")
+    elif case == "huge_heading":
+        det = label_folder(tmp_path, "10 2 -4 4.5 1.8 1.5 1e30 Vehicle 0.9\n")
     proc = rls("evaluate", "--truth", truth, "--detections", det, "--out", out, *more)
     assert message in one_line_error(proc)
     assert proc.stdout == ""

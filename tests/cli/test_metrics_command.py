@@ -160,3 +160,28 @@ def test_density_chart_marks_the_sensors_of_the_clouds_sidecars(tmp_path, polygo
                    "--density-png", pngs[key], *clouds)
         assert proc.returncode == 0, proc.stderr
     assert red_pixels(pngs["without"]) == 0 and red_pixels(pngs["with"]) > 30
+
+
+def test_prints_the_numbers_and_the_grid_only_on_request(tmp_path, polygon_file):
+    """The density map's values (a line per cell: about 700 lines on the sample
+    intersection) once filled the output: they come with --grid, or whole in --out."""
+    cloud = write_cloud(tmp_path / "c.pcd", grid(), "pcd_binary_compressed")
+    plain = rls("metrics", "--lob-polygon", polygon_file, "--disks", 200, cloud)
+    assert plain.returncode == 0, plain.stderr
+    out = json.loads(plain.stdout)
+    assert out["infra_d"] == 4.0 and "infra_nuc" in out
+    assert "values" not in out["density"] and out["density"]["shape"] == [30, 20]
+    assert len(plain.stdout.splitlines()) < 60
+    full = rls("metrics", "--lob-polygon", polygon_file, "--disks", 200, "--grid", cloud)
+    values = json.loads(full.stdout)["density"]["values"]
+    assert len(values) == 30 and values[0][0] == 4.0
+    result = tmp_path / "result.json"
+    proc = rls("metrics", "--lob-polygon", polygon_file, "--disks", 200, "--out", result, cloud)
+    assert proc.returncode == 0, proc.stderr
+    saved = json.loads(result.read_text())
+    assert saved["density"]["values"] == values and saved["infra_d"] == 4.0
+    assert json.loads(proc.stdout)["result"] == str(result)
+    line = one_line_error(rls("metrics", "--lob-polygon", polygon_file, "--out", result, cloud))
+    assert "already exists" in line
+    assert ".json" in one_line_error(rls("metrics", "--lob-polygon", polygon_file, "--out",
+                                         tmp_path / "r.txt", cloud))

@@ -6,7 +6,6 @@ command's own uninterrupted duration, so they fall while the scene opens, while 
 cluster starts, mid-scan and mid-write."""
 
 import hashlib
-import json
 import os
 import random
 import shutil
@@ -17,7 +16,7 @@ import time
 
 import pytest
 
-from .conftest import ROOT, rls
+from .conftest import ROOT, assert_complete, rls
 
 pytestmark = pytest.mark.slow
 
@@ -41,36 +40,6 @@ def files(folder):
     """Every file under ``folder`` by relative path: its sha256."""
     return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
             for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
-def assert_complete(case, out):
-    """What a stopped run may leave: complete files only, no temporary."""
-    if not out.exists():
-        return
-    names = [p.name for p in out.rglob("*")]
-    assert not [n for n in names if n.startswith(".") or n.endswith(".tmp")], (case, names)
-    if case.startswith("scan"):
-        from rls_addon.core.output.io import read_cloud, read_sidecar
-
-        clouds = sorted(out.glob("*.pcd"))
-        sides = {p.stem for p in out.glob("*.json") if "_instances" not in p.name}
-        assert {p.stem for p in clouds} == sides, case  # a cloud has its sidecar
-        for p in clouds:
-            assert len(read_cloud(p)) == read_sidecar(p)["points"], (case, p)
-    elif case.startswith("dataset"):
-        import numpy as np
-
-        for meta in out.rglob("meta/*.json"):  # a frame's meta is written last
-            body = json.loads(meta.read_text())
-            root = meta.parent.parent
-            npy = root / "points" / f"{meta.stem}.npy"
-            pts = np.load(npy) if npy.is_file() else \
-                np.fromfile(root / "points" / f"{meta.stem}.bin", np.float32).reshape(-1, 4)
-            assert len(pts) == body["points"], (case, meta)
-            assert (root / "labels" / f"{meta.stem}.txt").is_file(), (case, meta)
-    else:  # a study's report is one set: all of it or none of it
-        report = {n for n in os.listdir(out)}
-        assert not report or {"study.json", "candidates.csv", "placements.csv"} <= report, report
 
 
 def timed_run(args, timeout=600):
@@ -112,14 +81,15 @@ def test_random_sigterms_leave_complete_files_and_resume_to_the_same_bytes(demo_
         assert tries <= 3 * KILLS_PER_CASE, (case, stops)
         again = ["--resume"] if resumable else ["--overwrite"]
         code, stderr = stopped_run(command(case, blend, out) + again, rng.uniform(0.3, took))
-        # -15: the command had ended and given the signal back to the system's default
-        # (the process was on its way out): as finished
-        assert code in (0, 143, -signal.SIGTERM), (case, code, stderr[-2000:])
-        assert_complete(case, out)
-        if code != 143:  # finished before the signal: start again from nothing (a run
-            # stopped while Python was still starting, -15, wrote nothing at all)
-            if out.exists():
-                shutil.rmtree(out)
+        # -15: the signal came in Python's own start, before RLS's first line (only a
+        # machine slowed to a crawl takes 0.3 s there): nothing ran, nothing was said
+        assert code in (0, 143) or (code == -signal.SIGTERM and not stderr.strip()), \
+            (case, code, stderr[-2000:])
+        assert_complete(case, out)  # a stop during start-up may have made no folder
+        if code == -signal.SIGTERM:
+            continue
+        if code == 0:  # finished before the signal: start again from nothing
+            shutil.rmtree(out)
             continue
         stops += 1
         tail = [ln for ln in stderr.splitlines() if ln.startswith("rls: ")]

@@ -8,6 +8,7 @@ import sys
 import pytest
 
 from .conftest import ROOT, one_line_error, rls
+from tests.core.external_tools import require_module
 
 
 @pytest.fixture(scope="session")
@@ -46,7 +47,7 @@ def test_study_writes_tables_and_charts(sample_blends, tmp_path):
     assert {"Car east", "Car turning", "Car west", "Truck parked 3"} < set(hidden)
     assert {n.split()[0] for n in hidden} == {"Car", "Van", "Truck", "Pedestrian", "Cyclist"}
     assert report["placements"]["2"]["best_density"]["units"] == "points per square metre"
-    pytest.importorskip("matplotlib")
+    require_module("matplotlib", "matplotlib==3.11.2")
     for name in ("pareto.png", "density_k1.png", "density_k2.png"):
         assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     # a second run refuses to replace the report, then replaces it with --overwrite
@@ -139,7 +140,7 @@ def test_study_with_traffic_sees_a_parked_truck_the_traffic_free_metrics_miss(sa
     assert report["visibility"]["frames"] == [20, 25, 30, 35, 40]
     assert any(d["candidate"] == "TL NE" for d in report["visibility"]["rank_disagreements"])
     assert set(summary_of(proc)["best_by_visibility"]) == {"1", "2"}
-    pytest.importorskip("matplotlib")
+    require_module("matplotlib", "matplotlib==3.11.2")
     assert (out / "visibility.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -168,6 +169,23 @@ def test_study_evaluate_scores_placements_by_detection(sample_blends, tmp_path):
     line = one_line_error(rls("study", sample_blends["t_junction"], "--traffic", "1-5",
                               "--evaluate", "10", "--out", tmp_path / "bad"))
     assert "not among the traffic frames" in line
+    # the background used is said, and the evaluated vehicle-frames are too few: said
+    assert ev["background"]["kind"] == "empty" and ev["background"]["sweeps"] == 5
+    assert "background: each candidate's 5 sweeps of the scene" in proc.stderr
+    assert f"hold {ev['vehicle_frames']} counted vehicle-frames" in proc.stderr
+    assert set(ev["correlation_by_k"]) == {"1", "2"}
+
+
+def test_one_evaluation_frame_scores_what_it_sees(sample_blends, tmp_path):
+    """Issue 38/37: --evaluate 5 (one frame) made each candidate learn that very frame
+    as its background and every placement scored 0. The empty scene's sweeps are the
+    background now: the frame's vehicles are found."""
+    out = tmp_path / "one"
+    proc = rls("study", sample_blends["t_junction"], "--k", "1", "--mount", "TL NE",
+               "--mount", "TL SW", "--pitch", "10", "--evaluate", "30", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    ev = json.loads((out / "study.json").read_text())["evaluation"]
+    assert max(c["ap"] for c in ev["candidates"]) > 0.5
 
 
 def test_study_rotation_hz_is_recorded(sample_blends, tmp_path):

@@ -11,8 +11,13 @@ from pathlib import Path
 import pytest
 
 from .conftest import SCENE_SCRIPT_HEAD, build_blend, one_line_error, rls
+from tests.core.external_tools import require_module
 
-pytest.importorskip("sumo")
+
+@pytest.fixture(autouse=True, scope="module")
+def _sumo():
+    require_module("sumo", "eclipse-sumo==1.28.0")
+
 
 SCENE = SCENE_SCRIPT_HEAD + r"""
 sc = bpy.context.scene

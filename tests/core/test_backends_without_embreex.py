@@ -10,16 +10,25 @@ from rls_addon.core.casting import NumpyCaster, emblite, embree, embree_api, emb
 from rls_addon.core.errors import CastingError
 from tests import parity
 
-needs_open3d = pytest.mark.skipif(
-    not open3d_caster.available(),
-    reason="open3d is not importable (" + open3d_caster.unavailable_reason()
-    + "); 'make test' installs it from requirements-test.txt")
-BACKENDS = [
-    pytest.param(casting.EmbliteCaster, id="pyemblite", marks=pytest.mark.skipif(
-        not emblite.available(), reason="pyemblite is not importable ("
-        + emblite.unavailable_reason() + "); 'make test' installs it")),
-    pytest.param(casting.Open3DCaster, id="open3d", marks=needs_open3d),
-]
+from .external_tools import require_backend
+
+# Each backend's library is required where a requirements file installs it: a missing one
+# skips, or fails under RLS_REQUIRE_TOOLS=1 (make test).
+LIBRARIES = {casting.EmbliteCaster: (emblite, "pyemblite"),
+             casting.Open3DCaster: (open3d_caster, "open3d")}
+BACKENDS = [pytest.param(casting.EmbliteCaster, id="pyemblite"),
+            pytest.param(casting.Open3DCaster, id="open3d")]
+
+
+@pytest.fixture(autouse=True)
+def _library(request):
+    """The library of the backend a test is parametrized with."""
+    callspec = getattr(request.node, "callspec", None)
+    backend = callspec.params.get("backend") if callspec else None
+    if backend in LIBRARIES:
+        require_backend(*LIBRARIES[backend])
+
+
 # The numpy reference computes inf * 0 for rays parallel to a triangle's plane.
 pytestmark = pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning")
 
@@ -107,8 +116,7 @@ def test_empty_scene_and_zero_rays(backend):
 def test_matches_embreex_on_a_lidar_frame(backend):
     """The same hits as the Embree backend on many triangles, after the engine's
     exact refinement (where macOS arm64 casts with Open3D, Linux casts with Embree)."""
-    if not embree.available():
-        pytest.skip("embreex missing")
+    require_backend(embree, "embreex")
     rng = np.random.default_rng(4)
     g = parity.geometry(*_boxes(rng, 400))
     d = parity.lidar_directions(channels=64, columns=900)
@@ -166,8 +174,7 @@ def test_factory_prefers_embreex_pyemblite_open3d_then_bvhtree(monkeypatch):
 
 
 def test_status_says_how_embree_runs(monkeypatch):
-    if not embree.available():
-        pytest.skip("embreex missing")
+    require_backend(embree, "embreex")
     backend, why = casting.backend_status("auto")
     assert backend == "embree"
     if embree._native_loop() is not None:

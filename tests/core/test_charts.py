@@ -12,7 +12,13 @@ from rls_addon.core.metrics import charts
 from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.points import empty_points
 
-pytest.importorskip("matplotlib")
+from .external_tools import require_module
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _matplotlib():
+    require_module("matplotlib", "matplotlib==3.11.2")
+
 
 # an L-shaped region: its bounding box holds a 2 x 2 m corner of cells outside it
 L_REGION = [[0, 0], [4, 0], [4, 2], [2, 2], [2, 4], [0, 4]]

@@ -5,9 +5,14 @@ import numpy as np
 from rls_addon.core.errors import CastingError
 import pytest
 
-embree_caster = pytest.importorskip("rls_addon.core.casting.embree")
-if not embree_caster.available():
-    pytest.skip(f"embreex missing: {embree_caster.unavailable_reason()}", allow_module_level=True)
+from rls_addon.core.casting import embree as embree_caster
+
+from .external_tools import require_backend
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _embreex():
+    require_backend(embree_caster, "embreex")
 
 
 def scene(seed=0, n=4000):

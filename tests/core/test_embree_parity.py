@@ -7,11 +7,15 @@ from rls_addon.core.casting import embree as embree_caster
 from rls_addon.core.casting import NumpyCaster
 from tests import parity
 
+from .external_tools import require_backend
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _embreex():
+    require_backend(embree_caster, "embreex")
+
+
 pytestmark = [
-    pytest.mark.skipif(
-        not embree_caster.available(),
-        reason="embreex is not importable (" + embree_caster.unavailable_reason()
-        + "); 'make test' installs it from requirements-test.txt"),
     # The numpy reference computes inf * 0 for rays parallel to a triangle's plane.
     pytest.mark.filterwarnings("ignore:invalid value encountered:RuntimeWarning"),
 ]

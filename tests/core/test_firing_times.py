@@ -246,6 +246,34 @@ def test_bad_firing_time_files(tmp_path, rows, zero, words):
         _firing_preset(tmp_path, rows, zero)
 
 
+def _fixed_cycle(**firing):
+    d = _base(firing_cycle_us=100.0, **firing)
+    del d["scan"]["firings_per_rotation"]
+    return d
+
+
+@pytest.mark.parametrize("at_cycle,below", [
+    ({"firing_offsets_us": [0.0, 100.0]}, {"firing_offsets_us": [0.0, 99.999]}),
+    ({"firing_step_us": 100.0}, {"firing_step_us": 99.999}),            # channel 2: one step
+    ({"firing_step_us": 50.0, "firing_groups": [0, 2]},
+     {"firing_step_us": 49.9995, "firing_groups": [0, 2]}),
+])
+def test_a_channel_firing_at_the_cycle_is_refused(at_cycle, below):
+    """A channel fires in [0, cycle) (100 us here): at the cycle it would be the next
+    cycle's first firing. Each way of giving the offsets, in the preset's [scan]."""
+    with pytest.raises(PresetError, match="firing cycle"):
+        preset_from_dict(_fixed_cycle(**at_cycle), "t.toml")
+    times = preset_from_dict(_fixed_cycle(**below), "t.toml").pattern().times
+    assert times[1] == pytest.approx(99.999e-6, abs=1e-12) and times[2] == pytest.approx(100e-6)
+
+
+def test_a_firing_time_file_at_the_cycle_is_refused(tmp_path):
+    with pytest.raises(PresetError, match=r"fire 0\.000\.\.100\.000 us into the cycle"):
+        _firing_preset(tmp_path, "1,0\n2,100\n")
+    assert _firing_preset(tmp_path, "1,0\n2,99.999\n").pattern().times[1] \
+        == pytest.approx(99.999e-6, abs=1e-12)
+
+
 def test_bad_firing_time_header(tmp_path):
     with pytest.raises(PresetError, match="header must be"):
         _firing_preset(tmp_path, "1,1\n2,2\n", header="laser,time")

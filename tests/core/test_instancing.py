@@ -16,11 +16,17 @@ from rls_addon.core.device.patterns.spinning import spinning_pattern
 from rls_addon.core.device.presets import DevicePreset, RangeModel
 from rls_addon.core.casting import NumpyCaster, WatertightCaster
 
+from rls_addon.core.casting import embree as embree_caster
+
+from .external_tools import require_backend
 from .scenes import box_geometry, box_sdf, merge
 
-embree_caster = pytest.importorskip("rls_addon.core.casting.embree")
-if not embree_caster.available():
-    pytest.skip(f"embreex missing: {embree_caster.unavailable_reason()}", allow_module_level=True)
+
+@pytest.fixture(autouse=True, scope="module")
+def _embreex():
+    require_backend(embree_caster, "embreex")
+
+
 Embree = embree_caster.EmbreeCaster
 
 

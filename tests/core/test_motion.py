@@ -227,3 +227,18 @@ def test_swept_box_holds_the_object_at_every_time(turn_deg):
     assert (w >= lo).all() and (w <= hi).all()
     # ... and it is tight: no wider than the swept vertices plus a few centimetres.
     assert np.all(w.min(axis=(0, 1)) - lo < 0.5) and np.all(hi - w.max(axis=(0, 1)) < 0.5)
+
+
+def test_accelerating_track_is_exact_at_its_ends():
+    """A car braking at 6 m/s^2 along a curve (x = v0 t + a t^2 / 2, y quadratic too),
+    sampled at uneven times: finite differences of second order are exact for a
+    quadratic at every sample, the first and last included (first order is off by
+    a dt / 2 there), so the Hermite interpolation between samples is exact too."""
+    v0, acc = np.array([15.0, 2.0, 0.0]), np.array([-6.0, 3.0, 0.0])
+    times = np.array([0.0, 0.02, 0.05, 0.07, 0.1])
+    track = Track(times, [translation(*(v0 * t + 0.5 * acc * t * t)) for t in times])
+    assert np.allclose(track.velocities, v0 + acc * times[:, None], rtol=0, atol=1e-9)
+    t = np.array([0.004, 0.011, 0.06, 0.085, 0.097])  # inside the first and last intervals
+    exact = v0 * t[:, None] + 0.5 * acc * t[:, None] ** 2
+    assert np.allclose(track.positions_at(t), exact, rtol=0, atol=1e-12)
+    assert np.allclose(track.at(t)[:, :3, 3], exact, rtol=0, atol=1e-12)

@@ -186,6 +186,19 @@ def test_rate_parameters():
         spinning_pattern([0.0, 1.0], 10.0, 36000, firing_offsets_s=[0.0, 1.0])
 
 
+def test_firing_offset_must_lie_within_the_cycle():
+    """A channel fires in [0, cycle): an offset equal to the cycle would be the next
+    cycle's first firing, so it is refused; one just below it fires last in its cycle."""
+    cycle = 55.296e-6  # the VLP-16's firing cycle
+    with pytest.raises(PatternError, match="firing offsets must lie in"):
+        spinning_pattern([0.0, 1.0], 10.0, firing_cycle_s=cycle, firing_offsets_s=[0.0, cycle])
+    with pytest.raises(PatternError, match="firing offsets must lie in"):
+        spinning_pattern([0.0, 1.0], 10.0, firing_cycle_s=cycle, firing_offsets_s=[-1e-12, 0.0])
+    below = np.nextafter(cycle, 0.0)
+    pat = spinning_pattern([0.0, 1.0], 10.0, firing_cycle_s=cycle, firing_offsets_s=[0.0, below])
+    assert pat.times[1] == below and pat.times[2] == cycle  # the next cycle starts after it
+
+
 def test_pandar128_frame_is_fast_and_cached():
     p = get_preset("hesai_pandar128")
     p.__dict__.pop("_pattern_cache", None)

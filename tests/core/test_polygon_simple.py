@@ -11,8 +11,17 @@ from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.metrics.polygon import as_polygon
 from rls_addon.core.points import empty_points
 
-geometry = pytest.importorskip("shapely.geometry")
-LinearRing, Point = geometry.LinearRing, geometry.Point
+from .external_tools import require_module
+
+try:  # the oracle: required by the fixture below (a skip, or a failure under make test)
+    from shapely.geometry import LinearRing, Point
+except ImportError:
+    LinearRing = Point = None
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _shapely():
+    require_module("shapely", "shapely==2.2.0")
 
 
 def crossing(poly):

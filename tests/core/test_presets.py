@@ -248,8 +248,20 @@ def test_custom_preset_export_carries_pattern(tmp_path):
     assert len(saved.pattern()) == 2
 
 
-def test_validation_does_not_generate_huge_patterns(tmp_path):
+def test_validation_does_not_generate_huge_patterns(tmp_path, monkeypatch):
+    # 1e8 points/s at 10 Hz is 1e7 rays a frame, the limit (a multiple of the 4 channels):
+    # accepted, its count estimated from the rate, and no pattern built to find it out.
+    import rls_addon.core.device.presets as presets_module
+
+    def no_pattern(*args, **kwargs):
+        raise AssertionError("validation built a pattern")
+
+    monkeypatch.setattr(presets_module, "_build_pattern", no_pattern)
     f = write(tmp_path, edit(GOOD, "points_per_second = 14400", "points_per_second = 1.0e8"))
     p = load_preset(f)
-    assert p.rays_per_frame == 10_000_000 - 10_000_000 % 4 or p.rays_per_frame <= 10_000_000
+    assert p.rays_per_frame == 10_000_000
     assert math.isfinite(p.frequency_hz)
+    # one more point a second is over the limit: refused, not clipped to it
+    f = write(tmp_path, edit(GOOD, "points_per_second = 14400", "points_per_second = 1.00000004e8"))
+    with pytest.raises(PresetError, match="exceeds the limit of 10000000"):
+        load_preset(f)

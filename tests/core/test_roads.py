@@ -18,11 +18,20 @@ from rls_addon.core.roads.layout import (
 )
 from rls_addon.core.roads.network import read_network
 from rls_addon.core.roads.pieces import lane_pieces, outline_piece
+from tests.core.external_tools import require_module
 from tests.sumo_nets import grid_net, osm_net
 
-shapely = pytest.importorskip("shapely")
-from shapely.geometry import LineString, Polygon  # noqa: E402
-from shapely.ops import unary_union  # noqa: E402
+try:  # the oracle: required by the fixture below (a skip, or a failure under make test)
+    import shapely
+    from shapely.geometry import LineString, Polygon
+    from shapely.ops import unary_union
+except ImportError:
+    shapely = None
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _shapely():
+    require_module("shapely", "shapely==2.2.0")
 
 
 def union_of(pieces):

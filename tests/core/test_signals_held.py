@@ -44,3 +44,38 @@ def test_a_background_thread_holds_nothing():
     release.set()
     t.join(5)
     assert out == ["written"]
+
+
+@pytest.fixture
+def handlers():
+    """The stop signals' handlers, put back after the test."""
+    import signal
+
+    saved = {s: signal.getsignal(s) for s in signals.stop_signals()}
+    signals._state.update(pending=None, raised=None)
+    yield
+    for s, h in saved.items():
+        signal.signal(s, h)
+    signals._state.update(pending=None, raised=None)
+
+
+def test_signals_from_the_start_are_noted_then_raised_where_the_command_starts(handlers):
+    """``python -m rls_addon``'s first line notes stop signals (Ctrl-C included, which
+    Python would raise in whatever import is under way); the command line raises the
+    first one where the command starts, and reports it as a stop however a library
+    turned it (``stop_raised``)."""
+    import os
+    import signal
+
+    signals.note_from_start()
+    os.kill(os.getpid(), signal.SIGINT)  # handled now: noted, not raised
+    os.kill(os.getpid(), signal.SIGTERM)  # the first one counts
+    assert signals.stop_raised() is None
+    with pytest.raises(Interrupted) as got:
+        signals.raise_noted()
+    assert got.value.exit_code == 130 and signals.stop_raised() == signal.SIGINT
+    signals.raise_noted()  # nothing left; a new command forgets the last one's stop
+    assert signals.stop_raised() is None
+    signals.ignore_after_end()  # the command has ended: Python's shutdown takes none
+    os.kill(os.getpid(), signal.SIGHUP)
+    assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN

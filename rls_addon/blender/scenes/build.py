@@ -17,6 +17,8 @@ Conventions the rest of RLS reads:
 import bpy
 import numpy as np
 
+from ...core.labels import base_name
+
 # Outward-facing windings (counter-clockwise seen from outside): the engine warns when
 # a sensor sees mostly the backs of faces, as it would from inside an inward box.
 BOX_FACES = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
@@ -26,9 +28,15 @@ MOUNT_OFFSET_M = 0.25
 
 
 def collection(scene, name):
-    coll = bpy.data.collections.get(name) or bpy.data.collections.new(name)
-    if coll.name not in scene.collection.children:
-        scene.collection.children.link(coll)
+    """``scene``'s collection called ``name`` (or ``name.001``, ...: Blender's name for it
+    when another scene of the file has a ``name``), at any depth, made and linked if it
+    has none. A collection of another scene is never reused: its objects would join
+    this one."""
+    for coll in scene.collection.children_recursive:
+        if base_name(coll.name) == name:
+            return coll
+    coll = bpy.data.collections.new(name)
+    scene.collection.children.link(coll)
     return coll
 
 

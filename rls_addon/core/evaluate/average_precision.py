@@ -49,6 +49,7 @@ import numpy as np
 from ..errors import InputError
 from ..labels import DEFAULT_LABELS
 from .detections import CLASS_IDS, class_id
+from .kitti_official import class_frames, kitti_r40
 from .matching import FP, IGNORED, TP, as_flags, check_threshold, match, pair_overlaps
 from .overlap import IOU_KINDS
 
@@ -136,6 +137,14 @@ def distance_bins_of(distance_bins):
     return list(zip(edges, edges[1:]))
 
 
+def in_bin(distance, low, high):
+    """(N,) bool: ``distance`` (m) lies in the bin ``[low, high)``: a box exactly on an
+    edge belongs to the bin that starts there. The one place the rule is written (the
+    evaluation's bins here and ``scoring``'s, from the nearest sensor, both use it)."""
+    distance = np.asarray(distance, np.float64)
+    return (distance >= low) & (distance < high)
+
+
 def _bins(distance_bins, sensor_xy):
     """``distance_bins_of``, with the sensor's position the distances are measured from."""
     bins = distance_bins_of(distance_bins)
@@ -155,15 +164,17 @@ def _sensor(sensor_xy):
     return xy
 
 
-def _record(score, status, of_class, det_in, n_gt, gt_ignored):
+def _record(score, status, of_class, det_in, n_gt, gt_ignored, kitti=None):
     """One class's result: its detections' curve and APs, and the counts. Dropped
-    detections are counted where they are centred (``det_in``, the bin)."""
+    detections are counted where they are centred (``det_in``, the bin). ``kitti``:
+    KITTI's official AP_R40 of the class (``kitti_official``), when worked out."""
     status = status[of_class]
     recall, precision, kept = precision_recall(score[of_class], status, n_gt)
     tp = int((status == TP).sum())
     fp = int((status == FP).sum())
     out = {
         "ap_r40": ap_r40(recall, precision) if n_gt else None,
+        "ap_r40_kitti": kitti if n_gt else None,
         "ap_voc": ap_voc(recall, precision) if n_gt else None,
         "tp": tp, "fp": fp, "gt": int(n_gt), "missed": int(n_gt) - tp,
         "ignored": int((status[det_in[of_class]] == IGNORED).sum()),
@@ -183,7 +194,7 @@ def _threshold_key(threshold):
 
 def evaluate(ground_truth, detections, gt_ignore=None, det_ignore=None,
              iou_thresholds=DEFAULT_THRESHOLDS, kinds=IOU_KINDS, classes=None,
-             distance_bins=None, sensor_xy=None):
+             distance_bins=None, sensor_xy=None, kitti=True):
     """Score ``detections`` against ``ground_truth`` (both ``Boxes``, world frame).
 
     ``gt_ignore`` (G,) and ``det_ignore`` (D,) flag don't-care boxes (``matching.py``).
@@ -193,6 +204,8 @@ def evaluate(ground_truth, detections, gt_ignore=None, det_ignore=None,
     adds the same per range of XY distance from ``sensor_xy`` to the box centre: in a
     bin, ground truth centred outside it is ignored and detections centred outside it
     are don't-care detections (dropped unless they match a counted box in the bin).
+    With ``kitti`` each record also holds KITTI's official AP_R40 as OpenPCDet's code
+    computes it (``kitti_official``; None without counted ground truth).
 
     Returns a JSON-ready dict::
 
@@ -237,8 +250,7 @@ def evaluate(ground_truth, detections, gt_ignore=None, det_ignore=None,
         gt_range = np.hypot(gt.box[:, 0] - sensor[0], gt.box[:, 1] - sensor[1])
         det_range = np.hypot(det.box[:, 0] - sensor[0], det.box[:, 1] - sensor[1])
         for low, high in bins:
-            gt_in = (gt_range >= low) & (gt_range < high)
-            det_in = (det_range >= low) & (det_range < high)
+            gt_in, det_in = in_bin(gt_range, low, high), in_bin(det_range, low, high)
             scopes.append(((low, high), gt_in, det_in))
 
     results = {c: {"label": int(c), "all": {}, "bins": []} for c in class_ids}
@@ -250,13 +262,16 @@ def evaluate(ground_truth, detections, gt_ignore=None, det_ignore=None,
         overlaps = pair_overlaps(det, gt, kind)
         for s, (scope, gt_in, det_in) in enumerate(scopes):
             g_ignore, d_ignore = gt_ignore | ~gt_in, det_ignore | ~det_in
+            frames = {c: class_frames(overlaps, det, gt, g_ignore, d_ignore, c)
+                      for c in class_ids} if kitti else {}
             for threshold in thresholds:
                 m = match(det, gt, threshold, kind, g_ignore, d_ignore, overlaps)
                 for c in class_ids:
                     gc = gt.label == c
                     record = _record(det.score, m.status, det.label == c, det_in,
                                      int((gc & ~g_ignore).sum()),
-                                     int((gc & gt_in & gt_ignore).sum()))
+                                     int((gc & gt_in & gt_ignore).sum()),
+                                     kitti_r40(frames[c], threshold) if kitti else None)
                     place = results[c]["all"] if scope is None \
                         else results[c]["bins"][s - 1]
                     place.setdefault(kind, {})[_threshold_key(threshold)] = record

@@ -1,6 +1,7 @@
 """How well a cheap placement metric predicts detection quality: across placements,
 the Pearson and Spearman correlation of AP with the metric (InfraD, InfraNUC, a
-visibility share), each with a bootstrap 95% interval, and a chart per metric.
+visibility share), each with a bootstrap 95% interval (the study draws them:
+``study/ap_charts.py``).
 
 The coefficients are scipy's (``scipy.stats.pearsonr``, ``spearmanr``). The interval is
 the percentile bootstrap over placements: ``resamples`` draws of the placements with
@@ -9,8 +10,6 @@ statistic on each draw, and its 2.5th and 97.5th percentiles; draws in which eit
 variable is constant have no correlation and are left out (their share is reported).
 A metric that does not vary, or fewer than ``MIN_PLACEMENTS`` placements, has no
 correlation: ``None`` with the reason, never a number."""
-
-import io
 
 import numpy as np
 
@@ -71,39 +70,3 @@ def correlation(metric, ap, resamples=RESAMPLES, seed=0, level=LEVEL):
         out[name] = {"r": float(res[0]), "p": float(res[1]), "ci": ci}
         out["bootstrap"][f"{name}_left_out"] = round(1.0 - len(draws) / len(boot[name]), 6)
     return out
-
-
-def correlation_png(metric, ap, metric_label, ap_label="AP (%)", result=None, title=None):
-    """PNG bytes of AP against the metric: one point per placement, the least-squares
-    line, the coefficients (with their intervals) in the title; None without
-    matplotlib. ``result`` is ``correlation(metric, ap)`` (worked out when None)."""
-    from ..metrics.charts import DPI, pyplot
-
-    plt = pyplot()
-    if plt is None:
-        return None
-    x, y = np.asarray(metric, np.float64), np.asarray(ap, np.float64)
-    res = correlation(x, y) if result is None else result
-    fig, ax = plt.subplots(figsize=(6.4, 4.8), dpi=DPI)
-    ok = np.isfinite(x) & np.isfinite(y)
-    ax.scatter(x[ok], y[ok], s=28, color="#1f77b4", zorder=3, label="placement")
-    if res["pearson"] is not None:
-        k, b = np.polyfit(x[ok], y[ok], 1)
-        xs = np.linspace(x[ok].min(), x[ok].max(), 50)
-        ax.plot(xs, k * xs + b, color="#d62728", lw=1.5, label="least-squares fit")
-        p, s = res["pearson"], res["spearman"]
-        ci = lambda c: "" if c["ci"] is None else f" [{c['ci'][0]:.2f}, {c['ci'][1]:.2f}]"  # noqa: E731
-        coef = (f"Pearson r = {p['r']:.2f}{ci(p)}, Spearman ρ = {s['r']:.2f}{ci(s)} "
-                f"(n = {res['n']}, 95% bootstrap)")
-    else:
-        coef = f"no correlation: {res['reason']}"
-    ax.set_title((title + "\n" if title else "") + coef, fontsize=9)
-    ax.set_xlabel(metric_label)
-    ax.set_ylabel(ap_label)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="best", fontsize=8)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", metadata={"Software": None})
-    plt.close(fig)
-    return buf.getvalue()

@@ -20,6 +20,13 @@ from ..labels import DEFAULT_LABELS, OBJECT_CLASSES, NAME_TO_ID
 # The classes evaluation scores, as RLS label ids.
 CLASS_IDS = tuple(NAME_TO_ID[name] for name in OBJECT_CLASSES)
 BOX_COLUMNS = ("x", "y", "z", "length", "width", "height", "yaw")
+# What a box in the world can be (every reader's boxes pass ``validate``): a world within
+# 1e7 m of its origin (UTM's northings are below that), a road user shorter than 1 km,
+# a yaw that is an angle. Beyond them a number is a writer's bug; at 1e154 the overlap's
+# products overflow (a warning, then a wrong IoU).
+MAX_WORLD_M = 1e7
+MAX_SIZE_M = 1e3
+MAX_YAW_RAD = 1e3
 
 
 def class_id(name):
@@ -58,7 +65,8 @@ class Boxes:
 
     def validate(self, source="boxes"):
         """Refuse what no box can be: NaN or infinite numbers, sizes not above zero,
-        scores outside [0, 1] or NaN, classes RLS does not evaluate."""
+        numbers beyond ``MAX_WORLD_M``, ``MAX_SIZE_M`` and ``MAX_YAW_RAD``, scores outside
+        [0, 1] or NaN, classes RLS does not evaluate."""
         bad = ~np.isfinite(self.box).all(axis=1)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
@@ -69,6 +77,14 @@ class Boxes:
             i = int(np.flatnonzero(bad)[0])
             raise InputError(f"{source}: box {i} of frame {self.frame[i]} has a size that "
                              f"is not positive: {self.box[i, 3:6].tolist()}")
+        bad = (np.abs(self.box[:, :3]) > MAX_WORLD_M).any(axis=1) \
+            | (self.box[:, 3:6] > MAX_SIZE_M).any(axis=1) | (np.abs(self.box[:, 6]) > MAX_YAW_RAD)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(f"{source}: box {i} of frame {self.frame[i]} is no box of a road "
+                             f"user: {self.box[i].tolist()} (x y z within {MAX_WORLD_M:g} m "
+                             f"of the world's origin, sizes at most {MAX_SIZE_M:g} m, yaw at "
+                             f"most {MAX_YAW_RAD:g} rad either way)")
         bad = ~((self.score >= 0) & (self.score <= 1))
         if bad.any():
             i = int(np.flatnonzero(bad)[0])

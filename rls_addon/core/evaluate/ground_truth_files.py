@@ -38,6 +38,11 @@ class GroundTruth:
     visible_share: np.ndarray  # (N,) float: share of rays over the box that reach it (NaN: none)
     instance: np.ndarray    # (N,) int64: the object's stable instance id
     sensor: str = ""
+    speed: np.ndarray = None  # (N,) float: horizontal speed of the box, m/s (NaN: unknown)
+
+    def __post_init__(self):
+        if self.speed is None:
+            self.speed = np.full(len(self.boxes), np.nan)
 
     def sensor_position(self, frame):
         """(3,) world position of the sensor in ``frame`` (at its sweep start)."""
@@ -58,9 +63,19 @@ class GroundTruth:
         return np.linalg.norm(d, axis=1)
 
 
+def _speed(box):
+    """Horizontal speed (m/s) of a sidecar box's centre, NaN when it gives none."""
+    try:
+        v = [float(x) for x in box["world"]["velocity_mps"][:2]]
+    except (KeyError, TypeError, ValueError, IndexError):
+        return np.nan
+    return float(np.hypot(*v)) if len(v) == 2 else np.nan
+
+
 def _objects_to_rows(objects, where):
-    """(boxes (N, 7), labels, points, visible share, instances) of sidecar objects."""
-    rows, labels, points, share, inst = [], [], [], [], []
+    """(boxes (N, 7), labels, points, visible share, instances, speeds) of sidecar
+    objects."""
+    rows, labels, points, share, inst, speed = [], [], [], [], [], []
     for k, b in enumerate(objects):
         try:
             label = int(b["label"])
@@ -74,6 +89,7 @@ def _objects_to_rows(objects, where):
             vs = b.get("visible_share")
             share.append(np.nan if vs is None else float(vs))
             inst.append(int(b.get("instance", 0)))
+            speed.append(_speed(b))
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"{where}: object {k} is not a ground-truth box "
                              f"({type(exc).__name__}: {exc})") from None
@@ -81,7 +97,7 @@ def _objects_to_rows(objects, where):
             raise InputError(f"{where}: object {k} has a centre or size of the wrong length")
     return (np.array(rows, np.float64).reshape(-1, 7), np.array(labels, np.int64),
             np.array(points, np.float64), np.array(share, np.float64),
-            np.array(inst, np.int64))
+            np.array(inst, np.int64), np.array(speed, np.float64))
 
 
 def _pose(info, where):
@@ -96,20 +112,22 @@ def _pose(info, where):
 
 def _assemble(entries, sensor):
     """GroundTruth of [(frame, objects, pose, where)]."""
-    parts, shares, insts, poses, frames = [], [], [], {}, []
+    parts, shares, insts, speeds, poses, frames = [], [], [], [], {}, []
     for frame, objects, pose, where in entries:
         if frame in poses:
             raise InputError(f"{where}: frame {frame} of {sensor} is given twice")
-        box, label, pts, share, inst = _objects_to_rows(objects, where)
+        box, label, pts, share, inst, speed = _objects_to_rows(objects, where)
         parts.append(Boxes(np.full(len(box), frame), box, label, 1.0, pts))
         shares.append(share)
         insts.append(inst)
+        speeds.append(speed)
         poses[frame] = pose
         frames.append(frame)
     boxes = Boxes.concat(parts).validate(f"ground truth of {sensor}")
     share = np.concatenate(shares) if shares else np.zeros(0)
     inst = np.concatenate(insts).astype(np.int64) if insts else np.zeros(0, np.int64)
-    return GroundTruth(boxes, sorted(frames), poses, share, inst, sensor)
+    speed = np.concatenate(speeds) if speeds else np.zeros(0)
+    return GroundTruth(boxes, sorted(frames), poses, share, inst, sensor, speed)
 
 
 def ground_truth_from_kitti(dataset):

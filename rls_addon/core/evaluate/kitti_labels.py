@@ -45,6 +45,12 @@ from .frame_ids import frame_number
 from .kitti_meta import KittiMeta
 
 COLUMNS = "x y z dx dy dz heading Class score"
+# What a detection in a label frame (centred on its sensor) can be: no LiDAR sees a box
+# 100 km away or 1 km long, and a heading is an angle (float64 keeps 1e3 rad to 1e-13).
+# Beyond them a number is a writer's bug, and at 1e154 the overlap's products overflow.
+MAX_OFFSET_M = 1e5
+MAX_SIZE_M = 1e3
+MAX_HEADING_RAD = 1e3
 
 
 def _is_number(token):
@@ -84,6 +90,16 @@ def parse_lines(text, where):
         if min(values[3:6]) <= 0:
             raise InputError(f"{at}: sizes dx dy dz must be above zero, got "
                              f"{values[3]} {values[4]} {values[5]}")
+        if max(abs(v) for v in values[:3]) > MAX_OFFSET_M:
+            raise InputError(f"{at}: a box centre at {values[0]!r} {values[1]!r} {values[2]!r} "
+                             f"m, farther than {MAX_OFFSET_M:g} m from the sensor: not a "
+                             "detection a LiDAR can make")
+        if max(values[3:6]) > MAX_SIZE_M:
+            raise InputError(f"{at}: sizes dx dy dz {values[3]!r} {values[4]!r} {values[5]!r} "
+                             f"m; a box of a road user is at most {MAX_SIZE_M:g} m")
+        if abs(values[6]) > MAX_HEADING_RAD:
+            raise InputError(f"{at}: heading {values[6]!r} rad is not an angle a detector "
+                             f"gives (at most {MAX_HEADING_RAD:g} rad either way)")
         if not 0.0 <= score <= 1.0:
             raise InputError(f"{at}: score {score} is outside [0, 1]")
         try:

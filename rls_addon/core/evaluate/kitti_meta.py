@@ -91,6 +91,19 @@ class KittiMeta:
         """The sensor's 4x4 pose (sensor -> world) at the sweep start of ``frame``."""
         return _matrix(self.meta(frame, where), "sensor_pose_start", self.paths[int(frame)])
 
+    @property
+    def scene(self):
+        """The scene the dataset was written from: its ``dataset.json``'s ``scene``,
+        else its first frame's meta's; None when neither names one."""
+        try:
+            info = json.loads((self.root / "dataset.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            info = None
+        scene = info.get("scene") if isinstance(info, dict) else None
+        if scene is None:
+            scene = self.meta(self.frames[0]).get("scene")
+        return None if scene is None else str(scene)
+
     def label_frame(self, frame):
         return self.meta(frame).get("label_frame", "sensor")
 
@@ -107,6 +120,19 @@ class KittiMeta:
                 "it scanned each object (write the dataset with --level for exact places)")
 
 
+def one_scene(datasets):
+    """Refuse datasets of different scenes: ``datasets`` is [(what the user gave, e.g.
+    "--truth PATH", KittiMeta)]; ``InputError`` naming the first two that differ. Boxes
+    detected on one scene's points and scored against another's ground truth would
+    give AP 0 without a word."""
+    named = [(what, meta.scene) for what, meta in datasets if meta.scene is not None]
+    for what, scene in named[1:]:
+        if scene != named[0][1]:
+            raise InputError(f"{named[0][0]} is a dataset of scene {named[0][1]!r} and {what} "
+                             f"of scene {scene!r}: detections are scored against the ground "
+                             "truth of the scene they were made on; give datasets of one scene")
+
+
 def _matrix(meta, key, path):
     try:
         m = np.asarray(meta[key], np.float64)
@@ -117,4 +143,4 @@ def _matrix(meta, key, path):
     return m
 
 
-__all__ = ["KittiMeta", "sensor_root"]
+__all__ = ["KittiMeta", "one_scene", "sensor_root"]

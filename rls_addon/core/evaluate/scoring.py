@@ -38,7 +38,7 @@ import numpy as np
 from ..errors import InputError, RegionError
 from ..labels import DEFAULT_LABELS
 from ..metrics.polygon import as_polygon, points_in_polygon, shoelace_area
-from .average_precision import DEFAULT_THRESHOLDS, distance_bins_of, evaluate
+from .average_precision import DEFAULT_THRESHOLDS, distance_bins_of, evaluate, in_bin
 from .detections import CLASS_IDS, Boxes, class_id
 from .ground_truth_files import GroundTruth
 from .matching import FP, IGNORED, TP, check_threshold, match, pair_overlaps
@@ -50,6 +50,10 @@ CONVENTIONS = {
     "ap_r40": "KITTI's AP at 40 recall points (Simonelli et al. 2019, 'Disentangling "
               "Monocular 3D Object Detection'; KITTI's benchmark since 2019): the mean "
               "over r = 1/40 ... 1 of the best precision at recall >= r",
+    "ap_r40_kitti": "KITTI's official AP_R40 as OpenPCDet's kitti_object_eval_python "
+                    "computes it (eval.py): box-by-box matching at IoU > threshold, the "
+                    "curve sampled at the true positives' scores, recall points past the "
+                    "last one left 0 (fewer than 40 counted boxes leave some at 0)",
     "ap_voc": "VOC 2010 all-point AP as OpenCOOD's voc_ap computes it "
               "(opencood/utils/eval_utils.py): the area under the precision envelope",
     "matching": "greedy by descending score, frame by frame and class by class, at "
@@ -69,6 +73,11 @@ class MergedTruth:
     frames: list
     sensors: list             # S names
     positions: dict = field(default_factory=dict)  # frame -> (S, 3) sensor positions
+    speed: np.ndarray = None  # (G,) horizontal speed of each box, m/s (NaN: unknown)
+
+    def __post_init__(self):
+        if self.speed is None:
+            self.speed = np.full(len(self.boxes), np.nan)
 
     def distance(self, boxes):
         """(N,) horizontal distance (m) from each box centre to the nearest sensor of
@@ -128,13 +137,15 @@ def merge_ground_truth(truth):
     if len(truths) == 1:
         t = truths[0]
         return MergedTruth(t.boxes, np.asarray(t.instance, np.int64),
-                           t.boxes.points[:, None].copy(), frames, names, positions)
+                           t.boxes.points[:, None].copy(), frames, names, positions,
+                           np.asarray(t.speed, np.float64))
     for name, t in zip(names, truths):
         if len(t.boxes) and (np.asarray(t.instance) == 0).any():
             raise InputError(f"the ground truth of {name} has boxes without an instance id; "
                              "boxes of several sensors are merged by instance: write the "
                              "dataset again with this version of RLS")
     every = Boxes.concat([t.boxes for t in truths])
+    speed = np.concatenate([np.asarray(t.speed, np.float64) for t in truths])
     instance = np.concatenate([np.asarray(t.instance, np.int64) for t in truths])
     sensor = np.concatenate([np.full(len(t.boxes), k) for k, t in enumerate(truths)])
     if not len(every):
@@ -150,7 +161,8 @@ def merge_ground_truth(truth):
     first = order[np.searchsorted(inverse[order], np.arange(len(keys)))]
     boxes = every.take(first)
     boxes.points = by_sensor.sum(axis=1)
-    return MergedTruth(boxes, instance[first], by_sensor, frames, names, positions)
+    return MergedTruth(boxes, instance[first], by_sensor, frames, names, positions,
+                       speed[first])
 
 
 def _region(region):
@@ -229,12 +241,14 @@ def _no_truth_error(gt, in_region, region, min_points, class_ids):
 
 
 def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes=None,
-          iou_thresholds=DEFAULT_THRESHOLDS, kinds=IOU_KINDS, distance_bins=None):
+          iou_thresholds=DEFAULT_THRESHOLDS, kinds=IOU_KINDS, distance_bins=None,
+          kitti=True):
     """Score ``detections`` (``Boxes`` or ``readers.DetectionFiles``, world frame)
     against ``truth`` (a ``GroundTruth`` or a list of them, one per sensor) in
     ``region`` ((M, 2) world x-y polygon; None: everywhere). See the module docstring.
     ``InputError`` for frames the ground truth lacks, boxes that are no boxes, unknown
-    classes, a degenerate region, or no counted ground truth at all."""
+    classes, a degenerate region, or no counted ground truth at all. ``kitti``: each
+    record also holds KITTI's official AP_R40 (``kitti_official``; off, it is None)."""
     merged = merge_ground_truth(truth)
     poly = _region(region)
     min_points = _min_points(min_points)
@@ -262,6 +276,7 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
     d_rows = np.isin(det_all.label, class_ids)
     gt, det = merged.boxes.take(g_rows), det_all.take(d_rows)
     instance, by_sensor = merged.instance[g_rows], merged.points_by_sensor[g_rows]
+    speed = merged.speed[g_rows]
     gt_in = np.ones(len(gt), bool) if poly is None else points_in_polygon(gt.box[:, :2], poly)
     det_in = np.ones(len(det), bool) if poly is None \
         else points_in_polygon(det.box[:, :2], poly)
@@ -271,14 +286,16 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
         raise _no_truth_error(gt, gt_in, poly, min_points, class_ids)
     gt_ignore, det_ignore = ~counted, ~det_in
 
-    result = evaluate(gt, det, gt_ignore, det_ignore, thresholds, kinds, class_ids)
+    result = evaluate(gt, det, gt_ignore, det_ignore, thresholds, kinds, class_ids,
+                      kitti=kitti)
     result["conventions"] = CONVENTIONS
     gt_range, det_range = merged.distance(gt), merged.distance(det)
     overlaps = {kind: pair_overlaps(det, gt, kind) for kind in kinds}
     _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins, kinds,
-              thresholds, class_ids, overlaps)
+              thresholds, class_ids, overlaps, kitti)
     matchings = {(kind, t): match(det, gt, t, kind, gt_ignore, det_ignore, overlaps[kind])
                  for kind in kinds for t in thresholds}
+    _add_motion(result, gt, counted, speed, matchings, class_ids)
     result["distance_bins"] = [[lo, None if math.isinf(hi) else hi] for lo, hi in bins]
     result["distance_from"] = ("horizontal distance from the box centre to the frame's "
                                "sensor at its sweep start (with several sensors: the "
@@ -303,15 +320,15 @@ def score(truth, detections, region=None, min_points=DEFAULT_MIN_POINTS, classes
 
 
 def _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins, kinds,
-              thresholds, class_ids, overlaps):
+              thresholds, class_ids, overlaps, kitti=True):
     """Each class's ``bins`` as ``evaluate`` gives them, with distances per frame."""
     for name in result["classes"]:
         result["classes"][name]["bins"] = []
     for low, high in bins:
-        g_in = (gt_range >= low) & (gt_range < high)
-        d_in = (det_range >= low) & (det_range < high)
+        g_in, d_in = in_bin(gt_range, low, high), in_bin(det_range, low, high)
         g_ignore, d_ignore = gt_ignore | ~g_in, det_ignore | ~d_in
-        part = evaluate(gt, det, g_ignore, d_ignore, thresholds, kinds, class_ids)
+        part = evaluate(gt, det, g_ignore, d_ignore, thresholds, kinds, class_ids,
+                        kitti=kitti)
         status = {(kind, t): match(det, gt, t, kind, g_ignore, d_ignore,
                                    overlaps[kind]).status
                   for kind in kinds for t in thresholds}
@@ -327,6 +344,29 @@ def _add_bins(result, gt, det, gt_ignore, det_ignore, gt_range, det_range, bins,
             entry = {"range_m": [low, None if math.isinf(high) else high]}
             entry.update(records)
             result["classes"][name]["bins"].append(entry)
+
+
+STANDING_MPS = 0.1  # SUMO's halting speed (SUMO_const_haltingSpeed, utils/common/StdDefs.h)
+
+
+def _add_motion(result, gt, counted, speed, matchings, class_ids):
+    """Per class, kind and threshold: the counted boxes standing (horizontal speed below
+    ``STANDING_MPS``) and moving, each with how many were found (``by_motion``); boxes
+    whose speed the ground truth does not give are ``unknown``."""
+    state = np.where(np.isnan(speed), "unknown",
+                     np.where(speed < STANDING_MPS, "standing", "moving"))
+    for c in class_ids:
+        name = DEFAULT_LABELS[c]
+        mine = counted & (gt.label == c)
+        for (kind, t), m in matchings.items():
+            by = {}
+            for what in ("standing", "moving", "unknown"):
+                rows = mine & (state == what)
+                n, hit = int(rows.sum()), int((rows & (m.gt_det >= 0)).sum())
+                if n or what != "unknown":
+                    by[what] = {"gt": n, "tp": hit, "missed": n - hit,
+                                "recall": hit / n if n else None}
+            result["classes"][name]["all"][kind][f"{t:g}"]["by_motion"] = by
 
 
 def _per_frame(merged, scored, gt, det, counted, by_sensor, matchings, class_ids,
@@ -407,5 +447,5 @@ def _matches(gt, det, det_in, det_range, instance, overlaps, matchings):
     return out
 
 
-__all__ = ["CONVENTIONS", "DEFAULT_MIN_POINTS", "MergedTruth", "frames_text",
+__all__ = ["CONVENTIONS", "DEFAULT_MIN_POINTS", "MergedTruth", "STANDING_MPS", "frames_text",
            "merge_ground_truth", "score"]

@@ -257,3 +257,12 @@ def corner_mounts(junction, pieces, centre, region, notices=None):
         if base.count(base[i]) > 1:
             m.name = f"{base[i]} {base[:i + 1].count(base[i])}"
     return mounts
+
+
+def network_layout(path, junction_id=None, origin="net"):
+    """(network, ``RoadLayout``) of the SUMO network file ``path``: what ``rls scene
+    from-net`` and *File > Import > SUMO Network as Scene* build a scene from."""
+    from .network import read_network
+
+    net = read_network(path)
+    return net, build_layout(net, junction_id, origin)

@@ -48,6 +48,16 @@ class Step:
     resumed: bool = False  # kept from an earlier run
     eta_s: float = 0.0     # estimate of the time left
     warnings: list = field(default_factory=list)
+    # the step's wall time and its parts (``STEP_PARTS``), the scan's own among them
+    wall_s: float = 0.0
+    parts: dict = field(default_factory=dict)
+
+
+# What a step's wall time is spent on, in order: Blender setting the frame (animation,
+# drivers, modifiers), reading what the sensor may see and its ground-truth boxes, the
+# scan itself (casting, effects, points), writing (or queueing for the writer thread)
+# and showing the preview.
+STEP_PARTS = ("frame", "scene", "scan", "write")
 
 
 class Writer(Protocol):
@@ -66,6 +76,11 @@ class Writer(Protocol):
     def existing(self, sensor: str, output, frame: int, settings: dict = None) -> int | None:
         """The point count of an earlier output to keep (resuming), else None; a writer
         that can compares ``settings`` (``session.settings_record``) with its files'."""
+
+    def kept_labels(self, sensor: str, output, frame: int) -> dict:
+        """Optional: the ``labels`` (instance id -> object and label) an output kept by
+        ``existing`` was written with, so that a resumed run's instance table holds the
+        objects of the frames it kept, as an uninterrupted run's does."""
 
     def write(self, sensor: str, output, frame: int, points, info: dict): ...
 
@@ -184,10 +199,13 @@ class ScanRun:
             if kept is None:
                 told = self._stale_notice(job, frame)
         if kept is not None:
+            if hasattr(self.writer, "kept_labels"):
+                self._add_labels(self.writer.kept_labels(job.name, out, frame))
             self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
                                         str(self.writer.path(job.name, out, frame)), True))
             self.resumed += 1
             return not self.finished
+        t_step = time.perf_counter()
         if self._frame_set != frame or self.source.current_frame() != frame:
             self.source.set_frame(frame)
             self._frame_set = frame
@@ -202,8 +220,8 @@ class ScanRun:
                                     object_classes=classes)
         info["frame_rate_hz"] = self.source.fps
         info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
-        for iid, o in info["labels"].items():
-            self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
+        self._add_labels(info["labels"])
+        t_scanned = time.perf_counter()
         path = None
         if self.writer is not None:
             path = str(self.writer.write(job.name, out, frame, result.points, info))
@@ -213,14 +231,21 @@ class ScanRun:
         if self.on_result is not None:
             self.on_result(job, frame, result, info)
         self.scanned += 1
-        self._scan_time += time.perf_counter() - t
+        t_end = time.perf_counter()
+        self._scan_time += t_end - t_step
         warnings = told + [f"{job.name} frame {frame}: {w}" for w in result.warnings]
         self.warnings += warnings
         self.last = (result, info)
+        parts = dict(zip(STEP_PARTS, (t - t_step, max(0.0, t_scanned - t - result.seconds),
+                                      result.seconds, t_end - t_scanned)))
         self._done(frame, job, Step(frame, job.name, self.index + 1, self.total,
                                     len(result.points), result.seconds, path, False,
-                                    warnings=warnings))
+                                    warnings=warnings, wall_s=t_end - t_step, parts=parts))
         return not self.finished
+
+    def _add_labels(self, labels):
+        for iid, o in labels.items():
+            self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
 
     def _disk_budget(self):
         """The run's ``DiskBudget``: per sensor, the scans whose files are not there yet
@@ -317,7 +342,7 @@ class ScanRun:
                 self.resumed += 1
             else:
                 self.scanned += 1
-                self._scan_time += step.seconds
+                self._scan_time += step.wall_s or step.seconds
                 if step.path:
                     self.paths.append(step.path)
                     if self._budget is not None:
@@ -418,13 +443,13 @@ class ScanRun:
         """Without --overwrite or --resume, an existing file of this run is an error
         before anything is scanned (pieces run again after a failed worker then keep
         what they wrote the first time)."""
-        from ..errors import OutputError
+        from ..errors import OutputExists
 
-        for _, _, files in self._planned():
-            for path in files:
-                if os.path.exists(path):
-                    raise OutputError(f"{path} already exists; pass --overwrite to replace it "
-                                      "or --resume to keep it")
+        existing = [p for _, _, files in self._planned() for p in files if os.path.exists(p)]
+        if existing:
+            more = f" (and {len(existing) - 1} more of this run's files)" if len(existing) > 1 else ""
+            raise OutputExists(f"{existing[0]} already exists{more}; pass --overwrite to replace "
+                               "it or --resume to keep it", existing)
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when
@@ -473,7 +498,8 @@ class ScanRun:
     @staticmethod
     def _output(s):
         out = {"sensor": s.sensor, "frame": s.frame, "points": s.points,
-               "seconds": round(s.seconds, 4), "file": s.path}
+               "seconds": round(s.seconds, 4), "wall_seconds": round(s.wall_s, 4),
+               "file": s.path}
         if s.resumed:
             out["resumed"] = True
         return out

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import RegionError, SceneError
 from ..metrics.polygon import as_polygon
+from ..scene.mounting import facing_yaw_deg
 
 
 @dataclasses.dataclass
@@ -123,14 +124,6 @@ def grid_positions(polygon, step, heights, margin=0.0):
     xs = np.arange(lo[0], hi[0] + 1e-9, step)
     ys = np.arange(lo[1], hi[1] + 1e-9, step)
     return [(float(x), float(y), float(z)) for z in heights for y in ys for x in xs]
-
-
-def facing_yaw_deg(position, target_xy):
-    """Yaw (degrees) that points +X from ``position`` towards ``target_xy``."""
-    dx, dy = target_xy[0] - position[0], target_xy[1] - position[1]
-    if abs(dx) < 1e-12 and abs(dy) < 1e-12:
-        return 0.0
-    return math.degrees(math.atan2(dy, dx))
 
 
 def orientation_matrix(yaw_rad, pitch_down_rad, roll_rad=0.0):

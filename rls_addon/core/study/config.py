@@ -8,13 +8,16 @@ changed)."""
 
 import dataclasses
 
+from ..choices import BACKGROUNDS
 from ..errors import SceneError
+from ..labels import ROAD_USERS
+from ..scan.background_sweeps import BACKGROUND_SWEEPS
 from ..metrics.infra import DEFAULT_CELL_M, DEFAULT_DISKS, DEFAULT_RADIUS_M, DEFAULT_SEED
 from ..metrics.visibility import THRESHOLDS
 from .placement import DEFAULT_EXHAUSTIVE_LIMIT
 
 
-TRAFFIC_LABELS = ("vehicle", "pedestrian", "cyclist")
+TRAFFIC_LABELS = ROAD_USERS
 
 
 @dataclasses.dataclass
@@ -56,6 +59,17 @@ class StudyConfig:
     # on a box for it to count
     evaluate_frames: tuple = ()
     evaluate_min_points: int = 5
+    # The detector (``evaluate.detector.protocol``); None: RLS's roadside detector with
+    # the device's range noise and the scene's own types of road users
+    detector: object = None
+    # Its background (``choices.BACKGROUNDS``): 'empty', each candidate's sweeps of the
+    # scene with every road user hidden (``background_sweeps`` of them, as a deployed
+    # unit has), or 'frames', learned from the evaluation frames themselves
+    evaluate_background: str = "empty"
+    background_sweeps: int = BACKGROUND_SWEEPS
+    # Sets of each k > 1 scored by detection beyond the reported ones (drawn from those
+    # the search looked at), for the correlation within k
+    evaluate_sets: int = 20
     # The device's rotation rate (a mode or a unit's measured rate) and lidar mode
     # (``device.modes.with_modes``); None: the preset's
     rotation_hz: float = None
@@ -70,3 +84,10 @@ class StudyConfig:
                              "frames: evaluate a subset of --traffic, or leave --traffic out")
         if self.evaluate_frames and int(self.evaluate_min_points) < 0:
             raise SceneError("the points a box needs to count must be 0 or more")
+        BACKGROUNDS.check(self.evaluate_background)
+        if int(self.evaluate_sets) < 0:
+            raise SceneError(f"the sets to score beyond the reported ones must be 0 or "
+                             f"more, got {self.evaluate_sets}")
+        if self.evaluate_background == "empty" and int(self.background_sweeps) < 1:
+            raise SceneError(f"the empty scene's background needs at least one sweep, got "
+                             f"{self.background_sweeps}")

@@ -1,156 +1,17 @@
 """A placement study judged by detection (``rls study --evaluate FRAMES``): every
-candidate, and the sets the study reports, scored by the AP of RLS's roadside detector
-on the scene's traffic in the InfraLOB, beside InfraD, InfraNUC and visibility; and how
-well each of those metrics predicts the AP across the placements.
+candidate, the sets the study reports and a sample of the other sets of each k scored by
+the detector's AP in the InfraLOB (``detection.py``), beside InfraD, InfraNUC and
+visibility; and how well each of those metrics predicts the AP across the placements,
+pooled and within each k (a pooled correlation mixes "more sensors" with "better
+placement": sets of two have both more points and more AP)."""
 
-Per evaluation frame the traffic's ground truth is taken from the scene (``frame_truth``:
-the box of each vehicle, pedestrian and cyclist, as ``output.ground_truth`` boxes them:
-its mesh's box in its own axes, scale applied). Per candidate (``evaluate_candidate``)
-the frames' scans (with the traffic) give the detector's background, learned from those
-frames, each frame's foreground, and each object's returns (ghosts left out). A
-placement of one or more candidates (``placement_score``) fuses its members' detectors
-and foregrounds (early fusion, ``RoadsideDetector.union``) and is scored by
-``evaluate.scoring.score`` against one ground truth for every placement: a box counts
-when its centre is in the region and the study's candidates together put at least
-``min_points`` returns on it (``reference_points``). A placement is not let off the
-objects it cannot see: a vehicle hidden from it behind a truck is a miss, not a
-don't-care, so its AP drops as its visibility does. The headline number is the vehicle
-AP_R40 at BEV IoU 0.5 (``HEADLINE``); the whole record is kept."""
-
-import math
-import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..evaluate.detections import CLASS_IDS, Boxes
-from ..evaluate.detector import RoadsideDetector
-from ..evaluate.ground_truth_files import GroundTruth
-from ..evaluate.scoring import score
-from ..output.ground_truth import box_frame
+from .detection import background_record, headline, placement_score, reference_points
 
-HEADLINE = ("vehicle", "bev", "0.5", "ap_r40")
-IOU_THRESHOLDS = (0.3, 0.5, 0.7)
-
-
-@dataclass
-class FrameTruth:
-    """The traffic of one evaluation frame: world ``Boxes`` (score 1) and the instance
-    id of each box's object."""
-
-    frame: int
-    boxes: Boxes
-    instance: np.ndarray
-
-
-def frame_truth(frame, instances, objects):
-    """``FrameTruth`` of the evaluated classes among ``instances`` (``scene.instances``,
-    meshes in their own frames) with their ``objects`` table."""
-    rows, labels, ids = [], [], []
-    for inst, obj in zip(instances, objects):
-        if inst.label not in CLASS_IDS or not len(inst.vertices):
-            continue
-        if not (np.linalg.norm(np.asarray(inst.matrix, np.float64)[:3, :3], axis=0) > 0).all():
-            continue  # a flattened object has no box
-        pose, size = box_frame(inst.matrix, inst.vertices.min(0), inst.vertices.max(0))
-        rows.append([*pose[:3, 3], *size, math.atan2(pose[1, 0], pose[0, 0])])
-        labels.append(inst.label)
-        ids.append(obj.instance)
-    box = np.asarray(rows, np.float64).reshape(-1, 7)
-    return FrameTruth(int(frame), Boxes(np.full(len(box), int(frame)), box, labels, 1.0),
-                      np.asarray(ids, np.int64))
-
-
-@dataclass
-class CandidateEvaluation:
-    """What the evaluation keeps of one candidate (sent back by a study's workers): its
-    detector (the background it learned), each frame's foreground and, per frame, the
-    returns on each ground-truth object (aligned with that frame's ``FrameTruth``)."""
-
-    name: str
-    pose: np.ndarray
-    detector: RoadsideDetector
-    foreground: dict   # frame -> (world xyz (M, 3), range-image pixel (M,))
-    points: dict       # frame -> (N,) returns on each of the frame's ground-truth boxes
-    detect_s: float = 0.0
-
-
-def evaluate_candidate(name, pose, frame_points, truths, noise_sigma):
-    """``CandidateEvaluation`` of candidate ``name`` at ``pose`` (4x4, still) from its
-    scans ``frame_points`` {frame: (world xyz (N, 3), instance (N,), ghost (N,))} and
-    the frames' ``truths`` {frame: FrameTruth}."""
-    to_sensor = np.linalg.inv(pose)
-    local = {f: xyz @ to_sensor[:3, :3].T + to_sensor[:3, 3]
-             for f, (xyz, _, _) in frame_points.items()}
-    frames = sorted(frame_points)
-    det = RoadsideDetector(noise_sigma=noise_sigma).learn({name: [local[f] for f in frames]},
-                                                          {name: pose})
-    t = time.perf_counter()
-    foreground = {}
-    for f in frames:
-        xyz, _, pixel = det.foreground({name: local[f]}, {name: pose})
-        foreground[f] = (xyz, pixel)
-    detect_s = (time.perf_counter() - t) / max(len(frames), 1)
-    points = {}
-    for f in frames:
-        _, instance, ghost = frame_points[f]
-        ids = truths[f].instance
-        seen = np.asarray(instance)[np.asarray(ghost) == 0]
-        order = np.argsort(ids, kind="stable")
-        at = np.searchsorted(ids[order], seen)
-        at = np.clip(at, 0, max(len(ids) - 1, 0))
-        hit = len(ids) > 0
-        counts = np.zeros(len(ids), np.int64)
-        if hit:
-            on = ids[order][at] == seen
-            np.add.at(counts, order[at[on]], 1)
-        points[f] = counts
-    return CandidateEvaluation(name, np.asarray(pose, np.float64), det, foreground, points,
-                               detect_s)
-
-
-def reference_points(evaluations, truths):
-    """{frame: (N,) returns on each ground-truth box summed over every candidate}: what
-    decides whether a box counts, the same for every placement."""
-    return {f: np.sum([e.points[f] for e in evaluations], axis=0).astype(np.int64)
-            if evaluations else np.zeros(len(truths[f].instance), np.int64) for f in truths}
-
-
-def placement_score(members, truths, polygon, min_points, reference,
-                    iou_thresholds=IOU_THRESHOLDS):
-    """``scoring.score``'s record of the placement of ``members`` (CandidateEvaluation s):
-    their detectors and each frame's foregrounds fused, scored against the boxes that
-    ``reference`` ({frame: returns per box}, ``reference_points``) counts."""
-    det = members[0].detector.union([m.detector for m in members[1:]])
-    origins = np.array([m.pose[:3, 3] for m in members])
-    columns = np.array([m.detector.backgrounds[m.name].model.grid.columns for m in members],
-                       np.int64)
-    frames = sorted(truths)
-    found = []
-    for f in frames:
-        xyz = np.concatenate([m.foreground[f][0] for m in members])
-        pixel = np.concatenate([m.foreground[f][1] for m in members])
-        which = np.concatenate([np.full(len(m.foreground[f][0]), k, np.int64)
-                                for k, m in enumerate(members)])
-        found.append(det.boxes_of(xyz, which, origins, f, pixel, columns))
-    boxes = Boxes.concat([Boxes(truths[f].boxes.frame, truths[f].boxes.box,
-                                truths[f].boxes.label, 1.0, reference[f]) for f in frames])
-    instance = np.concatenate([truths[f].instance for f in frames]) if frames \
-        else np.zeros(0, np.int64)
-    truth = GroundTruth(boxes, frames, {f: members[0].pose for f in frames},
-                        np.full(len(boxes), np.nan), instance, members[0].name)
-    return score(truth, Boxes.concat(found), region=polygon, min_points=min_points,
-                 iou_thresholds=iou_thresholds)
-
-
-def headline(record):
-    """The vehicle AP_R40 at BEV IoU 0.5 of a ``placement_score`` record (None: no
-    vehicle counted in the region)."""
-    cls, kind, thr, key = HEADLINE
-    try:
-        return record["classes"][cls]["all"][kind][thr][key]
-    except KeyError:
-        return None
+MIN_VEHICLE_FRAMES = 200  # fewer counted vehicle-frames than this: a notice says so
 
 
 @dataclass
@@ -158,13 +19,20 @@ class StudyEvaluation:
     """The study's placements judged by detection.
 
     candidates   per candidate: its headline AP (None: nothing counted) and record
-    sets         {members tuple: (headline AP, record)} of the sets the study reports:
-                 each k's Pareto front and best set, and the best set by visibility
+    sets         {members tuple: (headline AP, record)} of the sets scored: each k's
+                 Pareto front and best set, the best set by visibility, and up to
+                 ``cfg.evaluate_sets`` more of each k drawn from the sets the search
+                 looked at (seeded), so the correlation within k has more than a handful
     best         {k: members} of the best set by AP among those of k members
     correlation  {metric name: correlation.correlation record} of AP with InfraD,
                  InfraNUC and each visibility share, over every placement scored
-    placements   the rows the correlation ran over: name, members, AP and metrics
-    frames, min_points, detect_ms (the detector's foreground per frame and candidate)"""
+    by_k         {k: {metric name: correlation record}}: the same within each k
+    placements   the rows the correlations ran over: name, members, AP and metrics
+    vehicle_frames  the counted vehicle-frames (vehicles in the region, with enough
+                 points, over the frames): the same for every placement
+    frames, min_points, detect_ms (the detector's foreground per frame and candidate)
+    detector     its name; background: what it learned (``background_record``)
+    notices      what a reader should know (too few vehicle-frames)"""
 
     frames: list
     min_points: int
@@ -174,26 +42,24 @@ class StudyEvaluation:
     correlation: dict
     placements: list
     detect_ms: float
+    detector: str = ""
+    background: dict = None
+    by_k: dict = field(default_factory=dict)
+    vehicle_frames: int = 0
+    notices: list = field(default_factory=list)
 
     @classmethod
     def of(cls, cfg, scanner, cands, evaluations, searches, visibility):
-        from ..evaluate.correlation import correlation
-
         truths, polygon = scanner.truths, scanner.polygon
         ref = reference_points(evaluations, truths)
         mp = int(cfg.evaluate_min_points)
-        records = [placement_score([e], truths, polygon, mp, ref) for e in evaluations]
+        det = scanner.detector
+        records = [placement_score(det, [e], truths, polygon, mp, ref) for e in evaluations]
         sets = {}
-        wanted = []
-        for k, s in sorted(searches.items()):
-            wanted += [p.members for p in s.front] + [s.best.members]
-            if visibility is not None:
-                wanted.append(visibility.best[k].members)
-        for members in wanted:
-            members = tuple(int(i) for i in members)
-            if len(members) > 1 and members not in sets:
-                rec = placement_score([evaluations[i] for i in members], truths, polygon, mp,
-                                      ref)
+        for members in _sets_to_score(cfg, searches, visibility):
+            if members not in sets:
+                rec = placement_score(det, [evaluations[i] for i in members], truths,
+                                      polygon, mp, ref)
                 sets[members] = (headline(rec), rec)
         scored = {**{(i,): (headline(r), r) for i, r in enumerate(records)}, **sets}
         best = {}
@@ -201,24 +67,24 @@ class StudyEvaluation:
             pool = {m: v for m, v in scored.items() if len(m) == k and v[0] is not None}
             if pool:
                 best[k] = max(pool, key=lambda m: (pool[m][0], -sum(m)))
-        rows = []
-        metric_of = {}
-        for members, (ap, _) in sorted(scored.items()):
-            p = _metrics(members, cands, searches, visibility)
-            rows.append(dict(members=list(members), sensors=[cands[i].name for i in members],
-                             ap=ap, **p))
-            for name, v in p.items():
-                metric_of.setdefault(name, []).append(v)
-        aps = [r["ap"] if r["ap"] is not None else np.nan for r in rows]
-        corr = {name: correlation(np.array([np.nan if x is None else x for x in v], np.float64),
-                                  np.asarray(aps, np.float64))
-                for name, v in metric_of.items()}
+        rows = [dict(members=list(m), sensors=[cands[i].name for i in m], ap=ap,
+                     **_metrics(m, cands, searches, visibility))
+                for m, (ap, _) in sorted(scored.items())]
+        pooled, by_k = correlations(rows)
+        n = vehicle_frames(records)
+        notices = []
+        if n < MIN_VEHICLE_FRAMES:
+            notices.append(f"the evaluated frames hold {n} counted vehicle-frames (fewer "
+                           f"than {MIN_VEHICLE_FRAMES}): each AP rests on few vehicles and "
+                           "the correlations on noisy APs; evaluate more frames or busier "
+                           "traffic")
         ms = 1000.0 * float(np.mean([e.detect_s for e in evaluations])) if evaluations else 0.0
-        return cls(sorted(truths), mp, [(headline(r), r) for r in records], sets, best, corr,
-                   rows, ms)
+        return cls(sorted(truths), mp, [(headline(r), r) for r in records], sets, best,
+                   pooled, rows, ms, getattr(det, "name", type(det).__name__),
+                   background_record(cfg, scanner.frame), by_k, n, notices)
 
     def ap_of(self, members):
-        """The headline AP of a scored placement (a candidate or a reported set)."""
+        """The headline AP of a scored placement (a candidate or a scored set)."""
         members = tuple(members)
         return self.candidates[members[0]][0] if len(members) == 1 else self.sets[members][0]
 
@@ -231,7 +97,9 @@ class StudyEvaluation:
             "ground_truth": ("boxes of vehicles, pedestrians and cyclists centred in the "
                              f"region on which the candidates together put >= "
                              f"{self.min_points} returns; the same for every placement"),
-            "detector": "RLS's roadside detector (rls detect), early fusion over a set",
+            "vehicle_frames": self.vehicle_frames,
+            "detector": f"{self.detector}, early fusion over a set",
+            "background": self.background,
             "detect_ms_per_frame": round(self.detect_ms, 2),
             "candidates": [{"candidate": names[i], "ap": ap, "result": strip(rec)}
                            for i, (ap, rec) in enumerate(self.candidates)],
@@ -242,7 +110,59 @@ class StudyEvaluation:
                            for k, m in sorted(self.best.items())},
             "placements": self.placements,
             "correlation": self.correlation,
+            "correlation_by_k": {str(k): v for k, v in sorted(self.by_k.items())},
+            "notices": self.notices,
         }
+
+
+def _sets_to_score(cfg, searches, visibility):
+    """The sets of two or more scored by detection, in order: each k's Pareto front and
+    best set, the best set by visibility, then up to ``cfg.evaluate_sets`` more of the
+    sets the search looked at, drawn with a generator seeded by (scan seed, k)."""
+    out = []
+    for k, s in sorted(searches.items()):
+        if k < 2:
+            continue
+        wanted = [p.members for p in s.front] + [s.best.members]
+        if visibility is not None:
+            wanted.append(visibility.best[k].members)
+        wanted = list(dict.fromkeys(tuple(int(i) for i in m) for m in wanted))
+        others = [tuple(int(i) for i in p.members) for p in s.evaluated]
+        others = [m for m in dict.fromkeys(others) if m not in wanted]
+        extra = int(getattr(cfg, "evaluate_sets", 0))
+        if extra > 0 and others:
+            rng = np.random.default_rng([int(cfg.scan_seed), k])
+            pick = rng.choice(len(others), size=min(extra, len(others)), replace=False)
+            wanted += [others[i] for i in sorted(pick)]
+        out += wanted
+    return out
+
+
+def correlations(rows):
+    """(pooled {metric: record}, {k: {metric: record}}) of AP with each metric of the
+    placement ``rows``, over all of them and within each number of sensors."""
+    from ..evaluate.correlation import correlation
+
+    names = [n for n in rows[0] if n not in ("members", "sensors", "ap")] if rows else []
+
+    def of(sub):
+        aps = np.array([np.nan if r["ap"] is None else r["ap"] for r in sub], np.float64)
+        return {n: correlation(np.array([np.nan if r.get(n) is None else r[n] for r in sub],
+                                        np.float64), aps) for n in names}
+
+    ks = sorted({len(r["members"]) for r in rows})
+    return of(rows), {k: of([r for r in rows if len(r["members"]) == k]) for k in ks}
+
+
+def vehicle_frames(records):
+    """The counted vehicle-frames of the evaluation (the same ground truth for every
+    placement: the first record's)."""
+    for rec in records:
+        try:
+            return int(rec["classes"]["vehicle"]["all"]["bev"]["0.5"]["gt"])
+        except KeyError:
+            continue
+    return 0
 
 
 def _metrics(members, cands, searches, visibility):

@@ -43,6 +43,12 @@ class StudyResult:
     # scanned again, per candidate (a handful: the members of the sets drawn).
     scanner: "StudyScanner" = dataclasses.field(default=None, repr=False)
     kept: dict = dataclasses.field(default_factory=dict, repr=False)
+    scene_file: str = ""  # the scene's file name (its charts' titles name it)
+
+    @property
+    def title(self):
+        """What charts call the scene: its file's name, else the scene's own."""
+        return self.scene_file or self.scene
 
     def kept_xy(self, index):
         """(n, 2) world xy of candidate ``index``'s points in the region with a counted
@@ -129,13 +135,15 @@ def run_study(scene, cfg, progress=None, factory=caster_factory, scan_all=None):
         evaluation = StudyEvaluation.of(cfg, scanner, cands, evaluations, searches, vis)
         scanner.notices.append(f"evaluation: {len(cands)} candidates and "
                                f"{len(evaluation.sets)} sets scored by detection in "
-                               f"{time.perf_counter() - t_eval:.1f} s")
+                               f"{time.perf_counter() - t_eval:.1f} s; the detector's "
+                               f"background: {evaluation.background['what']}")
+        scanner.notices += evaluation.notices
     t_maps = time.perf_counter()
     result = StudyResult(cfg, scene.name, scanner.frame,
                          {"id": preset.id, "name": preset.name, "source": preset.source},
                          polygon, layout, cands, cc, searches, {}, scanner.hidden,
                          scanner.prepared.backend, scanner.session.builds, scanner.notices, vis,
-                         evaluation, scanner)
+                         evaluation, scanner, scene_file=getattr(scene, "file", "") or "")
     # The density maps the report draws (the best set of each k): their members are
     # scanned again here with this process's scanner (in a run on workers the counts
     # came from its twins, built from the same scene and settings: the same points).

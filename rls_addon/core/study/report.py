@@ -212,29 +212,18 @@ def charts_png(result):
     return out, None
 
 
-AP_METRICS = {"infra_d": "InfraD (points / m²)", "infra_nuc": "InfraNUC (no unit)",
-              "share_5": "share of vehicle-frames seen by >= 5 points (%)",
-              "share_20": "share of vehicle-frames seen by >= 20 points (%)",
-              "share_50": "share of vehicle-frames seen by >= 50 points (%)"}
-
-
 def _ap_charts(result):
-    """``ap_vs_<metric>.png``: AP against each metric, one point per placement scored."""
-    from ..evaluate.correlation import correlation_png
+    """``ap_vs_<metric>.png``: AP against each metric, one point per placement scored,
+    coloured by k (``ap_charts.py``)."""
+    from .ap_charts import METRICS, ap_chart_png
 
     ev = result.evaluation
-    rows = ev.placements
-    aps = [100.0 * r["ap"] if r["ap"] is not None else float("nan") for r in rows]
     out = {}
-    for name, label in AP_METRICS.items():
+    for name in METRICS:
         if name not in ev.correlation:
             continue
-        scale = 100.0 if name.startswith("share_") else 1.0
-        x = [scale * r[name] if r.get(name) is not None else float("nan") for r in rows]
-        png = correlation_png(x, aps, label, "vehicle AP_R40, BEV IoU 0.5 (%)",
-                              result=ev.correlation[name],
-                              title=f"{result.scene}: detection AP against {name} "
-                                    f"({len(rows)} placements)")
+        png = ap_chart_png(ev.placements, name, ev.correlation[name],
+                           {k: c[name] for k, c in ev.by_k.items()}, result.title)
         if png is not None:
             out[f"ap_vs_{name}.png"] = png
     return out

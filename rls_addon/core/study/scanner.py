@@ -29,7 +29,9 @@ from ..world.bodies import RigidBodies
 from .placement import DiskLayout
 from .candidates import candidate_spots, make_candidates
 from .config import TRAFFIC_LABELS
-from .evaluation import CandidateEvaluation, evaluate_candidate, frame_truth
+from ..evaluate.detector import RoadsideDetector
+from ..scan.background_sweeps import road_user_ids, sweep_seed
+from .detection import CandidateEvaluation, evaluate_candidate, frame_truth, truth_types
 
 
 @dataclasses.dataclass
@@ -81,6 +83,7 @@ class StudyScanner:
         reach = max(np.linalg.norm(np.array(c.position) - centre) for c in candidates) + rmax + 1.0
         self.session = ScanSession(self.backend_cls)
         t = time.perf_counter()
+        self._scene, self._around = scene, (centre, reach)
         self.prepared = self.session.prepared(geometry, centre, reach)
         layout.prepare()  # the disks' and the outline's grids, once per study
         self.build_s = time.perf_counter() - t
@@ -95,6 +98,12 @@ class StudyScanner:
         if cfg.traffic_frames:
             self._traffic(scene)
             scene.set_frame(self.frame)
+        self.detector = cfg.detector
+        if self.detector is None and cfg.evaluate_frames:
+            self.detector = RoadsideDetector(
+                noise_sigma=device_values(preset, self.settings).noise_sigma_m,
+                types=truth_types(self.truths))
+        self._empty = None  # the scene without road users, when the static one has them
 
     def _traffic(self, scene):
         """Per traffic frame: the traffic as still bodies, and the vehicle-frames to score
@@ -162,6 +171,27 @@ class StudyScanner:
         counts came from)."""
         return self._static(cand)[0]
 
+    def background_sweeps(self, cand):
+        """Candidate ``cand``'s sweeps of the scene with every road user hidden (world x y
+        z, (N, 3) each): ``cfg.background_sweeps`` scans of the study's frame, each with
+        its own seed (``background_sweeps.sweep_seed``): what a deployed unit's
+        background holds."""
+        prepared = self.prepared
+        if self.cfg.keep_traffic:  # the study's static scene holds the traffic
+            if self._empty is None:
+                geometry, _ = self._scene.static_geometry(road_user_ids())
+                self._empty = self.session.prepared(geometry, *self._around)
+            prepared = self._empty
+        out = []
+        for k in range(int(self.cfg.background_sweeps)):
+            settings = dataclasses.replace(self.settings,
+                                           seed=sweep_seed(self.cfg.scan_seed, k))
+            p = scan_frame(prepared, self.preset.pattern(self.frame), cand.pose, self.preset,
+                           settings, frame=self.frame, sensor=cand.name,
+                           fields=("x", "y", "z")).points
+            out.append(np.stack([p["x"], p["y"], p["z"]], 1).astype(np.float64))
+        return out
+
     def scan(self, cand):
         """A ``CandidateScan`` of candidate ``cand``."""
         t = time.perf_counter()
@@ -187,9 +217,10 @@ class StudyScanner:
                                        p["instance"], p["ghost"])
         evaluation = None
         if frame_points:
-            evaluation = evaluate_candidate(
-                cand.name, cand.pose, frame_points, self.truths,
-                device_values(self.preset, self.settings).noise_sigma_m)
+            sweeps = self.background_sweeps(cand) \
+                if self.cfg.evaluate_background == "empty" else None
+            evaluation = evaluate_candidate(self.detector, cand.name, cand.pose, frame_points,
+                                            self.truths, sweeps)
         return CandidateScan(cand.index, n_points, counts, scan_points, rays,
                              time.perf_counter() - t, seen, evaluation)
 

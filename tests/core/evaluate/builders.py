@@ -68,11 +68,22 @@ def info(sensor_pose, objects, knots=None):
     return out
 
 
-def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False):
-    """An RLS kitti dataset of sensor 'lidar' under ``root``: per frame the objects
-    moved 1 m along x per frame; ``moving``: the sensor drives 1.5 m along its sweep.
-    Returns the sensor root."""
-    writer = KittiWriter(root, "scene", level=level)
+class _Hidden:
+    """What ``scene.hidden.WithoutLabels`` tells a background writer."""
+    label_ids = frozenset({VEHICLE, PEDESTRIAN, CYCLIST})
+    hidden = {"car", "walker"}
+
+
+def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False, sweeps=0,
+                  scene="scene"):
+    """An RLS kitti dataset of sensor 'lidar' of scene ``scene`` under ``root``: per
+    frame the objects moved 1 m along x per frame; ``moving``: the sensor drives 1.5 m
+    along its sweep; ``sweeps`` background sweeps (the points, no objects). Returns the
+    sensor root."""
+    writer = KittiWriter(root, scene, level=level)
+    for k in range(sweeps):
+        writer.background_writer(k, _Hidden()).write(
+            "lidar", None, frames[0], points(), info(np.asarray(sensor_pose, float), []))
     for f in frames:
         start = np.asarray(sensor_pose, float)
         knots = None

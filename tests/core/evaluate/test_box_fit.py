@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from rls_addon.core.evaluate.box_fit import (best_placement, fit_rectangles, inside_rectangle,
+from rls_addon.core.evaluate.detector.box_fit import (best_placement, fit_rectangles, inside_rectangle,
                                              rectangle_corners, rectangles_along)
 
 

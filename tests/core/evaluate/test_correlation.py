@@ -62,15 +62,3 @@ def test_nothing_to_correlate_gives_no_number():
     assert nan["n"] == 2 and nan["pearson"] is None
     with pytest.raises(ValueError):
         corr.correlation([1.0, 2.0, 3.0], [1.0, 2.0])
-
-
-def test_chart_is_a_png_and_says_its_coefficients(monkeypatch):
-    x = np.array([10.0, 20.0, 35.0, 50.0])
-    y = np.array([40.0, 55.0, 61.0, 80.0])
-    png = corr.correlation_png(x, y, "InfraD (points / m²)", title="vehicle, BEV IoU 0.5")
-    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
-    assert corr.correlation_png(x, y, "InfraD") == corr.correlation_png(x, y, "InfraD")
-    from rls_addon.core.metrics import charts
-
-    monkeypatch.setattr(charts, "pyplot", lambda: None)
-    assert corr.correlation_png(x, y, "InfraD") is None

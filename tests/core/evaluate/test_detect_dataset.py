@@ -41,10 +41,31 @@ def test_bad_input_is_one_clear_error(tmp_path):
     with pytest.raises(InputError, match="name one sensor twice"):
         detect_datasets([a, a])
     with pytest.raises(InputError, match="background frames \\[7\\]"):
-        detect_datasets([a], background_frames=[7])
+        detect_datasets([a], "frames", background_frames=[7])
+    with pytest.raises(InputError, match="no background sweeps .*--background frames"):
+        detect_datasets([a])  # written without sweeps: the empty scene's are not there
+    with pytest.raises(InputError, match="go with --background frames"):
+        detect_datasets([kitti_dataset(tmp_path / "c", pose(z=5.0), sweeps=2)],
+                        background_frames=[1])
     (tmp_path / "b" / "lidar").rename(tmp_path / "b" / "other")
     with pytest.raises(InputError, match="share no frame"):
         detect_datasets([a, tmp_path / "b" / "other"])
     (a / "points" / "000002.npy").unlink()
     with pytest.raises(InputError, match="frame 2 has meta but no points"):
-        detect_datasets([a])
+        detect_datasets([a], "frames")
+
+
+def test_the_background_is_the_stored_sweeps_by_default_and_says_so(tmp_path):
+    """The dataset's background/ sweeps (the scene without road users) are what the
+    detector learns unless told to learn from the frames; what it learned is returned
+    to be said in the output."""
+    root = kitti_dataset(tmp_path, pose(z=5.0), frames=(1, 2, 3), sweeps=3)
+    _, frames, timing = detect_datasets([root])
+    assert frames == [1, 2, 3]
+    assert timing["background"]["kind"] == "empty"
+    assert timing["background"]["sweeps"] == {"lidar": 3}
+    assert timing["background"]["hidden_labels"] == ["cyclist", "pedestrian", "vehicle"]
+    _, _, timing = detect_datasets([root], "frames", [2, 3])
+    assert timing["background"]["kind"] == "frames" and timing["background"]["frames"] == [2, 3]
+    with pytest.raises(Exception, match="detector background"):
+        detect_datasets([root], "yesterday")

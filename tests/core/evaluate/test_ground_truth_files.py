@@ -71,3 +71,10 @@ def test_missing_ground_truth_is_one_clear_error(tmp_path):
     write_sidecar(tmp_path / "b.pcd", {"frame": "sensor", "sensor": "x", "objects": []})
     with pytest.raises(InputError, match=r"b\.json: 'frame' is 'sensor'"):
         read_ground_truth(tmp_path)
+
+
+def test_each_box_carries_its_horizontal_speed(tmp_path):
+    """What scoring splits standing from moving boxes by: the box centre's world
+    velocity in the meta, horizontal."""
+    gt = read_ground_truth(kitti_dataset(tmp_path, pose(z=5.0)))
+    assert gt.speed.shape == (len(gt.boxes),) and (gt.speed == 0.0).all()

@@ -91,6 +91,13 @@ def test_known_box_in_level_and_pitched_frames(tmp_path):
     ("1 2 0.5 4 1.8 1.5 Vehicle", r"line 2: 7 columns; expected 'x y z dx dy dz heading"),
     ("Car 0.00 0 -1.58 587.0 173.3 614.1 200.1 1.65 1.67 3.64 -0.65 1.71 46.70 -1.59 0.9",
      r"line 2: this is KITTI's label_2 format.*calib file"),
+    # numbers no detection has: scored before, with an overflow warning from the overlap
+    ("1e308 2 0.5 4 1.8 1.5 0.1 Vehicle 0.9",
+     r"000001\.txt, line 2: a box centre at 1e\+308 2\.0 0\.5 m, farther than 100000 m"),
+    ("1 2 -2e5 4 1.8 1.5 0.1 Vehicle 0.9", r"line 2: a box centre .* farther than 100000 m"),
+    ("1 2 0.5 4 1e200 1.5 0.1 Vehicle 0.9", r"line 2: sizes dx dy dz .* at most 1000 m"),
+    ("1 2 0.5 4 1.8 1.5 1e30 Vehicle 0.9",
+     r"000001\.txt, line 2: heading 1e\+30 rad is not an angle a detector gives"),
 ])
 def test_bad_lines_give_one_clear_error(tmp_path, line, message):
     root = kitti_dataset(tmp_path / "ds", PITCHED, frames=(1,))
@@ -116,6 +123,40 @@ def test_bad_folders_give_one_clear_error(tmp_path):
         read_label_files(det, root)
     with pytest.raises(InputError, match="not an RLS 'kitti' dataset"):
         read_label_files(det, tmp_path / "det")
+
+
+def test_headings_and_offsets_within_the_limits_are_read_exactly(tmp_path):
+    """Just inside the limits: a heading of 999 rad and a box 99 km out are boxes."""
+    root = kitti_dataset(tmp_path / "ds", np.eye(4), frames=(1,))
+    det = tmp_path / "det"
+    det.mkdir()
+    (det / "000001.txt").write_text("99000 2 0.5 4 1.8 1.5 999 Vehicle 0.9\n")
+    boxes, _ = read_label_files(det, root)
+    np.testing.assert_allclose(boxes.box[0, :6], [99000, 2, 0.5, 4, 1.8, 1.5], rtol=0, atol=1e-9)
+    assert abs(np.angle(np.exp(1j * (boxes.box[0, 6] - 999.0)))) < 1e-9  # the same heading
+
+
+def test_boxes_beyond_a_world_are_refused_by_every_reader():
+    for row in ([2e7, 0, 0, 4, 2, 1.5, 0], [0, 0, 0, 4, 2e3, 1.5, 0], [0, 0, 0, 4, 2, 1.5, -1e4]):
+        with pytest.raises(InputError, match=r"result\.pkl: box 0 of frame 3 is no box of a "
+                                             r"road user"):
+            Boxes([3], [row], [11], [0.5]).validate("result.pkl")
+    Boxes([3], [[9e6, -9e6, 0, 4, 2, 1.5, 3.0]], [11], [0.5]).validate()
+
+
+def test_datasets_name_their_scene_and_two_scenes_are_refused(tmp_path):
+    from rls_addon.core.evaluate.kitti_meta import KittiMeta, one_scene
+
+    a = KittiMeta.open(kitti_dataset(tmp_path / "a", PITCHED, frames=(1,), scene="t_junction"))
+    b = KittiMeta.open(kitti_dataset(tmp_path / "b", PITCHED, frames=(1,), scene="intersection"))
+    same = KittiMeta.open(kitti_dataset(tmp_path / "c", PITCHED, frames=(1,), scene="t_junction"))
+    assert (a.scene, b.scene) == ("t_junction", "intersection")  # from the frames' meta
+    (b.root / "dataset.json").write_text('{"scene": "intersection"}')
+    assert b.scene == "intersection"  # from dataset.json
+    one_scene([("--truth A", a), ("--dataset C", same)])
+    with pytest.raises(InputError, match="--truth A is a dataset of scene 't_junction' and "
+                                         "--dataset B of scene 'intersection'"):
+        one_scene([("--truth A", a), ("--dataset C", same), ("--dataset B", b)])
 
 
 def test_writer_refuses_invalid_boxes(tmp_path):

@@ -7,13 +7,14 @@ import pytest
 
 from rls_addon.core.labels import OBJECT_CLASSES
 from rls_addon.core.output.datasets.kitti import class_name
+from tests.core.external_tools import require_module
 
 CONFIG = Path(__file__).resolve().parents[3] / "docs" / "openpcdet_custom_rls.yaml"
 
 
 @pytest.fixture(scope="module")
 def config():
-    yaml = pytest.importorskip("yaml")
+    yaml = require_module("yaml", "PyYAML==6.0.3")
     return yaml.safe_load(CONFIG.read_text(encoding="utf-8"))
 
 

@@ -1,6 +1,6 @@
 """Rotated-box overlap: analytic cases, degenerate geometry, and every pair of thousands
 against shapely polygons (shapely is the test's oracle only; core code does not use it,
-and the oracle tests skip where it is not installed)."""
+and the oracle tests skip where it is not installed, or fail under RLS_REQUIRE_TOOLS=1)."""
 
 import math
 import time
@@ -18,6 +18,7 @@ from rls_addon.core.evaluate.overlap import (
     iou_at,
     iou_paired,
 )
+from tests.core.external_tools import require_module
 
 
 def box(x=0.0, y=0.0, z=0.0, length=1.0, width=1.0, height=1.0, yaw=0.0):
@@ -26,14 +27,14 @@ def box(x=0.0, y=0.0, z=0.0, length=1.0, width=1.0, height=1.0, yaw=0.0):
 
 def shapely_areas(a, b):
     """Every pair's intersection area, by shapely."""
-    Polygon = pytest.importorskip("shapely.geometry").Polygon
+    Polygon = require_module("shapely.geometry", "shapely==2.2.0").Polygon
     pa = [Polygon(c) for c in bev_corners(a)]
     pb = [Polygon(c) for c in bev_corners(b)]
     return np.array([[p.intersection(q).area for q in pb] for p in pa])
 
 
 def shapely_paired(a, b):
-    Polygon = pytest.importorskip("shapely.geometry").Polygon
+    Polygon = require_module("shapely.geometry", "shapely==2.2.0").Polygon
     return np.array([Polygon(p).intersection(Polygon(q)).area
                      for p, q in zip(bev_corners(a), bev_corners(b))])
 

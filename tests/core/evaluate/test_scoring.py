@@ -25,15 +25,16 @@ def car(x, y, yaw=0.0, size=SIZE):
     return [x, y, size[2] / 2, *size, yaw]
 
 
-def truth(rows, frames=(1,), sensor="pole", at=(0.0, 0.0, 6.0)):
+def truth(rows, frames=(1,), sensor="pole", at=(0.0, 0.0, 6.0), speed=None):
     """GroundTruth of rows (frame, instance, label, box, points) seen by a sensor at
-    ``at`` in every frame."""
+    ``at`` in every frame (``speed``: each box's, m/s)."""
     rows = list(rows)
     boxes = Boxes([r[0] for r in rows], [r[3] for r in rows], [r[2] for r in rows], 1.0,
                   [r[4] for r in rows]) if rows else Boxes.empty()
     poses = {f: pose(*at) for f in frames}
     return GroundTruth(boxes, list(frames), poses, np.full(len(rows), np.nan),
-                       np.array([r[1] for r in rows], np.int64), sensor)
+                       np.array([r[1] for r in rows], np.int64), sensor,
+                       None if speed is None else np.asarray(speed, np.float64))
 
 
 def dets(rows):
@@ -190,6 +191,41 @@ def test_distance_bins_from_the_frames_sensor():
     assert far["bev"]["0.5"]["ap_r40"] == 0.5
     assert [m["distance_m"] for m in r["matches"]] == [10.0, 10.0, 40.0,
                                                        pytest.approx(math.hypot(10, 25))]
+
+
+def test_standing_and_moving_boxes_are_counted_apart():
+    """Recall of the counted boxes that stand (under SUMO's halting speed, 0.1 m/s) and of
+    those that move, per class, kind and threshold; a box of unknown speed is neither."""
+    gt = truth([(1, 1, CAR, car(0, 0), 50), (1, 2, CAR, car(0, 5), 50),
+                (1, 3, CAR, car(5, -5), 50), (1, 4, CAR, car(-5, -5), 50),
+                (1, 5, CAR, car(30, 0), 50)],  # outside the region: not counted
+               speed=[0.0, 0.09, 8.0, np.nan, 0.0])
+    det = dets([(1, CAR, car(0, 0), 0.9), (1, CAR, car(5, -5), 0.8)])
+    by = record(score(gt, det, region=REGION))["by_motion"]
+    assert by["standing"] == {"gt": 2, "tp": 1, "missed": 1, "recall": 0.5}
+    assert by["moving"] == {"gt": 1, "tp": 1, "missed": 0, "recall": 1.0}
+    assert by["unknown"] == {"gt": 1, "tp": 0, "missed": 1, "recall": 0.0}
+    ped = record(score(gt, det, region=REGION), cls="pedestrian")["by_motion"]
+    assert ped == {"standing": {"gt": 0, "tp": 0, "missed": 0, "recall": None},
+                   "moving": {"gt": 0, "tp": 0, "missed": 0, "recall": None}}
+
+
+def test_a_box_on_a_bin_edge_belongs_to_the_bin_that_starts_there():
+    # Bins are [lo, hi): a car centred exactly 30 m from the sensor is in 30-inf, not in
+    # 0-30, both in score's bins (from the frame's nearest sensor) and in evaluate's
+    # (from a given sensor position). The rule is one function (average_precision.in_bin);
+    # written as (lo, hi] anywhere, this fails.
+    from rls_addon.core.evaluate.average_precision import evaluate
+
+    gt = truth([(1, 1, CAR, car(30, 0), 50)], at=(0.0, 0.0, 6.0))
+    det = dets([(1, CAR, car(30, 0), 0.9)])
+    r = score(gt, det, distance_bins=(0, 30, math.inf), iou_thresholds=(0.5,), kinds="bev")
+    near, far = (b["bev"]["0.5"] for b in r["classes"]["vehicle"]["bins"])
+    assert (near["gt"], near["tp"], far["gt"], far["tp"]) == (0, 0, 1, 1)
+    e = evaluate(gt.boxes, det, iou_thresholds=(0.5,), kinds="bev", classes=[CAR],
+                 distance_bins=(0, 30, math.inf), sensor_xy=(0.0, 0.0))
+    near, far = (b["bev"]["0.5"] for b in e["classes"]["vehicle"]["bins"])
+    assert (near["gt"], near["tp"], far["gt"], far["tp"]) == (0, 0, 1, 1)
 
 
 def test_ground_truth_written_by_rls_as_detections_scores_one(tmp_path):

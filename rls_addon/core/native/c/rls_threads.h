@@ -33,6 +33,16 @@ static void rls_thread_join(rls_thread t) {
 #else
 #include <pthread.h>
 
+#if defined(__GLIBC__) && defined(__x86_64__)
+/* glibc 2.34 moved the pthread functions into libc under a new version, GLIBC_2.34, and
+ * a compiler on such a system binds to it: the library would not load in a Blender on
+ * an older glibc (Blender 4.2 needs 2.28). Bind to the first version instead, which
+ * every glibc since x86-64's first one has (in libpthread before 2.34, in libc since);
+ * tools/build_native.py checks every build needs nothing newer than 2.28. */
+__asm__(".symver pthread_create,pthread_create@GLIBC_2.2.5");
+__asm__(".symver pthread_join,pthread_join@GLIBC_2.2.5");
+#endif
+
 #define RLS_EXPORT __attribute__((visibility("default")))
 #define RLS_THREAD_ENTRY(name, arg) static void *name(void *arg)
 #define RLS_THREAD_RETURN return NULL

@@ -132,6 +132,52 @@ def seam_notice(notices, sensor, boxes):
                        "the road with --sweep-start (e.g. 180: behind the sensor)")
 
 
+class BackgroundSweepWriter:
+    """What the layouts' writers of a background sweep share (a ``run.Writer`` of one
+    sweep, ``scan.background_sweeps``): a point file and its description (``_meta``,
+    written last: its presence marks a complete sweep), in the layout's ``dataset``
+    writer's folders; ``hidden`` is the source with the road users hidden. Sweeps are
+    scanned again on ``--resume`` (a handful of scans), replacing what was there."""
+
+    shardable = False
+
+    def __init__(self, dataset, sweep, hidden):
+        self.dataset, self.sweep, self.hidden = dataset, int(sweep), hidden
+        self.overwrite = dataset.overwrite or dataset.resume
+
+    def _meta(self, sensor):
+        raise NotImplementedError
+
+    def planned_files(self, sensor, output, frame):
+        return [self.path(sensor, output, frame), self._meta(sensor)]
+
+    def incomplete(self, sensor, output, frame):
+        path = self.path(sensor, output, frame)
+        return [path] if path.exists() and not self._meta(sensor).exists() else []
+
+    def check(self, sensor, output, frame):
+        self.dataset.check(sensor, output, frame)
+
+    def existing(self, sensor, output, frame, settings=None):
+        return None
+
+    def hidden_record(self):
+        """What the sweep's description says of the road users hidden."""
+        from ...labels import label_name
+
+        return {"hidden_labels": sorted(label_name(i) for i in self.hidden.label_ids),
+                "hidden_objects": len(self.hidden.hidden)}
+
+    def finish(self, run):
+        """Nothing beyond the sweep's files (the dataset's description names them)."""
+
+    def abort(self):
+        """A sweep's files are complete or its description is missing (scanned again)."""
+
+    def flush(self):
+        """Files are written in place."""
+
+
 def ensure_dir(path):
     os.makedirs(path, exist_ok=True)
     return path

@@ -4,7 +4,11 @@
     <out>/<sensor>/labels/NNNNNN.txt     one box a line: x y z dx dy dz heading Class
     <out>/<sensor>/meta/NNNNNN.json      every box (seen or not) with visibility, poses
     <out>/<sensor>/ImageSets/train.txt, val.txt
-    <out>/<sensor>/dataset.json          classes, point features, frame, split
+    <out>/<sensor>/dataset.json          classes, point features, frame, split, the
+                                         background, the scene's class sizes
+    <out>/<sensor>/background/points/NNNNNN.npy, background/meta/NNNNNN.json
+                                         still sensors: sweep NNNNNN of the scene with
+                                         every road user hidden (``background_writer``)
 
 as ``pcdet/datasets/custom/custom_dataset.py`` reads it (``points/<id>.npy`` by
 ``np.load``, labels ``x y z dx dy dz heading_angle category_name``, classes
@@ -27,6 +31,7 @@ from ..io.atomic import atomic_write_bytes
 from ..io.behind import WritesBehind
 from ..io.paths import sanitize_name
 from .common import (
+    BackgroundSweepWriter,
     Split,
     check_root,
     ensure_dir,
@@ -72,6 +77,7 @@ class KittiWriter:
         self.split = split or Split()
         self.overwrite, self.resume = bool(overwrite), bool(resume)
         self.notices = []
+        self.class_types = None  # {class: [{size, objects}]}: the scene's road users
         self._behind = WritesBehind(background)
 
     def sensor_root(self, sensor):
@@ -138,17 +144,11 @@ class KittiWriter:
             return np.load(path, mmap_mode="r")
         return np.fromfile(path, np.float32).reshape(-1, 4)
 
-    def write(self, sensor, output, frame, points, info):
-        """Write a frame's points, labels and meta (meta last); with ``background``
-        behind the scan (``io.behind``). Returns the points' path."""
+    def _points(self, sensor, points, info):
+        """(float32 (N, 4) x y z intensity in the label frame, the label frame -> world)
+        of a scan's sensor-frame ``points``."""
         if info.get("frame_space") != "sensor":
             raise RLSError("the KITTI layout needs sensor-frame points")
-        self._behind.run(self._write, sensor, output, frame, points, info)
-        return self.path(sensor, output, frame)
-
-    def _write(self, sensor, output, frame, points, info):
-        root = self.sensor_root(sensor)
-        fid = frame_id(frame)
         start = np.asarray(info["sensor_pose_start"], np.float64)
         if self.level:
             frame_to_world = level_frame(start)
@@ -167,6 +167,30 @@ class KittiWriter:
         arr = np.empty((len(points), 4), np.float32)
         arr[:, :3] = xyz
         arr[:, 3] = points["intensity"] * self.scale
+        return arr, frame_to_world
+
+    def _write_points(self, path, arr, overwrite):
+        if self.points_format == "npy":
+            buf = io.BytesIO()
+            np.save(buf, arr)
+            data = buf.getvalue()
+        else:
+            data = arr.tobytes()
+        ensure_dir(path.parent)
+        atomic_write_bytes(path, data, overwrite=overwrite)
+
+    def write(self, sensor, output, frame, points, info):
+        """Write a frame's points, labels and meta (meta last); with ``background``
+        behind the scan (``io.behind``). Returns the points' path."""
+        if info.get("frame_space") != "sensor":
+            raise RLSError("the KITTI layout needs sensor-frame points")
+        self._behind.run(self._write, sensor, output, frame, points, info)
+        return self.path(sensor, output, frame)
+
+    def _write(self, sensor, output, frame, points, info):
+        root = self.sensor_root(sensor)
+        fid = frame_id(frame)
+        arr, frame_to_world = self._points(sensor, points, info)
         lines, boxes = [], []
         seam_notice(self.notices, sensor, info.get("objects", []))
         for b in info.get("objects", []):
@@ -176,15 +200,8 @@ class KittiWriter:
                 lines.append(" ".join(f"{v:.6f}" for v in box["xyz"] + box["lwh"]
                                       + [box["heading"]]) + f" {class_name(b['category'])}")
         ow = self.overwrite or self.resume
-        ensure_dir(root / "points")
         path = self.path(sensor, output, frame)
-        if self.points_format == "npy":
-            buf = io.BytesIO()
-            np.save(buf, arr)
-            data = buf.getvalue()
-        else:
-            data = arr.tobytes()
-        atomic_write_bytes(path, data, overwrite=ow)
+        self._write_points(path, arr, ow)
         write_text(root / "labels" / f"{fid}.txt", "".join(line + "\n" for line in lines), ow)
         # meta last: its presence marks a complete frame
         write_json(self._meta(sensor, frame), {
@@ -197,6 +214,15 @@ class KittiWriter:
             "sensor_poses": info.get("sensor_poses"), "device": info.get("device"),
             "settings": scan_settings(info, **self._layout())}, ow)
         return path
+
+    def background_writer(self, sweep, hidden):
+        """The writer of background sweep ``sweep`` (``scan.background_sweeps``) of each
+        sensor root: ``background/points/NNNNNN.npy`` and ``background/meta/NNNNNN.json``
+        (NNNNNN the sweep's number), the points as the frames' (same frame, format and
+        intensity scale), the meta as theirs without objects. ``hidden`` is the source
+        with the road users hidden (``scene.hidden.WithoutLabels``): the meta names the
+        labels it hid."""
+        return KittiBackground(self, sweep, hidden)
 
     def _box(self, b, frame_to_world):
         """A box (sidecar dict) in the label frame: centre, l w h, heading."""
@@ -241,7 +267,53 @@ class KittiWriter:
                 "frame": "level (gravity-aligned at the sensor)" if self.level
                 else "sensor (x forward, y left, z up)",
                 "min_points_per_label": self.min_points, "split": self.split.to_dict(),
-                "frames": len(ids), "val_frames": len(val)}, True)
+                "frames": len(ids), "val_frames": len(val),
+                "background": self._background_record(root),
+                "class_types": self.class_types}, True)
+
+    def _background_record(self, root):
+        """What dataset.json says of the sensor's background sweeps (None: none)."""
+        metas = sorted((root / "background" / "meta").glob("*.json")) \
+            if (root / "background" / "meta").is_dir() else []
+        if not metas:
+            return None
+        first = json.loads(metas[0].read_text())
+        return {"folder": "background", "sweeps": len(metas),
+                "scene_frame": first.get("scene_frame"),
+                "hidden_labels": first.get("hidden_labels"),
+                "what": "sweeps of the scene with every road user hidden (vehicles, "
+                        "pedestrians, cyclists, parked ones included), the device's noise "
+                        "in each: the background a deployed unit learns; points and meta "
+                        "as the frames'"}
+
+
+class KittiBackground(BackgroundSweepWriter):
+    """A ``run.Writer`` of one background sweep into the sensor roots of a
+    ``KittiWriter`` (see ``KittiWriter.background_writer``)."""
+
+    def _root(self, sensor):
+        return self.dataset.sensor_root(sensor) / "background"
+
+    def path(self, sensor, output, frame):
+        return self._root(sensor) / "points" / f"{frame_id(self.sweep)}.{self.dataset.points_format}"
+
+    def _meta(self, sensor):
+        return self._root(sensor) / "meta" / f"{frame_id(self.sweep)}.json"
+
+    def write(self, sensor, output, frame, points, info):
+        arr, frame_to_world = self.dataset._points(sensor, points, info)
+        path = self.path(sensor, output, frame)
+        self.dataset._write_points(path, arr, self.overwrite)
+        write_json(self._meta(sensor), {
+            "scene": self.dataset.scene_name, "sensor": sensor, "sweep": self.sweep,
+            "scene_frame": frame, "points": int(len(points)), **self.hidden_record(),
+            "frame_to_world": frame_to_world.tolist(),
+            "label_frame": "level" if self.dataset.level else "sensor",
+            "intensity_scale": self.dataset.scale, "objects": [],
+            "sensor_pose_start": info["sensor_pose_start"],
+            "sensor_poses": info.get("sensor_poses"), "device": info.get("device"),
+            "settings": scan_settings(info, **self.dataset._layout())}, self.overwrite)
+        return path
 
 
 def read_labels(path):
@@ -252,4 +324,4 @@ def read_labels(path):
     return np.array([[float(v) for v in r[:7]] for r in rows]), [r[7] for r in rows]
 
 
-__all__ = ["KittiWriter", "POINT_FORMATS", "class_name", "read_labels"]
+__all__ = ["KittiBackground", "KittiWriter", "POINT_FORMATS", "class_name", "read_labels"]

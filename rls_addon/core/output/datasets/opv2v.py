@@ -3,6 +3,9 @@
 
     <out>/<scenario>/<agent id>/NNNNNN.pcd    the agent LiDAR's points
     <out>/<scenario>/<agent id>/NNNNNN.yaml   its pose and the vehicles around it
+    <out>/<scenario>/<agent id>/background/NNNNNN.pcd, .yaml
+                                              a still agent's background sweep NNNNNN:
+                                              the scene with every road user hidden
 
 OpenCOOD (``opencood/data_utils/datasets/basedataset.py``) lists the agent folders of
 a scenario sorted, takes agents with negative ids (road-side units) as never ego, and
@@ -36,6 +39,7 @@ from ..io import pcd
 from ..io.atomic import atomic_write_bytes
 from ..io.paths import sanitize_name
 from .common import (
+    BackgroundSweepWriter,
     check_root,
     ensure_dir,
     frame_id,
@@ -99,6 +103,7 @@ class Opv2vWriter:
         self.overwrite, self.resume = bool(overwrite), bool(resume)
         self._pending = {}  # frame -> {sensor: yaml body without the other agents}
         self.notices = []
+        self.class_types = None  # {class: [{size, objects}]}: the scene's road users
 
     def _dir(self, sensor):
         return self.scenario / str(self.agents[sensor])
@@ -188,6 +193,11 @@ class Opv2vWriter:
         self._flush(frame, written={sensor})
         return path
 
+    def background_writer(self, sweep, hidden):
+        """The writer of background sweep ``sweep`` of every still agent
+        (``Opv2vBackground``); ``hidden`` the source with the road users hidden."""
+        return Opv2vBackground(self, sweep, hidden)
+
     def _flush(self, frame, written):
         """Write the frame's YAML files once every agent of it is known (scanned now or
         kept from an earlier run): each lists all agents' LiDAR poses."""
@@ -211,15 +221,60 @@ class Opv2vWriter:
     def flush(self):
         """Files are written in place: nothing to wait for."""
 
+    def _background_record(self):
+        """{agent id: background sweeps} of the agents that have them (None: none)."""
+        got = {str(a): len(list((self.scenario / str(a) / "background").glob("*.yaml")))
+               for a in self.agents.values()}
+        got = {a: n for a, n in got.items() if n}
+        return {"folder": "<agent>/background", "sweeps": got,
+                "what": "sweeps of the scene with every road user hidden, the device's "
+                        "noise in each: the background a deployed unit learns"} if got else None
+
     def finish(self, run):
         """A description of the scenario beside its agent folders."""
         write_text(self.root / f"{sanitize_name(self.scene_name)}.rls.json", json.dumps({
             "layout": "OPV2V (OpenCOOD)", "scene": self.scene_name,
             "agents": {s: a for s, a in sorted(self.agents.items())},
             "carriers": self.carriers, "frames": list(run.frames),
+            "background": self._background_record(), "class_types": self.class_types,
             "coordinates": "CARLA left-handed (Blender y mirrored); poses [x, y, z, roll, "
                            "yaw, pitch] in m and deg; vehicle speed km/h"}, indent=1) + "\n",
             True)
+
+
+class Opv2vBackground(BackgroundSweepWriter):
+    """A ``run.Writer`` of one background sweep (``scan.background_sweeps``) into each
+    agent's folder: ``background/NNNNNN.pcd`` (the points as the frames') and
+    ``background/NNNNNN.yaml`` (``lidar_pose`` and under ``rls`` the sweep, the scene
+    frame scanned and the labels hidden). OpenCOOD lists the ``.yaml`` files of an
+    agent's folder and the agent folders of a scenario: a folder inside an agent's is
+    neither."""
+
+    def _dir(self, sensor):
+        return self.dataset._dir(sensor) / "background"
+
+    def path(self, sensor, output, frame):
+        return self._dir(sensor) / f"{frame_id(self.sweep)}.pcd"
+
+    def _meta(self, sensor):
+        return self._dir(sensor) / f"{frame_id(self.sweep)}.yaml"
+
+    def write(self, sensor, output, frame, points, info):
+        if info.get("frame_space") != "sensor":
+            raise RLSError("the OPV2V layout needs sensor-frame points")
+        path = self.path(sensor, output, frame)
+        atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"),
+                           overwrite=self.overwrite)
+        body = {"lidar_pose": carla_pose(np.asarray(info["sensor_pose_start"], np.float64)),
+                "rls": {"scene": self.dataset.scene_name, "sensor": sensor,
+                        "agent": self.dataset.agents[sensor], "sweep": self.sweep,
+                        "scene_frame": frame, "points": int(len(points)),
+                        **self.hidden_record(),
+                        "device": info.get("device", {}).get("id"),
+                        "settings": scan_settings(info)}}
+        write_text(self._meta(sensor), _yaml_module().safe_dump(body, sort_keys=False),
+                   self.overwrite)
+        return path
 
 
 def agents_for(sensors, carriers):

@@ -149,9 +149,13 @@ def _temporary(path, data):
     return tmp
 
 
-def _place(tmp, path, overwrite):
+def place(tmp, path, overwrite):
     """The complete temporary ``tmp`` takes its name ``path`` (without ``overwrite``,
-    never over a file that appeared meanwhile)."""
+    never over a file that appeared meanwhile); ``OutputError`` otherwise."""
+    _place(tmp, pathlib.Path(path), overwrite)
+
+
+def _place(tmp, path, overwrite):
     try:
         if overwrite:
             os.replace(tmp, path)

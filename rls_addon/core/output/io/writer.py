@@ -104,6 +104,13 @@ class CloudWriter:
             return None
         return n if info.get("points") == n else None
 
+    def kept_labels(self, sensor, output, frame):
+        """The ``labels`` of the sidecar of an output ``existing`` kept (its objects, for
+        the run's instance table: a run that kept every frame, after a stop that came
+        between the last write and the table, wrote an empty one)."""
+        labels = read_sidecar(self.path(sensor, output, frame)).get("labels", {})
+        return labels if isinstance(labels, dict) else {}
+
     def stale_settings(self, sensor, output, frame, settings):
         """The names of the settings an earlier output of (sensor, frame) was written
         with otherwise than ``settings`` say (empty: the same, or no such output)."""

@@ -52,7 +52,7 @@ insect on the window, or a false return from fog high above the road is not.
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 DEFAULT_AZIMUTH_RES_DEG = 0.2
 DEFAULT_ELEVATION_RES_DEG = 0.1
