@@ -331,3 +331,14 @@ def test_every_objects_steps_at_once_equal_each_objects_own():
         assert close == ref_close and np.array_equal(m, ref)
     assert [len(m) for m, _ in together][:3] == [2, instancing.MAX_STEPS, 1]
 
+
+
+def test_the_steps_check_a_box_at_its_eight_corners_in_meshgrids_order():
+    """The corners the steps are checked at (picked from a body's least and greatest
+    coordinates, ``_CORNER_BITS``) are the box's eight corners as np.meshgrid lays
+    them out, bit for bit."""
+    rng = np.random.default_rng(4)
+    v = rng.normal(size=(50, 3)) * [4.0, 1.0, 0.7]
+    lo, hi = v.min(0), v.max(0)
+    grid = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(-1, 3)
+    assert np.array_equal(np.where(instancing._CORNER_BITS, hi, lo), grid)

@@ -234,7 +234,11 @@ class Track:
 
     @property
     def is_static(self):
-        return bool(np.all(self.matrices == self.matrices[0]))
+        """Every knot's matrix the first's (asked for every track a few times a frame:
+        worked out once, as ``is_rigid``; a track's knots are not changed once made)."""
+        if getattr(self, "_static", None) is None:
+            self._static = bool(np.all(self.matrices == self.matrices[0]))
+        return self._static
 
     def at(self, t):
         """(N, 4, 4) matrices at times t (clamped to the sampled span)."""

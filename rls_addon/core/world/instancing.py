@@ -28,6 +28,9 @@ from ..scene.track_set import TrackSet
 
 STEP_TOLERANCE_M = 1e-5  # steps: linear interpolation within 10 um of the track
 MAX_STEPS = 129          # Embree's limit (RTC_MAX_TIME_STEP_COUNT)
+# a box's eight corners: which of (min, max) each coordinate takes, in the order of
+# np.meshgrid(*zip(min, max), indexing="ij")
+_CORNER_BITS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], bool)
 
 
 class InstancedWorld:
@@ -128,8 +131,9 @@ class InstancedWorld:
 
     def _steps_many(self, objects, each=False):
         """``_steps`` of every object of [(track, centre, local vertices)], the tracks
-        of a round evaluated together (``TrackSet``; ``each``: track by track, the
-        reference): the same matrices, byte for byte, for a fraction of the cost."""
+        of a round evaluated together (``TrackSet``) and the objects with as many
+        steps checked as one array (``each``: track by track, the reference): the same
+        matrices, byte for byte, for a fraction of the cost."""
         out = [None] * len(objects)
         tracks = TrackSet([tr for tr, _, _ in objects]) if objects and not each else None
         steps, corners, shifts = {}, {}, {}
@@ -141,38 +145,68 @@ class InstancedWorld:
                 m[:3, 3] -= self.centre
                 out[j] = (m[None], True)
                 continue
-            lo, hi = local_vertices.min(0), local_vertices.max(0)
-            corners[j] = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(-1, 3)
+            # its bounding box's corners, in meshgrid's "ij" order
+            corners[j] = np.where(_CORNER_BITS, local_vertices.max(0), local_vertices.min(0))
             steps[j] = 2 if len(track.times) == 2 else min(4 * (len(track.times) - 1) + 1,
                                                             MAX_STEPS)
         while steps:
-            times = {j: np.linspace(self.t0, self.t1, n) for j, n in steps.items()}
-            rows = {j: (t, (t[1:] + t[:-1]) / 2) for j, t in times.items()}
-            if each:
-                at = {j: (objects[j][0].at(t), objects[j][0].at(mid))
-                      for j, (t, mid) in rows.items()}
-            else:
-                which = np.concatenate([np.full(len(t) + len(mid), j)
-                                        for j, (t, mid) in rows.items()])
-                got = tracks.at(which, np.concatenate([np.r_[t, mid]
-                                                       for t, mid in rows.values()]))
-                at, first = {}, 0
-                for j, (t, mid) in rows.items():
-                    at[j] = (got[first:first + len(t)], got[first + len(t):first + 2 * len(t) - 1])
-                    first += 2 * len(t) - 1
-            for j in list(steps):
-                m, mid = at[j][0] @ shifts[j], at[j][1] @ shifts[j]
-                lerp = (m[1:] + m[:-1]) / 2
-                dev = np.einsum("kij,cj->kci", (mid - lerp)[:, :3, :3], corners[j]) \
-                    + (mid - lerp)[:, None, :3, 3]
-                close = np.linalg.norm(dev, axis=2).max() <= STEP_TOLERANCE_M
-                if close or steps[j] >= MAX_STEPS:
-                    m[:, :3, 3] -= self.centre
-                    out[j] = (m, bool(close))
-                    del steps[j]
-                else:
-                    steps[j] = min(2 * steps[j] - 1, MAX_STEPS)
+            if each:  # the reference: object by object, track by track
+                for j in list(steps):
+                    t = np.linspace(self.t0, self.t1, steps[j])
+                    track = objects[j][0]
+                    m, mid = track.at(t) @ shifts[j], track.at((t[1:] + t[:-1]) / 2) @ shifts[j]
+                    lerp = (m[1:] + m[:-1]) / 2
+                    dev = np.einsum("kij,cj->kci", (mid - lerp)[:, :3, :3], corners[j]) \
+                        + (mid - lerp)[:, None, :3, 3]
+                    close = np.linalg.norm(dev, axis=2).max() <= STEP_TOLERANCE_M
+                    if close or steps[j] >= MAX_STEPS:
+                        m[:, :3, 3] -= self.centre
+                        out[j] = (m, bool(close))
+                        del steps[j]
+                    else:
+                        steps[j] = min(2 * steps[j] - 1, MAX_STEPS)
+                continue
+            # the objects of each step count at once: times, tracks, matrices, checks
+            groups = {}
+            for j, n in steps.items():
+                groups.setdefault(n, []).append(j)
+            which, when = [], []
+            for n, js in groups.items():
+                t = np.linspace(self.t0, self.t1, n)
+                rows = np.r_[t, (t[1:] + t[:-1]) / 2]
+                which.append(np.repeat(js, len(rows)))
+                when.append(np.tile(rows, len(js)))
+            got = tracks.at(np.concatenate(which), np.concatenate(when))
+            first = 0
+            for n, js in groups.items():
+                block = got[first:first + len(js) * (2 * n - 1)].reshape(len(js), 2 * n - 1,
+                                                                         4, 4)
+                first += len(js) * (2 * n - 1)
+                shift = np.stack([shifts[j] for j in js])[:, None]
+                self._round(steps, out, js, block[:, :n] @ shift, block[:, n:] @ shift,
+                            np.stack([corners[j] for j in js]))
         return out
+
+    def _round(self, steps, out, js, m, mid, corners):
+        """One round of ``_steps_many`` for the objects ``js`` of one step count: their
+        matrices at the steps ``m`` (J, S, 4, 4) and at the steps' middles ``mid``
+        (J, S - 1, 4, 4), their bounding boxes' ``corners`` (J, 8, 3). An object whose
+        linear interpolation stays within the tolerance (or that has Embree's most
+        steps) is done, the others double their steps."""
+        lerp = (m[:, 1:] + m[:, :-1]) / 2
+        gap = mid - lerp
+        # (J, S - 1, 3, 8): each corner's deviation, the rotation part as a product
+        dev = gap[:, :, :3, :3] @ np.swapaxes(corners, 1, 2)[:, None] + gap[:, :, :3, 3:]
+        worst = np.sqrt((dev * dev).sum(axis=2)).reshape(len(js), -1).max(axis=1)
+        for q, j in enumerate(js):
+            close = worst[q] <= STEP_TOLERANCE_M
+            if close or steps[j] >= MAX_STEPS:
+                got = m[q].copy()
+                got[:, :3, 3] -= self.centre
+                out[j] = (got, bool(close))
+                del steps[j]
+            else:
+                steps[j] = min(2 * steps[j] - 1, MAX_STEPS)
 
     def start(self, origins, directions, times, max_range, order=None, watertight=True):
         """Start the cast; returns a function giving (dist, body, tri, normals) as
