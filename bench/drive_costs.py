@@ -124,7 +124,7 @@ args = build_parser().parse_args(argv)
 args.prepare_blender = rls_addon.ensure_registered
 if command == "dataset":
     from rls_addon.commands.dataset import dataset_run
-    run, writer = dataset_run(args)
+    run, writer, _ = dataset_run(args)  # (the background sweeps: none for a moving LiDAR)
 else:
     from rls_addon.commands.scan import scan_run
     run = scan_run(args)
