@@ -462,7 +462,7 @@ def _others_lines(costs):
 
         L.extend(frame_costs.report_lines(costs["frame_costs"]))
     # each module's own section, in the report's order (the key is the module's name)
-    for name in ("effect_costs", "study_costs", "evaluate_costs", "long_runs",
+    for name in ("drive_costs", "effect_costs", "study_costs", "evaluate_costs", "long_runs",
                  "traffic_costs", "live_costs", "scale_out"):
         if costs.get(name):
             L.extend(importlib.import_module(f"bench.{name}").section(costs[name]))

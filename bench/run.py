@@ -706,6 +706,11 @@ def measure(quick):
     from bench import frame_costs
 
     costs["frame_costs"] = frame_costs.measure(street=g, quick=quick)
+    log("bench: moving sensors against their casts, the traffic drive with boxes and the "
+        "open sky (bench/drive_costs.py)")
+    from bench import drive_costs
+
+    costs["drive_costs"] = drive_costs.measure(quick=quick)
     log("bench: beam footprints and fog against the clear frame (bench/effect_costs.py)")
     from bench import effect_costs
 

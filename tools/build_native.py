@@ -45,10 +45,12 @@ NATIVE = ROOT / "rls_addon" / "core" / "native" / "c"
 # footprint's depth-edge test and its probe sectors (edges.c) and probe sub-rays
 # (probes.c), the weather's false returns (weather.c), a study candidate's disk counts
 # (disks.c), the ghost bounces' set-up and landing (ghosts.c), a static cast's returns
-# (returns.c) and a footprint's echoes (echoes.c).
+# (returns.c), a footprint's echoes (echoes.c), the ground-truth boxes' counts
+# (boxes.c) and a moving sensor's ray origins (tracks.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
-           NATIVE / "ghosts.c", NATIVE / "returns.c", NATIVE / "echoes.c"]
+           NATIVE / "ghosts.c", NATIVE / "returns.c", NATIVE / "echoes.c",
+           NATIVE / "boxes.c", NATIVE / "tracks.c"]
 HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h", NATIVE / "rls_sectors.h"]
 BUILD = ROOT / "build" / "native"
 # The newest glibc a Linux loop may need: Blender 4.2's (its minimum, and the Zig target's).
@@ -74,7 +76,9 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_disk_counts", "rls_disks_abi",
            "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",
            "rls_static_returns", "rls_returns_abi",
-           "rls_echo_group", "rls_echo_choose", "rls_echoes_abi")
+           "rls_echo_group", "rls_echo_choose", "rls_echoes_abi",
+           "rls_box_counts", "rls_boxes_abi",
+           "rls_track_positions", "rls_tracks_abi")
 
 
 def _cstr(data, off):

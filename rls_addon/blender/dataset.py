@@ -33,13 +33,14 @@ def scene_class_types(scene):
 
 
 def dataset_run(scene, settings, progress=None, cancelled=None, edited=True,
-                sweep_progress=None):
+                sweep_progress=None, write_behind=False):
     """(``ScanRun``, its writer, (background sweep runs, the scene without road users,
     notices)) exporting ``scene`` as ``settings``
     (``core.output.datasets.settings.DatasetSettings``) say; nothing is scanned yet, and
     the background sweeps (``core.scan.background_sweeps``) run first
     (``background_sweeps.run_all``). ``edited=False`` for a background Blender nobody
-    edits (the command line)."""
+    edits (the command line); ``write_behind``: the frames' files written on a thread
+    behind the scan (``core.output.io.behind``; the command line)."""
     sensors = [find_lidar(scene, n) for n in settings.sensors] or lidar_objects(scene)
     if not sensors:
         raise SceneError(f"scene '{scene.name}' has no LiDAR objects (add one with Add > "
@@ -49,7 +50,8 @@ def dataset_run(scene, settings, progress=None, cancelled=None, edited=True,
     jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
     carriers = ({o.name: carrier_of(o, set(classes)) for o in sensors}
                 if settings.layout == "opv2v" else {})
-    writer = settings.writer(scene.name, [o.name for o in sensors], carriers)
+    writer = settings.writer(scene.name, [o.name for o in sensors], carriers,
+                             background=write_behind)
     writer.class_types = scene_class_types(scene)
     source = BlenderScene(scene, edited=edited)
     # the background sweeps' runs are made first: their files are checked too before

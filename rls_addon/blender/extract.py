@@ -73,15 +73,21 @@ class MeshReader:
 
     KEEP_SCANS = 64  # an object not read in this many scans (sensors x frames) is dropped
 
-    def __init__(self):
+    def __init__(self, fixed=None):
         self._known = {}  # key -> (id, check arrays, (vertices, triangles, materials), scan)
         self._ids = itertools.count(1)
         self._scans = 0
         self.reads = 0  # meshes read in full (not reused)
+        # fixed(original object): its evaluated mesh cannot change while the file is
+        # not edited (then a mesh read once is given back without evaluating it again)
+        self.fixed = fixed
 
     def read(self, obj_eval, key):
         """(vertices, triangles, material index, id) of the evaluated object ``key``."""
         known = self._known.get(key)
+        if known is not None and self.fixed is not None and self.fixed(obj_eval.original):
+            self._known[key] = known[:3] + (self._scans,)
+            return known[2] + (known[0],)
         mesh, check = _read(obj_eval, known[1] if known else None)
         if mesh is None:  # unchanged since that read
             entry = known[:3]

@@ -67,6 +67,18 @@ def _data_blocks(data, skip):
             yield from getattr(data, prop.identifier)
 
 
+def mesh_is_fixed(obj):
+    """True when ``obj``'s evaluated mesh cannot change over time or with other
+    objects while nobody edits the file: a mesh object without modifiers or shape keys,
+    whose mesh is neither animated nor driven, parented (if at all) to an object or a
+    bone, which move it but do not deform it (an armature, lattice or vertex parent
+    may). What a background Blender may read once (``extract.MeshReader``)."""
+    data = getattr(obj, "data", None)
+    return (obj.type == "MESH" and data is not None and not len(obj.modifiers)
+            and getattr(data, "shape_keys", None) is None and not _animated(data)
+            and (obj.parent is None or obj.parent_type in {"OBJECT", "BONE"}))
+
+
 def may_deform(obj):
     keys = getattr(getattr(obj, "data", None), "shape_keys", None)
     return bool(len(obj.modifiers) or (keys is not None and len(keys.key_blocks) > 1)

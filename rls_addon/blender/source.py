@@ -7,7 +7,7 @@ import numpy as np
 
 from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh
-from .motion import SweepClock, may_deform, may_move, read_state, timeless
+from .motion import SweepClock, may_deform, may_move, mesh_is_fixed, read_state, timeless
 
 
 def traffic_span(scene):
@@ -65,7 +65,8 @@ class BlenderScene:
         self.name = scene.name
         self.fps = scene.render.fps / scene.render.fps_base
         self.frame_start = scene.frame_start
-        self.meshes = MeshReader()
+        # an unedited file's meshes that cannot change are read once (mesh_is_fixed)
+        self.meshes = MeshReader(fixed=None if edited else mesh_is_fixed)
         self.edited = edited
         self._kept_read = None  # (key, SceneRead) of the last read, when it may be kept
         self._timeless = {}     # exclude -> motion.timeless, for an unedited file

@@ -96,8 +96,11 @@ def dataset_run(args):
     if args.background_sweeps < 0:
         raise SceneError(f"--background-sweeps must be 0 or more, got {args.background_sweeps}")
     scene = open_scene(args.blend, args.prepare_blender)
+    # a background Blender nobody edits (as rls scan's source); the frames' files written
+    # behind the scan (as rls scan's clouds)
     return blender_dataset_run(scene, dataset_settings(args, scene.frame_current),
-                               progress=_print_step, sweep_progress=_print_sweep)
+                               progress=_print_step, sweep_progress=_print_sweep,
+                               edited=False, write_behind=True)
 
 
 def _print_sweep(step):

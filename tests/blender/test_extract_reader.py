@@ -225,3 +225,61 @@ def test_an_unedited_file_is_read_once_while_nothing_but_the_lidar_moves(scene):
     wall.data.materials[0].animation_data_clear()
     wall.modifiers.new("Build", "BUILD")
     assert not timeless(bpy.data)
+
+
+def test_an_unedited_files_fixed_meshes_are_not_evaluated_again(scene, monkeypatch):
+    """The command line's source (``edited=False``) gives back a mesh it read before
+    without evaluating it again where it cannot change (``mesh_is_fixed``): a plain
+    mesh moving by its object's animation; a mesh with a modifier, shape keys, an
+    animated mesh or a lattice parent is evaluated each frame, and what it reads is
+    what Blender evaluates at that frame."""
+    import bpy
+
+    from rls_addon.blender.extract import read_instances
+    from rls_addon.blender.motion import mesh_is_fixed
+    from rls_addon.blender.source import BlenderScene
+
+    def quad(name, z):
+        return mesh_object(name, [(0, 0, z), (1, 0, z), (1, 1, z), (0, 1, z)], [(0, 1, 2, 3)])
+
+    mover = quad("Mover", 0.0)
+    mover.keyframe_insert("location", frame=1)
+    mover.location.x = 3.0
+    mover.keyframe_insert("location", frame=3)
+    keyed = quad("Keyed", 1.0)
+    keyed.shape_key_add(name="Basis")
+    up = keyed.shape_key_add(name="Up")
+    for v in up.data:
+        v.co.z += 2.0
+    up.value = 0.0
+    up.keyframe_insert("value", frame=1)
+    up.value = 1.0
+    up.keyframe_insert("value", frame=3)
+    waved = quad("Waved", 2.0)
+    waved.modifiers.new("Wave", "WAVE")
+    lattice = bpy.data.objects.new("Lattice", bpy.data.lattices.new("Lattice"))
+    scene.collection.objects.link(lattice)
+    bent = quad("Bent", 3.0)
+    bent.parent, bent.parent_type = lattice, "LATTICE"
+    assert mesh_is_fixed(mover)
+    assert not any(mesh_is_fixed(o) for o in (keyed, waved, bent))
+    from rls_addon.blender import extract
+
+    evaluated, real, reading = [], extract._read, [False]
+    monkeypatch.setattr(extract, "_read", lambda ob, known=None: (
+        reading[0] and evaluated.append((frame, ob.original.name)), real(ob, known))[1])
+    source = BlenderScene(scene, edited=False)
+    for frame in (1, 2, 3):
+        scene.frame_set(frame)
+        reading[0] = True
+        got = {i.key: i for i in source.read(np.zeros(3), 1e6, set()).instances}
+        reading[0] = False
+        dg = bpy.context.evaluated_depsgraph_get()
+        want = {i.key: i for i in read_instances(dg)[0]}
+        for key in ("Mover", "Keyed", "Waved", "Bent"):
+            assert np.array_equal(got[key].vertices, want[key].vertices), (key, frame)
+            assert np.array_equal(got[key].matrix, want[key].matrix), (key, frame)
+    assert got["Keyed"].vertices[:, 2].max() == pytest.approx(3.0)  # the shape key moved it
+    # after the first frame only the meshes that may change were evaluated again
+    assert {n for f, n in evaluated if f > 1} == {"Keyed", "Waved", "Bent"}
+    assert ("Mover", 1) in {(n, f) for f, n in evaluated}

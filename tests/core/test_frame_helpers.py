@@ -77,3 +77,22 @@ def test_false_returns_from_the_air_do_not_count_as_hits_on_the_object():
     real = len(res.points) - res.stats["weather_returns"]
     assert res.stats["weather_returns"] > 2 * real > 200
     assert any(f"100% of its {real} hits" in w for w in res.warnings)
+
+
+def test_a_driving_sensors_poses_are_its_positions_at_its_distinct_times():
+    """A driving sensor's rays carry their origins (its position at each ray's time);
+    the distinct poses, made only when asked for, are its positions at the distinct
+    firing times in time order, as before, in firing order or not."""
+    from rls_addon.core.scan.aim import _DistinctPoses, distinct_times, first_of_each
+    from rls_addon.core.scene.motion import Track
+
+    times = np.linspace(0.0, 0.1, 5)
+    mats = np.repeat(np.eye(4)[None], 5, axis=0)
+    mats[:, 0, 3] = 3.0 + 12.0 * times + 20 * times ** 2
+    track = Track(times, mats)
+    rng = np.random.default_rng(2)
+    for t in (np.repeat(np.linspace(0.0, 0.1, 300), 4), rng.choice(np.linspace(0, 0.1, 50), 900)):
+        distinct, at = distinct_times(t)
+        assert np.array_equal(t[first_of_each(t)], distinct)
+        got = _DistinctPoses(track.positions_at(t), t)()
+        assert np.array_equal(got, track.positions_at(distinct))

@@ -313,3 +313,32 @@ def test_a_body_whose_track_needs_more_than_embrees_steps_scans_as_the_portable_
     assert jumped.sum() > 50
     assert np.array_equal(a["range"][ia][jumped], b["range"][ib][jumped])
     assert np.array_equal(a["x"][ia][jumped], b["x"][ib][jumped])
+
+
+def test_every_objects_steps_at_once_equal_each_objects_own():
+    """The steps of a sweep's objects worked out together (their tracks evaluated in
+    one go, round by round) are each object's own, byte for byte: driving, turning,
+    accelerating, jumping (beyond Embree's steps), two-knot and parked tracks."""
+    g, rb = bodies(street(), Embree)
+    iw = World(PreparedScene(g, np.zeros(3), 100.0, Embree), [rb]).instanced
+    times = np.linspace(0.0, T, 9)
+    braking = Track(times, [pose(4 + 12 * t - 30 * t * t, 3, -0.8, 50 * t * t) for t in times])
+    tracks = [*rb.tracks, realistic_turn(), jumping_track(), braking]
+    objects = [(tr, rb.centres[k % 3], rb.local[k % 3][0]) for k, tr in enumerate(tracks)]
+    together = iw._steps_many(objects)
+    for obj, (m, close) in zip(objects, together):
+        ref, ref_close = iw._steps(*obj)
+        assert close == ref_close and np.array_equal(m, ref)
+    assert [len(m) for m, _ in together][:3] == [2, instancing.MAX_STEPS, 1]
+
+
+
+def test_the_steps_check_a_box_at_its_eight_corners_in_meshgrids_order():
+    """The corners the steps are checked at (picked from a body's least and greatest
+    coordinates, ``_CORNER_BITS``) are the box's eight corners as np.meshgrid lays
+    them out, bit for bit."""
+    rng = np.random.default_rng(4)
+    v = rng.normal(size=(50, 3)) * [4.0, 1.0, 0.7]
+    lo, hi = v.min(0), v.max(0)
+    grid = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(-1, 3)
+    assert np.array_equal(np.where(instancing._CORNER_BITS, hi, lo), grid)

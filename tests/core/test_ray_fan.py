@@ -1,13 +1,16 @@
-"""Ground truth looks only at the rays and points toward each box (``RayFan``): the same
-visibility, points in the box and reference time as looking at all of them, for still
-and moving sensors, boxes near and far, above, below and around the azimuth seam."""
+"""Ground truth looks only at the rays and points toward each box (the per-box
+reference's ``RayFan``, and ``RayCells``, the rays grouped by direction cell that every
+box of a frame shares): the same visibility, points in the box and reference time as
+looking at all of them, for still and moving sensors, boxes near and far, above, below
+and around the azimuth seam."""
 
 import math
 
 import numpy as np
 import pytest
 
-from rls_addon.core.output.ground_truth import RayFan, _facing, _inside, _visibility
+from rls_addon.core.output.box_reference import RayFan, _facing, _inside, _visibility
+from rls_addon.core.output.ray_cells import RayCells
 from rls_addon.core.scan.frame import RayRecord
 
 
@@ -30,6 +33,7 @@ def test_a_fan_gives_what_all_rays_give(moving):
     rays = spinning_rays(rng, moving=moving)
     world = rays.point_world(rays.dist[rays.point_ray])
     fan = RayFan(rays, world)
+    cells = RayCells(rays)
     checked = 0
     for _ in range(300):
         centre = rng.uniform([-40, -40, -3], [40, 40, 12])
@@ -44,11 +48,30 @@ def test_a_fan_gives_what_all_rays_give(moving):
         assert _visibility(rays, 2, pose, size, 120.0, fan) == \
             _visibility(rays, 2, pose, size, 120.0)
         near = fan.points_near(centre, float(np.linalg.norm(size / 2 + 0.05)))
-        assert np.count_nonzero(_inside(world[near], pose, size, 0.05)) == \
-            np.count_nonzero(_inside(world, pose, size, 0.05))
+        inside = np.count_nonzero(_inside(world, pose, size, 0.05))
+        assert np.count_nonzero(_inside(world[near], pose, size, 0.05)) == inside
+        # the cells: every ray that crosses the box, and every point in it, is a candidate
+        radius = float(np.linalg.norm(size / 2 + 0.05))
+        _, cand = cells.pairs(cells.segments([centre], [radius]))
+        assert len(np.unique(cand)) == len(cand)  # each ray once
+        assert _visibility(rays, 2, pose, size, 120.0, _Only(fan, cand)) == \
+            _visibility(rays, 2, pose, size, 120.0)
+        mine = np.zeros(len(rays.dirs), bool)
+        mine[cand] = True
+        assert np.count_nonzero(_inside(world[mine[rays.point_ray]], pose, size, 0.05)) == inside
         best = fan.facing(centre)
         if best is not None:
             everything, _ = _facing(rays, centre, slice(None))
             assert best == everything
             checked += 1
     assert checked > 200  # the cones settled most of them
+
+
+class _Only:
+    """A ``RayFan`` stand-in that offers the given rays for every cone."""
+
+    def __init__(self, fan, rays):
+        self.rays, self._idx = fan.rays, np.sort(rays)
+
+    def rays_near(self, centre, radius):
+        return self._idx

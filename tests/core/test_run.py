@@ -341,6 +341,20 @@ def test_the_disk_budget_waits_for_files_written_behind_the_scan(tmp_path, monke
         assert (tmp_path / name.replace(".pcd", ".json")).is_file()
 
 
+def test_moving_bodies_are_built_once_while_their_meshes_are_the_same(monkeypatch):
+    """A car driving past a still sensor: its body (its triangles in its own frame) is
+    built for the first frame and kept, with each frame's track, while the scene reads
+    the same mesh (its id); its geometry is not digested for that."""
+    from rls_addon.core.scene import geometry
+
+    digests = []
+    real = geometry.SceneGeometry.fingerprint
+    monkeypatch.setattr(geometry.SceneGeometry, "fingerprint",
+                        lambda self: digests.append(1) or real(self))
+    run = run_of(street(car_speed=12.0), [job("pole")], [1, 2, 3, 4]).run()
+    assert run.structure_builds == 2 and not digests  # the static scene and the car
+
+
 def test_a_steps_wall_time_and_its_parts(tmp_path):
     """The progress line once gave only the scan's own seconds (0.06 s of a 0.28 s
     frame): a step also says its wall time and what it went on. A frame change made to

@@ -50,3 +50,44 @@ def test_a_failed_write_is_raised_later_and_stops_the_rest(monkeypatch):
     assert not writer._pending  # nothing left running behind the error
     assert ran[:3] == [0, 1, 2] and len(ran) <= 3 + WRITES_BEHIND
     assert wmod.WRITES_BEHIND >= 2
+
+
+def test_a_kitti_dataset_written_behind_the_scan_is_the_one_written_in_place(tmp_path,
+                                                                             monkeypatch):
+    """``rls dataset --layout kitti`` writes each frame behind the scan: the same files,
+    byte for byte, as writing in place; the meta (a frame's last file) of every frame
+    there once the writer is flushed; a failed frame raised at a later write."""
+    import hashlib
+
+    import numpy as np
+
+    from rls_addon.core.output.datasets.kitti import KittiWriter
+    from tests.core.evaluate.builders import info, object_boxes, points
+
+    pose = np.eye(4)
+    pose[2, 3] = 2.0
+    digests = []
+    for background in (False, True):
+        root = tmp_path / str(background)
+        writer = KittiWriter(root, "scene", background=background)
+        for f in range(1, 9):
+            writer.write("lidar", None, f, points(), info(pose, object_boxes(pose, (f, 0.0, 0.0))))
+        writer.flush()
+        assert len(list((root / "lidar" / "meta").glob("*.json"))) == 8
+        digests.append({p.relative_to(root): hashlib.sha256(p.read_bytes()).hexdigest()
+                        for p in sorted(root.rglob("*")) if p.is_file()})
+    assert digests[0] == digests[1] and len(digests[0]) == 24
+    writer = KittiWriter(tmp_path / "failing", "scene", background=True)
+    real = writer._write
+
+    def failing(sensor, output, frame, pts, inf):
+        if frame == 2:
+            raise OutputError("disk full while writing 000002.npy")
+        return real(sensor, output, frame, pts, inf)
+
+    monkeypatch.setattr(writer, "_write", failing)
+    with pytest.raises(OutputError, match="000002"):
+        for f in range(1, 20):
+            writer.write("lidar", None, f, points(), info(pose, object_boxes(pose, (f, 0, 0))))
+        writer.flush()
+    assert not writer._behind.pending

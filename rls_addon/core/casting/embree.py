@@ -278,13 +278,16 @@ class EmbreeInstances:
             return False
         return _instancing_works()
 
-    def start(self, origins, directions, max_dist, times=None, order=None):
+    def start(self, origins, directions, max_dist, times=None, order=None, recheck=None):
         """Start the cast: a function giving (dist, tri, normals, instance) per ray
         (instance and tri -1, dist inf for a miss; normals zero where an instance has
-        no planes). ``times``: per ray in [0, 1] (None: 0)."""
+        no planes). ``times``: per ray in [0, 1] (None: 0). ``recheck``: (a ``Recheck``
+        of the static scene, instance 0, what must outlive it) to re-check the rays
+        that do not hit it in the loop's threads (``WatertightCaster.native_recheck``)."""
+        rc, keep = recheck if recheck is not None else (None, None)
         got = _launch(self._scene, 0, origins, directions, max_dist, None, order,
                       times=times, instances=self._tables[:3], threads=self.threads,
-                      keep=self)
+                      keep=(self, keep), recheck=rc)
         if got is None:
             raise CastingError("the compiled Embree loop could not start")
         return got

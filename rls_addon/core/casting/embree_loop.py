@@ -19,7 +19,7 @@ _NATIVE_ERROR = ""
 
 
 # The interface version the loop must report (RLS_EMBREE_ABI in native/c/embree_loop.c).
-NATIVE_ABI = 3
+NATIVE_ABI = 4
 
 
 def load_native(path):
@@ -73,14 +73,17 @@ def native_loop_error():
 
 class Recheck(ctypes.Structure):
     """``recheck_t`` of native/c/embree_loop.c: the watertight re-check of misses done in
-    the loop's threads (``watertight.WatertightCaster`` fills it; ``retried`` comes
-    back)."""
+    the loop's threads (``watertight.WatertightCaster.native_recheck`` fills it;
+    ``retried`` comes back). ``static_inst`` -1: a static scene's own cast; else the
+    static scene's instance in an instanced cast, re-checked after refinement."""
 
     _fields_ = [("hull", ctypes.c_void_p), ("boxes", ctypes.c_void_p),
                 ("has", ctypes.c_void_p), ("max_dist", ctypes.c_double),
                 ("vertices", ctypes.c_void_p), ("triangles", ctypes.c_void_p),
                 ("tol", ctypes.c_double), ("nudge", ctypes.c_double),
-                ("axis", ctypes.c_double * 3), ("retried", ctypes.c_int64)]
+                ("axis", ctypes.c_double * 3), ("scene", ctypes.c_void_p),
+                ("planes", ctypes.c_void_p), ("static_inst", ctypes.c_int32),
+                ("use_limit", ctypes.c_int32), ("retried", ctypes.c_int64)]
 
 
 def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=None,

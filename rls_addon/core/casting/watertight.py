@@ -198,20 +198,11 @@ class WatertightCaster(CasterBase):
     def _start_compiled(self, o, d, max_dist, planes, order):
         """The cast with its re-check in the compiled loop's threads (Embree), or None
         where the loop or the hull cannot take it."""
-        primary_scene = getattr(self.primary, "native_scene", lambda: None)()
-        hull_scene = getattr(self.hull, "native_scene", lambda: None)()
-        if not self.compiled or primary_scene is None or hull_scene is None:
+        got = self.native_recheck(o, max_dist)
+        if got is None:
             return None
-        from .embree_loop import Recheck
-
-        boxes, has = (np.ascontiguousarray(a) for a in self.octant_boxes(o))
-        rc = Recheck(hull=hull_scene, boxes=boxes.ctypes.data, has=has.ctypes.data,
-                     max_dist=float(max_dist),
-                     vertices=self.v.ctypes.data, triangles=self.t.ctypes.data,
-                     tol=self.tol, nudge=_NUDGE_SCALES[0] * 1e-6 * self.extent,
-                     axis=tuple(_NUDGE_AXES[0]), retried=0)
-        pending = self.primary.start_rechecked(o, d, max_dist, planes, order, rc,
-                                               keep=(self, boxes, has))
+        rc, keep = got
+        pending = self.primary.start_rechecked(o, d, max_dist, planes, order, rc, keep=keep)
         if pending is None:
             return None
 
@@ -221,6 +212,32 @@ class WatertightCaster(CasterBase):
             return got
 
         return result
+
+    def native_recheck(self, o, max_dist, planes=None, limit=False):
+        """(``embree_loop.Recheck``, what must outlive it) for a cast from origins ``o``
+        with the re-check in the compiled loop's threads, or None where the loop or the
+        hull cannot take it (or ``compiled`` is off). With ``planes`` (the primary
+        build's ``triangle_planes``), for an instanced cast whose static scene is
+        instance 0 (``instancing.InstancedWorld``): its rays that do not hit it are
+        re-checked after refinement, and with ``limit`` only up to their moving hit.
+        The caller adds ``retried`` to ``self.retried`` once the cast is done."""
+        primary_scene = getattr(self.primary, "native_scene", lambda: None)()
+        hull_scene = getattr(self.hull, "native_scene", lambda: None)()
+        if not self.compiled or primary_scene is None or hull_scene is None:
+            return None
+        from .embree_loop import Recheck
+
+        boxes, has = (np.ascontiguousarray(a) for a in self.octant_boxes(o))
+        pl = None if planes is None else np.ascontiguousarray(planes, np.float64)
+        rc = Recheck(hull=hull_scene, boxes=boxes.ctypes.data, has=has.ctypes.data,
+                     max_dist=float(max_dist),
+                     vertices=self.v.ctypes.data, triangles=self.t.ctypes.data,
+                     tol=self.tol, nudge=_NUDGE_SCALES[0] * 1e-6 * self.extent,
+                     axis=tuple(_NUDGE_AXES[0]), scene=primary_scene,
+                     planes=None if pl is None else pl.ctypes.data,
+                     static_inst=-1 if pl is None else 0,
+                     use_limit=int(bool(limit) and not self._starts_inside(o)), retried=0)
+        return rc, (self, boxes, has, pl)
 
     def describe(self):
         return self.primary.describe()

@@ -1,6 +1,7 @@
 """One frame of one sensor: from a prepared scene, the moving bodies and a scan pattern
 to points. The per-ray pipeline after casting (ranges, ghosts, intensity, noise,
-dropout, point records) lives here; what is cast into is in ``bodies`` and ``world``.
+dropout, point records) lives here; where the rays go is in ``aim``, what is cast into
+in ``bodies`` and ``world``.
 """
 
 import time
@@ -14,7 +15,9 @@ from ..physics import echoes, effects, footprint, ghost, weather
 from ..physics.assemble import Draws, Effects, Hits, Rays, assemble
 from ..world.bodies import PreparedScene
 from ..errors import SceneError
-from ..scene.motion import effective_times, polar, rigid
+from ..scene.motion import effective_times
+# sensor_axes, sensor_frame and distinct_times are imported from here too
+from .aim import _Aim, distinct_times, sensor_axes, sensor_frame  # noqa: F401
 from .device_values import device_values
 from .sweep import adaptive_substeps
 from ..native.vectors import row_dot
@@ -58,66 +61,6 @@ class RayRecord:
         """(P, 3) world position of the points of ranges ``ranges`` (per point)."""
         o = self.origins if self.origins.shape[0] == 1 else self.origins[self.point_ray]
         return o + self.dirs[self.point_ray] * np.asarray(ranges, np.float64)[:, None]
-
-
-def distinct_times(times):
-    """``np.unique(times, return_inverse=True)``, in one pass when the times do not
-    decrease (a pattern's firing order, and its sub-step times): no sort."""
-    t = np.asarray(times)
-    if len(t) and np.all(t[1:] >= t[:-1]):
-        first = np.empty(len(t), bool)
-        first[0] = True
-        np.not_equal(t[1:], t[:-1], out=first[1:])
-        return t[first], np.cumsum(first) - 1
-    return np.unique(t, return_inverse=True)
-
-
-def sensor_axes(sensor_to_world):
-    """Origins and orthonormal rotations of 4x4 poses (one (4, 4) or a stack (N, 4, 4));
-    scale and shear are removed (``motion.polar``). A mirrored sensor (a negative scale
-    on any axis) looks along its own +X with its own +Z up: the mirror flips its +Y
-    only. A single pose's answer is kept (``_AXES``, a few poses): a still sensor asks with the
-    same pose every frame, and the decomposition costs 0.2 ms."""
-    m = np.asarray(sensor_to_world, dtype=np.float64)
-    key = m.tobytes() if m.shape == (4, 4) else None
-    got = _AXES.get(key) if key is not None else None
-    if got is None:
-        rot, _ = polar(m.reshape(-1, 4, 4)[:, :3, :3])
-        got = m[..., :3, 3].copy(), rot.reshape(m.shape[:-2] + (3, 3))
-        if key is None:
-            return got
-        if len(_AXES) >= 16:
-            _AXES.clear()
-        _AXES[key] = got
-    return got[0].copy(), got[1].copy()
-
-
-_AXES = {}
-
-# A LiDAR axis shorter than this share of its longest has zero scale: it has no axes.
-ZERO_SCALE = 1e-9
-
-
-def sensor_frame(matrix, sensor="sensor"):
-    """The 4x4 rigid pose(s) of a sensor's frame from its object's world matrix (one
-    (4, 4) or a stack (N, 4, 4)): its origin and ``sensor_axes``' rotation (``rigid``), the pose
-    that maps its sensor-frame points to the world (the sidecar's). ``SceneError``
-    naming ``sensor`` when a matrix is not finite or scales an axis to nothing."""
-    m = np.asarray(matrix, dtype=np.float64)
-    stack = m.reshape(-1, 4, 4)
-    if not np.isfinite(stack).all():
-        raise SceneError(f"LiDAR '{sensor}' has a position, rotation or scale that is not "
-                         "a finite number: set its transform (and its parents') to numbers")
-    lengths = np.linalg.norm(stack[:, :3, :3], axis=1)
-    sv = np.linalg.svd(stack[:, :3, :3], compute_uv=False)
-    zero = ~(sv[:, -1] > ZERO_SCALE * sv[:, 0])
-    if zero.any():
-        k = int(np.argmax(zero))
-        axes = ", ".join(f"{v:g}" for v in lengths[k])
-        raise SceneError(f"LiDAR '{sensor}' has zero scale on an axis: its axes have lengths "
-                         f"({axes}) in the world, so it has no sensor frame; give every "
-                         "scale value of it (and of its parents) a non-zero size")
-    return rigid(m)
 
 
 @dataclass
@@ -282,7 +225,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
             raise ValueError("scan_frame(rays=...) is for a still sensor without beam "
                              "footprints (a footprint needs its neighbours' rays)")
         aim = aim.subset(pick)
-    scene = _prepared(scene, aim.poses, rmax, caster_factory)
+    scene = _prepared(scene, aim, rmax, caster_factory)
     world = World(scene, list(moving))
     warnings = list(scene.warnings) + _empty_scene_warnings(scene, moving, rmax)
 
@@ -331,75 +274,6 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                       warnings, stats, record)
 
 
-@dataclass
-class _Aim:
-    """The rays of a frame in the world: origins ((1, 3) for a still sensor, else one
-    per ray), directions, their times in the scene (``tscene``), trace order, columns,
-    channels and firing times, and the sensor's distinct poses."""
-
-    origins: np.ndarray
-    dirs: np.ndarray
-    times: np.ndarray
-    order: np.ndarray
-    columns: tuple
-    channels: np.ndarray
-    ray_times: np.ndarray
-    poses: np.ndarray
-    beam_origins: np.ndarray = None  # (N, 3) sensor frame, or None: all from the origin
-
-    @classmethod
-    def of(cls, pattern, sensor_to_world, sensor_track, tscene):
-        dirs_sensor = pattern.directions
-        beam = pattern.origins  # (N, 3) sensor frame or None: the rays leave the origin
-        if sensor_track is None or sensor_track.is_static:
-            origin, rot = sensor_axes(sensor_to_world if sensor_track is None
-                                      else sensor_track.matrices[0])
-            origins = origin.reshape(1, 3)
-            dirs = pattern.rotated(rot)
-            poses = origins
-            if beam is not None:
-                origins = pattern.placed_origins(rot, origin)
-        elif sensor_track.linear_is_constant:
-            # Driving without turning: one rotation for the sweep (the pattern turned
-            # once, and kept while it does not turn), an origin per distinct firing time.
-            times, at = distinct_times(tscene)
-            poses = sensor_track.positions_at(times)
-            origins = poses[at]
-            rot = sensor_axes(sensor_track.matrices[0])[1]
-            dirs = pattern.rotated(rot)
-            if beam is not None:
-                origins = origins + beam @ rot.T
-        elif sensor_track.is_rigid:
-            # Turning without scale or shear: each ray turned by the rotation at its own
-            # firing time, by the track's turn within its knot interval (``Track.rotate``,
-            # no matrix per time: with every channel at its own time, a matrix and its
-            # polar decomposition per ray cost 240 ms a Pandar64 frame).
-            times, at = distinct_times(tscene)
-            poses = sensor_track.positions_at(times)
-            origins = poses[at]
-            dirs = sensor_track.rotate(tscene, dirs_sensor)
-            if beam is not None:
-                origins = origins + sensor_track.rotate(tscene, beam)
-        else:
-            # One pose per distinct firing time (the channels of a firing share it, where
-            # the device fires them together), scale and shear taken apart.
-            times, at = distinct_times(tscene)
-            poses, rots = sensor_axes(sensor_track.at(times))
-            origins = poses[at]
-            dirs = np.einsum("nij,nj->ni", rots[at], dirs_sensor)
-            if beam is not None:
-                origins = origins + np.einsum("nij,nj->ni", rots[at], beam)
-        return cls(origins, dirs, tscene, pattern.trace_order, pattern.columns,
-                   pattern.channels, pattern.times, poses, beam)
-
-    def subset(self, pick):
-        """The rays ``pick`` (a ``_Subset``) chooses, in the pattern's trace order."""
-        return _Aim(self.origins if self.origins.shape[0] == 1 else pick(self.origins),
-                    pick(self.dirs), pick(self.times), pick.order,
-                    tuple(pick(c) for c in self.columns), pick(self.channels),
-                    pick(self.ray_times), self.poses, pick(self.beam_origins))
-
-
 def _from_beam_origins(pts, beam_origins, idx):
     """Sensor-frame points moved from the sensor origin to their beams' own origins
     (``beam_origins``: (rays, 3) in the sensor frame; ``idx``: each point's ray): the
@@ -409,13 +283,15 @@ def _from_beam_origins(pts, beam_origins, idx):
             pts[f] += beam_origins[idx, k]
 
 
-def _prepared(scene, poses, rmax, caster_factory):
+def _prepared(scene, aim, rmax, caster_factory):
     """``scene`` as a ``PreparedScene`` that covers every pose of the sweep out to
-    ``rmax``: prepared here from a ``SceneGeometry``, or checked."""
+    ``rmax``: prepared here from a ``SceneGeometry``, or checked (against every ray's
+    origin without beam offsets: the poses, repeated)."""
     if not isinstance(scene, PreparedScene):
+        poses = aim.poses
         return PreparedScene(scene, poses.mean(axis=0),
                              rmax + np.ptp(poses, axis=0).max(initial=0.0), caster_factory)
-    if not scene.covers(poses, rmax):
+    if not scene.covers(aim.pose_points(), rmax):
         raise SceneError("the prepared scene does not cover this sensor's range: prepare "
                          "it around the sensor with a reach of at least its range")
     return scene

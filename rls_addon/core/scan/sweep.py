@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..scene.motion import Track
+from ..scene.track_set import TrackSet
 
 INTERP_TOLERANCE_M = 1e-4  # max error of pose interpolation between samples
 MAX_SAMPLES = 65
@@ -26,13 +27,30 @@ MAX_SUBSTEPS = 64
 
 
 def _interp_error(times, mats, probe_t, probe_m, points):
-    """Largest distance between interpolated and evaluated positions of ``points``."""
-    tr = Track(times, mats)
-    got = tr.at(probe_t)
+    """Largest distance between interpolated and evaluated positions of ``points``:
+    one body's, the reference of ``_interp_errors``."""
+    return _error(Track(times, mats).at(probe_t), probe_m, points)
+
+
+def _error(got, probe_m, points):
     p = np.c_[points, np.ones(len(points))]
     a = np.einsum("kij,nj->kni", got[:, :3, :], p)
     b = np.einsum("kij,nj->kni", probe_m[:, :3, :], p)
     return float(np.linalg.norm(a - b, axis=2).max())
+
+
+def _interp_errors(times, mats, probe_t, probe_m, points):
+    """``_interp_error`` of M bodies sampled at the same times ((M, K, 4, 4) ``mats``,
+    (M, P, 4, 4) ``probe_m``, a list of M point arrays), their tracks made and
+    evaluated together (``Track.many``, ``TrackSet``): the same numbers."""
+    if not len(mats):
+        return []
+    tracks = Track.many(times, mats)
+    p = len(probe_t)
+    got = TrackSet(tracks).at(np.repeat(np.arange(len(tracks)), p),
+                              np.tile(np.asarray(probe_t, np.float64), len(tracks)))
+    got = got.reshape(len(tracks), p, 4, 4)
+    return [_error(got[j], probe_m[j], points[j]) for j in range(len(tracks))]
 
 
 def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, track_sensor):
@@ -41,9 +59,21 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
     vertices per sample]}, sensor (K,4,4) or None)."""
     keys = {instances[k].key: k for k in candidates}
     deform_keys = {instances[k].key for k in candidates} & set(deform_keys)
+    order = list(keys.items())
+    corners = [np.array([instances[k].vertices.min(0), instances[k].vertices.max(0)])
+               for _, k in order]
+    if track_sensor:
+        corners.append(np.zeros((1, 3)))
 
     def state_at(t):
         return sweep.state(t, keys, deform_keys, sensor)
+
+    def stacked(states):
+        """(M, S, 4, 4): every sampled body's matrices (the sensor's last)."""
+        rows = [[s[0].get(key, instances[k].matrix) for s in states] for key, k in order]
+        if track_sensor:
+            rows.append([s[2] for s in states])
+        return np.array(rows, np.float64).reshape(len(rows), len(states), 4, 4)
 
     n = 5
     times = np.linspace(0.0, period, n)
@@ -51,17 +81,9 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
     while n < MAX_SAMPLES:
         mids = (times[:-1] + times[1:]) / 2
         mid_states = [state_at(t) for t in mids]
-        worst = 0.0
-        for key, k in keys.items():
-            inst = instances[k]
-            corners = np.array([inst.vertices.min(0), inst.vertices.max(0)])
-            mats = np.array([s[0].get(key, inst.matrix) for s in states])
-            probe = np.array([s[0].get(key, inst.matrix) for s in mid_states])
-            worst = max(worst, _interp_error(times, mats, mids, probe, corners))
-        if track_sensor:
-            mats = np.array([s[2] for s in states])
-            probe = np.array([s[2] for s in mid_states])
-            worst = max(worst, _interp_error(times, mats, mids, probe, np.zeros((1, 3))))
+        # every body at once: the same errors as one body at a time (_interp_error)
+        worst = max(_interp_errors(times, stacked(states), mids, stacked(mid_states),
+                                   corners), default=0.0)
         merged_t = np.empty(2 * n - 1)
         merged_t[0::2], merged_t[1::2] = times, mids
         merged = [None] * (2 * n - 1)
@@ -69,11 +91,11 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
         times, states, n = merged_t, merged, 2 * n - 1
         if worst <= INTERP_TOLERANCE_M:
             break
-    matrices = {k: np.array([s[0].get(instances[k].key, instances[k].matrix) for s in states])
-                for k in candidates}
+    every = stacked(states)
+    matrices = {k: every[j] for j, (_, k) in enumerate(order)}
     vertices = {k: [s[1].get(instances[k].key) for s in states] for k in candidates
                 if instances[k].key in deform_keys}
-    sensor_mats = np.array([s[2] for s in states]) if track_sensor else None
+    sensor_mats = every[-1] if track_sensor else None
     return times, matrices, vertices, sensor_mats
 
 
@@ -162,16 +184,21 @@ def classify(sweep, period, instances, mobility, sensor):
                                                    mobility.deformable, sensor,
                                                    mobility.sensor_moves)
     out = SweepMotion(times=times, samples=len(times))
+    kinds = {}
     for k in cand:
-        inst = instances[k]
         m = mats[k]
         moved = bool(np.abs(m - m[0]).max() > 1e-12)
         deform = deformation(verts[k]) if k in verts else 0.0
+        if deform > 1e-9 or moved:
+            kinds[k] = deform
+    # the tracks of every body that moved, made together (Track.many: Track's own)
+    for (k, deform), track in zip(kinds.items(),
+                                  Track.many(times, [mats[k] for k in kinds])):
+        out.tracks[k] = track
         if deform > 1e-9:
-            out.tracks[k] = track = Track(times, m)
+            inst = instances[k]
             out.deforming.append((k, deform + track.max_displacement(box_corners(inst.vertices))))
-        elif moved:
-            out.tracks[k] = track = Track(times, m)
+        else:
             out.rigid.append((k, track))
     if sensor_mats is not None and np.abs(sensor_mats - sensor_mats[0]).max() > 1e-12:
         out.sensor = Track(times, sensor_mats)

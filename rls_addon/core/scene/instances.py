@@ -96,6 +96,20 @@ def world_geometry(instances, objects, materials, select=None, matrices=None, lo
     return concatenate(parts, objects, materials)
 
 
+def bodies_key(instances, objects, materials, indices):
+    """A key equal for equal moving bodies (the instances ``indices``, each in its own
+    coordinates: ``world_geometry(..., select={k}, local=True)``), from what was read
+    (no digest of the triangles): each one's index, mesh id and materials, and the
+    object and material tables. None when a mesh has no id."""
+    parts = []
+    for k in indices:
+        inst = instances[k]
+        if not inst.mesh_id:
+            return None
+        parts.append((k, inst.key, inst.label, inst.mesh_id, inst.slot_map.tobytes()))
+    return ("bodies", tuple(parts), repr((objects, materials)))
+
+
 def static_key(instances, objects, materials, select):
     """A key equal for equal static geometry, from what was read (no digest of the
     triangles): each selected instance's mesh id, matrix, materials and label, and the

@@ -103,6 +103,19 @@ def rigid(matrices):
     return out
 
 
+def knot_velocities(positions, times):
+    """(..., K, 3) finite-difference velocities (second order) of positions (..., K, 3)
+    at knot times (K,): ``Track.velocities``, of one track or of M tracks sampled at
+    the same times at once (``Track.many``), element for element the same."""
+    p, t = positions, times
+    if len(t) > 2:
+        return np.gradient(p, t, axis=-2, edge_order=2)
+    if len(t) == 2:
+        return np.repeat(((p[..., 1, :] - p[..., 0, :]) / max(t[1] - t[0], 1e-300))[..., None, :],
+                         2, axis=-2)
+    return np.zeros_like(p)
+
+
 def hermite(p0, v0, p1, v1, a, span):
     """Cubic Hermite between (p0, v0) and (p1, v1), row-wise, at fractions ``a`` of
     segments of length ``span`` (seconds)."""
@@ -136,6 +149,32 @@ class Track:
     @classmethod
     def fixed(cls, matrix):
         return cls(np.zeros(1), np.asarray(matrix, np.float64)[None])
+
+    @classmethod
+    def many(cls, times, matrices):
+        """[Track] of M bodies sampled at the same ``times`` ((M, K, 4, 4)
+        ``matrices``): each what ``Track(times, matrices[m])`` gives, byte for byte,
+        their decompositions made together (a sweep's traffic: dozens of bodies)."""
+        times = np.asarray(times, dtype=np.float64).reshape(-1)
+        m = np.asarray(matrices, dtype=np.float64).reshape(-1, len(times), 4, 4)
+        if not len(m):
+            return []
+        rot, scale = polar(m.reshape(-1, 4, 4)[:, :3, :3])
+        quat = quat_from_matrix(rot).reshape(len(m), len(times), 4)
+        scale = scale.reshape(len(m), len(times), 3, 3)
+        for k in range(1, len(times)):  # neighbouring quaternions on one side, as one by one
+            dot = np.einsum("ij,ij->i", quat[:, k - 1], quat[:, k])
+            for j in np.nonzero(np.abs(dot) < 1e-9)[0]:  # too near 0 to trust its sign
+                dot[j] = np.dot(quat[j, k - 1], quat[j, k])
+            quat[dot < 0, k] *= -1.0
+        velocity = knot_velocities(m[:, :, :3, 3], times)
+        out = []
+        for j in range(len(m)):
+            track = cls.__new__(cls)
+            track.times, track.matrices = times, m[j]
+            track._scale, track._quat, track._velocity = scale[j], quat[j], velocity[j]
+            out.append(track)
+        return out
 
     @property
     def is_rigid(self):
@@ -195,7 +234,11 @@ class Track:
 
     @property
     def is_static(self):
-        return bool(np.all(self.matrices == self.matrices[0]))
+        """Every knot's matrix the first's (asked for every track a few times a frame:
+        worked out once, as ``is_rigid``; a track's knots are not changed once made)."""
+        if getattr(self, "_static", None) is None:
+            self._static = bool(np.all(self.matrices == self.matrices[0]))
+        return self._static
 
     def at(self, t):
         """(N, 4, 4) matrices at times t (clamped to the sampled span)."""
@@ -272,14 +315,7 @@ class Track:
         """(K, 3) finite-difference velocities at the samples (second order), cached."""
         v = self.__dict__.get("_velocity")
         if v is None:
-            p, t = self.matrices[:, :3, 3], self.times
-            if len(t) > 2:
-                v = np.gradient(p, t, axis=0, edge_order=2)
-            elif len(t) == 2:
-                v = np.repeat(((p[1] - p[0]) / max(t[1] - t[0], 1e-300))[None], 2, axis=0)
-            else:
-                v = np.zeros_like(p)
-            self._velocity = v
+            v = self._velocity = knot_velocities(self.matrices[:, :3, 3], self.times)
         return v
 
     def _hermite(self, i, a, span):

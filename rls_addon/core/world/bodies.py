@@ -10,6 +10,8 @@
 ``world.World`` casts into all of them at once.
 """
 
+import math
+
 import numpy as np
 
 from ..casting import WatertightCaster, cast_exact, triangle_planes
@@ -60,7 +62,10 @@ class PreparedScene:
         """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
         culled region."""
         o = np.asarray(origin, np.float64).reshape(-1, 3)
-        gap = np.linalg.norm(o - self.centre, axis=1).max()
+        d = o - self.centre
+        # column by column: a norm along the rows' three numbers is 8x slower on a
+        # driving sensor's origin per ray (the same sums, the same largest distance)
+        gap = math.sqrt(float((d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1] + d[:, 2] * d[:, 2]).max()))
         return gap + max_range <= self.reach * (1 + 1e-12)
 
     def reusable(self, origins, directions):

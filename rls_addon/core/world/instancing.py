@@ -24,9 +24,13 @@ object alone, exact at every ray's time) and its hits merged in (``portable``).
 import numpy as np
 
 from ..scene.geometry import hit_body
+from ..scene.track_set import TrackSet
 
 STEP_TOLERANCE_M = 1e-5  # steps: linear interpolation within 10 um of the track
 MAX_STEPS = 129          # Embree's limit (RTC_MAX_TIME_STEP_COUNT)
+# a box's eight corners: which of (min, max) each coordinate takes, in the order of
+# np.meshgrid(*zip(min, max), indexing="ij")
+_CORNER_BITS = np.array([[i, j, k] for i in (0, 1) for j in (0, 1) for k in (0, 1)], bool)
 
 
 class InstancedWorld:
@@ -48,17 +52,22 @@ class InstancedWorld:
         self.t0 = min((float(tr.times[0]) for tr in moving), default=0.0)
         self.t1 = max((float(tr.times[-1]) for tr in moving), default=0.0)
         self.moving = self.t1 > self.t0
+        todo = []  # objects whose steps this sweep has not worked out yet: all at once
+        for body, rb in rigid:
+            casters = rb.local_casters()
+            for k, track in enumerate(rb.tracks):
+                key = (k, self.t0, self.t1, tuple(self.centre))
+                if casters[k] is not None and key not in rb.derived:
+                    todo.append((rb, key, track, rb.centres[k], rb.local[k][0]))
+        for (rb, key, *_), got in zip(todo, self._steps_many([t[2:] for t in todo])):
+            rb.derived[key] = got
         for body, rb in rigid:
             casters = rb.local_casters()
             for k, track in enumerate(rb.tracks):
                 if casters[k] is None:
                     continue
                 caster, planes = casters[k]
-                key = (k, self.t0, self.t1, tuple(self.centre))
-                got = rb.derived.get(key)
-                if got is None:
-                    got = rb.derived[key] = self._steps(track, rb.centres[k], rb.local[k][0])
-                mats, close = got
+                mats, close = rb.derived[(k, self.t0, self.t1, tuple(self.centre))]
                 if not close:
                     # Motion Embree's steps cannot follow within the tolerance: this
                     # object is cast on its own, exactly (World.start merges it in).
@@ -116,29 +125,88 @@ class InstancedWorld:
         they follow the track within STEP_TOLERANCE_M): S starts at four steps per
         segment of the track and is doubled until linear interpolation between steps
         stays that close to the track at the middle of every step (on the object's
-        bounding box); never more than Embree's limit, ``MAX_STEPS``."""
-        shift = np.eye(4)
-        shift[:3, 3] = centre
-        if not self.moving or len(track.times) < 2 or track.is_static:
-            m = track.at([track.times[0]])[0] @ shift
-            m[:3, 3] -= self.centre
-            return m[None], True
-        lo, hi = local_vertices.min(0), local_vertices.max(0)
-        corners = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(-1, 3)
-        steps = 2 if len(track.times) == 2 else min(4 * (len(track.times) - 1) + 1, MAX_STEPS)
-        while True:
-            t = np.linspace(self.t0, self.t1, steps)
-            m = track.at(t) @ shift
-            mid = track.at((t[1:] + t[:-1]) / 2) @ shift
-            lerp = (m[1:] + m[:-1]) / 2
-            dev = np.einsum("kij,cj->kci", (mid - lerp)[:, :3, :3], corners) \
-                + (mid - lerp)[:, None, :3, 3]
-            close = np.linalg.norm(dev, axis=2).max() <= STEP_TOLERANCE_M
-            if close or steps >= MAX_STEPS:
-                break
-            steps = min(2 * steps - 1, MAX_STEPS)
-        m[:, :3, 3] -= self.centre
-        return m, bool(close)
+        bounding box); never more than Embree's limit, ``MAX_STEPS``. The reference of
+        ``_steps_many``, one object at a time."""
+        return self._steps_many([(track, centre, local_vertices)], each=True)[0]
+
+    def _steps_many(self, objects, each=False):
+        """``_steps`` of every object of [(track, centre, local vertices)], the tracks
+        of a round evaluated together (``TrackSet``) and the objects with as many
+        steps checked as one array (``each``: track by track, the reference): the same
+        matrices, byte for byte, for a fraction of the cost."""
+        out = [None] * len(objects)
+        tracks = TrackSet([tr for tr, _, _ in objects]) if objects and not each else None
+        steps, corners, shifts = {}, {}, {}
+        for j, (track, centre, local_vertices) in enumerate(objects):
+            shift = shifts[j] = np.eye(4)
+            shift[:3, 3] = centre
+            if not self.moving or len(track.times) < 2 or track.is_static:
+                m = track.at([track.times[0]])[0] @ shift
+                m[:3, 3] -= self.centre
+                out[j] = (m[None], True)
+                continue
+            # its bounding box's corners, in meshgrid's "ij" order
+            corners[j] = np.where(_CORNER_BITS, local_vertices.max(0), local_vertices.min(0))
+            steps[j] = 2 if len(track.times) == 2 else min(4 * (len(track.times) - 1) + 1,
+                                                            MAX_STEPS)
+        while steps:
+            if each:  # the reference: object by object, track by track
+                for j in list(steps):
+                    t = np.linspace(self.t0, self.t1, steps[j])
+                    track = objects[j][0]
+                    m, mid = track.at(t) @ shifts[j], track.at((t[1:] + t[:-1]) / 2) @ shifts[j]
+                    lerp = (m[1:] + m[:-1]) / 2
+                    dev = np.einsum("kij,cj->kci", (mid - lerp)[:, :3, :3], corners[j]) \
+                        + (mid - lerp)[:, None, :3, 3]
+                    close = np.linalg.norm(dev, axis=2).max() <= STEP_TOLERANCE_M
+                    if close or steps[j] >= MAX_STEPS:
+                        m[:, :3, 3] -= self.centre
+                        out[j] = (m, bool(close))
+                        del steps[j]
+                    else:
+                        steps[j] = min(2 * steps[j] - 1, MAX_STEPS)
+                continue
+            # the objects of each step count at once: times, tracks, matrices, checks
+            groups = {}
+            for j, n in steps.items():
+                groups.setdefault(n, []).append(j)
+            which, when = [], []
+            for n, js in groups.items():
+                t = np.linspace(self.t0, self.t1, n)
+                rows = np.r_[t, (t[1:] + t[:-1]) / 2]
+                which.append(np.repeat(js, len(rows)))
+                when.append(np.tile(rows, len(js)))
+            got = tracks.at(np.concatenate(which), np.concatenate(when))
+            first = 0
+            for n, js in groups.items():
+                block = got[first:first + len(js) * (2 * n - 1)].reshape(len(js), 2 * n - 1,
+                                                                         4, 4)
+                first += len(js) * (2 * n - 1)
+                shift = np.stack([shifts[j] for j in js])[:, None]
+                self._round(steps, out, js, block[:, :n] @ shift, block[:, n:] @ shift,
+                            np.stack([corners[j] for j in js]))
+        return out
+
+    def _round(self, steps, out, js, m, mid, corners):
+        """One round of ``_steps_many`` for the objects ``js`` of one step count: their
+        matrices at the steps ``m`` (J, S, 4, 4) and at the steps' middles ``mid``
+        (J, S - 1, 4, 4), their bounding boxes' ``corners`` (J, 8, 3). An object whose
+        linear interpolation stays within the tolerance (or that has Embree's most
+        steps) is done, the others double their steps."""
+        lerp = (m[:, 1:] + m[:, :-1]) / 2
+        gap = mid - lerp
+        # (J, S - 1, 3, 8): each corner's deviation, the rotation part as a product
+        dev = gap[:, :, :3, :3] @ np.swapaxes(corners, 1, 2)[:, None] + gap[:, :, :3, 3:]
+        worst = np.sqrt((dev * dev).sum(axis=2)).reshape(len(js), -1).max(axis=1)
+        for q, j in enumerate(js):
+            close = worst[q] <= STEP_TOLERANCE_M
+            if close or steps[j] >= MAX_STEPS:
+                got = m[q].copy()
+                got[:, :3, 3] -= self.centre
+                out[j] = (got, bool(close))
+                del steps[j]
+            else:
+                steps[j] = min(2 * steps[j] - 1, MAX_STEPS)
 
     def start(self, origins, directions, times, max_range, order=None, watertight=True):
         """Start the cast; returns a function giving (dist, body, tri, normals) as
@@ -147,10 +215,27 @@ class InstancedWorld:
         d = np.asarray(directions, np.float64)
         t = np.asarray(times, np.float64)
         tau = np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0) if self.moving else None
-        pending = self.instances.start(o - self.centre, d, max_range, tau, order)
-        return lambda: self._finish(pending(), o, d, t, max_range, watertight)
+        oc = o - self.centre
+        recheck = None
+        if self.first and watertight and self.static.watertight:
+            # the static scene's re-check in the loop's threads, where it is compiled
+            recheck = self.static.caster.native_recheck(oc, max_range, self.static.planes,
+                                                        limit=True)
+        pending = self.instances.start(oc, d, max_range, tau, order, recheck)
+
+        def finish():
+            got = pending()
+            if recheck is not None:
+                self.static.caster.retried += recheck[0].retried
+            return self._finish(got, o, d, t, max_range, watertight and recheck is None)
+
+        return finish
 
     def _finish(self, got, o, d, t, max_range, watertight):
+        """The instanced cast's result as the world's: moving hits beyond the range
+        dropped, and (``watertight``, when the loop did not) the static scene's
+        re-check of the rays that did not hit it, in numpy: the reference of the
+        compiled re-check (``WatertightCaster.native_recheck``)."""
         dist, tri, normals, inst = got
         first = self.first
         far = np.nonzero((inst >= first) & ~(dist <= max_range))[0]

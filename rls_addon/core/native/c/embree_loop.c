@@ -41,7 +41,7 @@
 /* What rls_embree_abi returns: the loader (embree.py, _native_loop) refuses a build
  * that answers anything else, or lacks the function (a build older than the
  * arguments it passes). Bump it whenever an exported signature or meaning changes. */
-#define RLS_EMBREE_ABI 3
+#define RLS_EMBREE_ABI 4
 
 #define K 16
 #define ORG 0
@@ -81,6 +81,18 @@ typedef struct {
     double tol;
     double nudge;
     double axis[3];
+    /* An instanced job (static_inst >= 0): the static scene is instance static_inst,
+     * and after its hits are refined, the rays that did not hit it (misses, and rays
+     * that hit a moving instance) are re-checked against the static scene alone
+     * (instancing.py: InstancedWorld._finish, the reference): the nudged rays go into
+     * the static scene's own build (scene), a hit won back is refined against its
+     * plane (planes) and kept where it is nearer than the ray's moving hit (a moving
+     * hit beyond max_dist counts as none); with use_limit, a ray whose first hull box
+     * lies beyond its moving hit is not re-checked. */
+    void *scene;
+    const double *planes;
+    int32_t static_inst;
+    int32_t use_limit;
     _Atomic int64_t retried;  /* out: rays re-cast nudged */
 } recheck_t;
 
@@ -306,6 +318,78 @@ static void recheck_packet(job_t *j, float *bf, uint32_t *bu, const int64_t *ray
     }
 }
 
+/* The moving hit a static crack must be nearer than: the ray's refined hit on a
+ * moving instance within max_dist, else none. */
+static double moving_limit(const job_t *j, int64_t r) {
+    return (j->inst[r] >= 0 && j->dist[r] <= j->recheck->max_dist) ? j->dist[r] : INFINITY;
+}
+
+/* The re-check of an instanced job's packet, after its hits are refined (see
+ * recheck_t): what WatertightCaster._recheck and refine_hits do in numpy for
+ * InstancedWorld._finish, operation by operation. */
+static void recheck_instanced(job_t *j, const int64_t *ray, int m) {
+    recheck_t *rc = j->recheck;
+    union { float f[STRIDE]; uint32_t u[STRIDE]; } hb __attribute__((aligned(64)));
+    int valid[K] __attribute__((aligned(64)));
+    double limit[K];
+    int any = 0;
+    for (int l = 0; l < K; l++) {
+        valid[l] = 0;
+        if (l >= m) continue;
+        int64_t r = ray[l];
+        if (j->inst[r] == rc->static_inst) continue;  /* a static hit stands */
+        const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+        const double *d = j->dir + 3 * r;
+        if (rc->boxes && !may_reach_hull(rc, o, d)) continue;
+        limit[l] = moving_limit(j, r);
+        put_ray(hb.f, hb.u, l, o, d, j->tfar, 0.0f);
+        valid[l] = -1;
+        any = 1;
+    }
+    if (!any) return;
+    j->fn(valid, rc->hull, &hb, NULL);
+    any = 0;
+    for (int l = 0; l < K; l++) {
+        if (!valid[l]) continue;
+        if (hb.u[GEOM + l] == INVALID
+            || (rc->use_limit && !((double)hb.f[TFAR + l] <= limit[l]))) {
+            valid[l] = 0;
+            continue;
+        }
+        int64_t r = ray[l];
+        const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+        const double *d = j->dir + 3 * r;
+        double perp[3], nudged[3];
+        cross3(d, rc->axis, perp);
+        unit3(perp);
+        for (int k = 0; k < 3; k++) nudged[k] = o[k] + perp[k] * rc->nudge;
+        put_ray(hb.f, hb.u, l, nudged, d, j->tfar, 0.0f);
+        any++;
+    }
+    if (!any) return;
+    atomic_fetch_add_explicit(&rc->retried, any, memory_order_relaxed);
+    j->fn(valid, rc->scene, &hb, NULL);
+    for (int l = 0; l < K; l++) {
+        if (!valid[l] || hb.u[GEOM + l] == INVALID) continue;
+        int64_t r = ray[l];
+        const double *o = j->org_per_ray ? j->org + 3 * r : j->org;
+        const double *d = j->dir + 3 * r;
+        uint32_t p = hb.u[PRIM + l];
+        if (!(outside_distance(rc, (int64_t)p, o, d) <= rc->tol)) continue;
+        const double *pl = rc->planes + 4 * (int64_t)p;
+        double t = hb.f[TFAR + l];
+        double denom = pl[0] * d[0] + pl[1] * d[1] + pl[2] * d[2];
+        double exact = (pl[3] - (pl[0] * o[0] + pl[1] * o[1] + pl[2] * o[2])) / denom;
+        if (isfinite(exact) && fabs(denom) > GRAZING && exact > 0) t = exact;
+        if (t < moving_limit(j, r)) {
+            j->dist[r] = t;
+            j->tri[r] = (int64_t)p;
+            j->inst[r] = rc->static_inst;
+            if (j->normal) memcpy(j->normal + 3 * r, pl, 3 * sizeof(double));
+        }
+    }
+}
+
 /* Casts rays [lo, hi) packet by packet. */
 static void cast_range(job_t *j, int64_t lo, int64_t hi) {
     union { float f[STRIDE]; uint32_t u[STRIDE]; } buf __attribute__((aligned(64)));
@@ -323,7 +407,7 @@ static void cast_range(job_t *j, int64_t lo, int64_t hi) {
             put_ray(buf.f, buf.u, l, o, d, j->tfar, j->time ? j->time[r] : 0.0f);
         }
         j->fn(valid, j->scene, &buf, NULL);
-        if (j->recheck) recheck_packet(j, buf.f, buf.u, ray, m);
+        if (j->recheck && j->recheck->static_inst < 0) recheck_packet(j, buf.f, buf.u, ray, m);
         if (j->plane && !j->info)  /* fetch the hit triangles' planes together */
             for (int l = 0; l < m; l++)
                 if (buf.u[GEOM + l] != INVALID)
@@ -373,6 +457,7 @@ static void cast_range(job_t *j, int64_t lo, int64_t hi) {
             j->dist[r] = t;
             j->tri[r] = (int64_t)p;
         }
+        if (j->recheck && j->recheck->static_inst >= 0 && j->inst) recheck_instanced(j, ray, m);
     }
 }
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from ...errors import RLSError
 from ..io.atomic import atomic_write_bytes
+from ..io.behind import WritesBehind
 from ..io.paths import sanitize_name
 from .common import (
     BackgroundSweepWriter,
@@ -61,12 +62,13 @@ class KittiWriter:
     points_format    'npy' (what OpenPCDet's custom loader reads) or 'bin' (raw float32)
     level            points and boxes in the gravity-aligned frame at the sensor
     min_points       boxes with fewer points are kept out of the label files (they stay
-                     in meta/ with their visibility)"""
+                     in meta/ with their visibility)
+    background       each frame's files written behind the scan (``io.behind``)"""
 
     shardable = True
 
     def __init__(self, root, scene_name, intensity_scale=1.0, points_format="npy", level=False,
-                 min_points=1, split=None, overwrite=False, resume=False):
+                 min_points=1, split=None, overwrite=False, resume=False, background=False):
         if points_format not in POINT_FORMATS:
             raise RLSError(f"points format must be one of {', '.join(POINT_FORMATS)}")
         self.root, self.scene_name = Path(root), scene_name
@@ -76,6 +78,7 @@ class KittiWriter:
         self.overwrite, self.resume = bool(overwrite), bool(resume)
         self.notices = []
         self.class_types = None  # {class: [{size, objects}]}: the scene's road users
+        self._behind = WritesBehind(background)
 
     def sensor_root(self, sensor):
         return self.root / sanitize_name(sensor)
@@ -177,6 +180,14 @@ class KittiWriter:
         atomic_write_bytes(path, data, overwrite=overwrite)
 
     def write(self, sensor, output, frame, points, info):
+        """Write a frame's points, labels and meta (meta last); with ``background``
+        behind the scan (``io.behind``). Returns the points' path."""
+        if info.get("frame_space") != "sensor":
+            raise RLSError("the KITTI layout needs sensor-frame points")
+        self._behind.run(self._write, sensor, output, frame, points, info)
+        return self.path(sensor, output, frame)
+
+    def _write(self, sensor, output, frame, points, info):
         root = self.sensor_root(sensor)
         fid = frame_id(frame)
         arr, frame_to_world = self._points(sensor, points, info)
@@ -226,14 +237,18 @@ class KittiWriter:
                 "heading": float(heading)}
 
     def abort(self):
-        """Frames already written are complete (a later --resume keeps them)."""
+        """Frames already written are complete (a later --resume keeps them): the write
+        under way ends first."""
+        self.flush()
 
     def flush(self):
-        """Files are written in place: nothing to wait for."""
+        """Wait for the frames being written behind the scan (raising what failed)."""
+        self._behind.flush()
 
     def finish(self, run):
         """Splits and the dataset description, per sensor root, over every frame there
         (earlier runs' too)."""
+        self.flush()
         for job in run.sensors:
             root = self.sensor_root(job.name)
             ids = sorted(p.stem for p in (root / "meta").glob("*.json")) \

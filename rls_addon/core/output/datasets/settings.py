@@ -68,9 +68,10 @@ class DatasetSettings:
                 "sweep_start_deg": self.sweep_start_deg, "rotation_hz": self.rotation_hz,
                 "lidar_mode": self.lidar_mode}
 
-    def writer(self, scene_name, sensors, carriers):
+    def writer(self, scene_name, sensors, carriers, background=False):
         """The layout's writer for LiDARs ``sensors`` (names) of scene ``scene_name``;
-        ``carriers`` {sensor: the vehicle it rides on, or None} makes OPV2V's agents."""
+        ``carriers`` {sensor: the vehicle it rides on, or None} makes OPV2V's agents;
+        ``background``: KITTI's frames written behind the scan (``io.behind``)."""
         from .common import Split
         from .kitti import KittiWriter
         from .opv2v import Opv2vWriter, agents_for
@@ -81,7 +82,8 @@ class DatasetSettings:
                                points_format=self.points_format, level=self.level,
                                min_points=self.min_points,
                                split=Split(self.val_share, self.split_seed, self.val_frames),
-                               overwrite=self.overwrite, resume=self.resume)
+                               overwrite=self.overwrite, resume=self.resume,
+                               background=background)
         return Opv2vWriter(self.out, scene_name, agents_for(list(sensors), carriers),
                            {k: v for k, v in carriers.items() if v}, overwrite=self.overwrite,
                            resume=self.resume)

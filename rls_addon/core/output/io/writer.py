@@ -8,13 +8,13 @@ of a format written once per run (``bag_writer``: one ROS 2 bag).
 """
 
 import os
-from collections import deque
 
 from ....version import VERSION
 from ...choices import FRAME_SPACES
 from ...errors import RLSError, SettingsError
 from ...labels import DEFAULT_LABELS
 from .atomic import atomic_write_bytes, writable_folder
+from .behind import WRITES_BEHIND, WritesBehind  # noqa: F401 - WRITES_BEHIND: the bound
 from .formats import FORMATS, Cloud
 from .paths import output_path, sanitize_name
 from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
@@ -39,17 +39,14 @@ class CloudWriter:
         # LAS point source ids: 1..K in the order of the whole run's sensors (the same
         # in every piece of a run spread over workers)
         self.sensors = tuple(sensors)
-        # background: each scan's files are written on a thread of their own while the
-        # next scans run (encoding, writing and syncing them to disk cost a driving
-        # lidar's frame about a third of its scan); up to WRITES_BEHIND writes wait
-        # their turn, one after another in the order given, so one slow fsync (a
-        # journal commit: 10 ms among 3 ms frames) does not hold the scan up; a failed
-        # one raises at a later write or at ``flush`` (the end of the run, a cancel).
+        # background: each scan's files are written behind the scan (``behind``)
         self.background = bool(background)
-        self._pending = deque()  # background writes under way (Futures), oldest first
+        self._behind = WritesBehind(background)
 
-    def __getstate__(self):  # sent to workers without a write under way
-        return dict(self.__dict__, _pending=deque())
+    @property
+    def _pending(self):
+        """The background writes under way."""
+        return self._behind.pending
 
     def path(self, sensor, output, frame):
         return output_path(output.directory, output.template, scene=self.scene_name,
@@ -156,25 +153,7 @@ class CloudWriter:
     def flush(self):
         """Wait for every background write under way; raises what the first that failed
         raised (after all of them ended)."""
-        failed = None
-        while self._pending:
-            try:
-                self._pending.popleft().result()
-            except BaseException as exc:  # noqa: BLE001 - the rest still end first
-                failed = failed or exc
-        if failed is not None:
-            raise failed
-
-    def _make_room(self):
-        """Take the writes that ended (raising what one raised), and wait for the oldest
-        while ``WRITES_BEHIND`` are under way."""
-        while self._pending and (self._pending[0].done()
-                                 or len(self._pending) >= WRITES_BEHIND):
-            try:
-                self._pending.popleft().result()
-            except BaseException:
-                self.flush()  # nothing left running behind the error
-                raise
+        self._behind.flush()
 
     def finish(self, run):
         """Write the run's instance table once per output folder:
@@ -209,11 +188,7 @@ class CloudWriter:
         without its sidecar. ``background``: started, after the previous write ended
         (``points`` and ``info`` must not change meanwhile)."""
         path = self.path(sensor, output, frame)
-        if not self.background:
-            return self._write(path, sensor, output, points, info)
-        self._make_room()
-        self._pending.append(_background_thread().submit(self._write, path, sensor, output,
-                                                         points, info))
+        self._behind.run(self._write, path, sensor, output, points, info)
         return path
 
     def _write(self, path, sensor, output, points, info):
@@ -245,21 +220,6 @@ class CloudWriter:
         """A run ended early: every file written is complete (the write under way ends
         first), nothing to drop."""
         self.flush()
-
-
-_THREAD = []
-
-
-WRITES_BEHIND = 4
-
-
-def _background_thread():
-    """The one thread background writes run on (started on first use)."""
-    if not _THREAD:
-        from concurrent.futures import ThreadPoolExecutor
-
-        _THREAD.append(ThreadPoolExecutor(1, thread_name_prefix="rls-writer"))
-    return _THREAD[0]
 
 
 def picture_path(cloud_path):

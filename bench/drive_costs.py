@@ -1,0 +1,342 @@
+"""Moving sensors at the cost of their casts (issue 40): a LiDAR driving through the
+sample intersection's traffic written as a dataset, and one driving over the open sky,
+each frame against the cast of its rays.
+
+* traffic: a Hesai Pandar64 on a car driving at 10 m/s along the eastbound lane of the
+  sample intersection (``rls_addon/blender/scenes``: its vehicles, pedestrians and
+  cyclists keyed at every frame), written with ``rls dataset --layout kitti`` (clouds,
+  ground-truth boxes, labels) and with ``rls scan`` (clouds and sidecars, boxes in
+  them);
+* open sky: the Pandar64 driving at 10 m/s over ``scene.open_sky_geometry`` with
+  ``rls scan`` (``frame_costs.BUILD_DRIVE``).
+
+Each command runs as a user runs it (``python -m rls_addon`` in a subprocess). Wall time
+per frame = (a run of N frames - a run of its first frame) / (N - 1); the runs of the
+three commands and the casts below take turns, ``repeat`` rounds, and the medians are
+reported (the machine is shared: a burst of load falls on all of them alike).
+
+The cast: Open3D's ``RaycastingScene`` (Embree 3 on every core) casting the pattern's
+rays from the sensor's pose at the middle frame into every triangle of the scene at
+that frame (the traffic where it stands then), median of 20 casts, in a subprocess of
+its own, once per round.
+
+The breakdown: the same frames run in one process through the command's own
+``ScanRun`` (``commands.dataset.dataset_run``, ``commands.scan.scan_run``), each stage
+timed where the core calls it (``STAGES``); medians per frame.
+
+Targets: the traffic drive with boxes <= 3x its cast, the open-sky drive <= 2x.
+
+    .venv/bin/python -m bench.drive_costs [--quick]     (prints JSON, then markdown)
+"""
+
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from bench import standalone  # noqa: E402 - after the path above
+
+TARGETS = {"traffic_dataset": 3.0, "traffic_scan": 3.0, "sky_scan": 2.0}
+SPEED_MPS = 10.0
+
+BUILD_TRAFFIC = r"""
+import sys, bpy
+sys.path.insert(0, sys.argv[1])
+import rls_addon
+bpy.ops.wm.read_factory_settings(use_empty=True)
+rls_addon.ensure_registered()
+from rls_addon.blender.scenes import build_scene
+scene = bpy.context.scene
+build_scene("intersection", scene)
+lidar = bpy.data.objects.new("LiDAR", None)
+scene.collection.objects.link(lidar)
+s = lidar.rls_lidar
+s.is_lidar, s.preset_id = True, "hesai_pandar64"
+speed = float(sys.argv[3])
+for frame, x in ((1, -50.0), (101, -50.0 + speed * 10.0)):  # 10 frames per second
+    lidar.location = (x, -1.75, 1.9)  # the eastbound inner lane, on a car's roof
+    lidar.keyframe_insert("location", frame=frame)
+from bpy_extras import anim_utils
+ad = lidar.animation_data
+for fc in anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves:
+    for kp in fc.keyframe_points:
+        kp.interpolation = "LINEAR"
+bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
+"""
+
+# Where the core spends a frame: (module, attribute, stage). The stages nest: the
+# session's scan holds the sweep, the bodies, the frame and the boxes.
+STAGES = [
+    ("rls_addon.blender.source", "BlenderScene.set_frame", "Blender: frame change"),
+    ("rls_addon.blender.source", "BlenderScene.read", "Blender: scene read"),
+    ("rls_addon.core.scan.session", "classify", "sweep sampled and classified"),
+    ("rls_addon.core.scan.session", "ScanSession._bodies_of", "moving bodies"),
+    ("rls_addon.core.scan.session", "scan_frame", "scan_frame"),
+    ("rls_addon.core.scan.session", "object_boxes", "ground-truth boxes"),
+    ("rls_addon.core.scan.session", "sensor_pose_record", "sidecar: sensor poses"),
+]
+
+BREAKDOWN = r"""
+import importlib, json, statistics, sys, tempfile, time
+root, command, blend, frames, out = sys.argv[1:6]
+sys.path.insert(0, root)
+import bpy
+import rls_addon
+from rls_addon.cli import build_parser
+stages = json.loads(sys.argv[6])
+spent = {}
+
+def timed(owner, name, label):
+    attr = owner.__dict__.get(name) if isinstance(owner, type) else None
+    fn = getattr(owner, name, None)
+    if fn is None:
+        return False
+    def wrapper(*a, **k):
+        t = time.perf_counter()
+        try:
+            return fn(*a, **k)
+        finally:
+            spent[label] = spent.get(label, 0.0) + time.perf_counter() - t
+    setattr(owner, name, staticmethod(wrapper) if isinstance(attr, staticmethod) else wrapper)
+    return True
+
+found = []
+for module, path, label in stages:
+    owner = importlib.import_module(module)
+    *outer, name = path.split(".")
+    for part in outer:
+        owner = getattr(owner, part)
+    if timed(owner, name, label):
+        found.append(label)
+argv = [command, blend, "--frames", frames, "--out", out, "--workers", "1", "--overwrite"]
+if command == "dataset":
+    argv += ["--layout", "kitti"]
+args = build_parser().parse_args(argv)
+args.prepare_blender = rls_addon.ensure_registered
+if command == "dataset":
+    from rls_addon.commands.dataset import dataset_run
+    run, writer, _ = dataset_run(args)  # (the background sweeps: none for a moving LiDAR)
+else:
+    from rls_addon.commands.scan import scan_run
+    run = scan_run(args)
+    writer = run.writer
+write = writer.write
+def timed_write(*a, **k):
+    t = time.perf_counter()
+    try:
+        return write(*a, **k)
+    finally:
+        spent[WRITE] = spent.get(WRITE, 0.0) + time.perf_counter() - t
+WRITE = "files written (or handed to the writer's thread)"
+writer.write = timed_write
+rows = []
+run.step()  # the first frame builds what the run keeps
+while True:
+    spent.clear()
+    t = time.perf_counter()
+    more = run.step()
+    row = dict(spent, frame=time.perf_counter() - t)
+    rows.append(row)
+    if not more:
+        break
+t = time.perf_counter()
+run.finish()
+print(json.dumps({"rows": rows, "finish_s": time.perf_counter() - t,
+                  "stages": found + [WRITE]}))
+"""
+
+CAST = r"""
+import json, statistics, sys, time
+sys.path.insert(0, sys.argv[1])
+import bpy, numpy as np
+import rls_addon
+rls_addon.ensure_registered()
+bpy.ops.wm.open_mainfile(filepath=sys.argv[2])
+import open3d as o3d
+from rls_addon.blender.source import BlenderScene
+from rls_addon.blender.sensor import lidar_objects, sensor_job
+from rls_addon.core.scan.frame import sensor_axes
+from rls_addon.core.scan.settings import scan_pattern
+from rls_addon.core.scene.instances import object_table, world_geometry
+scene = bpy.context.scene
+frame = int(sys.argv[3])
+source = BlenderScene(scene, edited=False)
+source.set_frame(frame)
+lidar = lidar_objects(scene)[0]
+job = sensor_job(lidar)
+pose = source.sensor_pose(lidar.name)
+read = source.read(pose[:3, 3], 1e9, {lidar.name})
+geometry = world_geometry(read.instances, object_table(read.instances), read.materials)
+pattern = scan_pattern(job.preset, job.settings.scan, frame)
+origin, rot = sensor_axes(pose)
+dirs = pattern.rotated(rot)
+rays = np.concatenate([np.broadcast_to(origin, dirs.shape), dirs], 1).astype(np.float32)
+rs = o3d.t.geometry.RaycastingScene()
+rs.add_triangles(o3d.core.Tensor(geometry.vertices.astype(np.float32)),
+                 o3d.core.Tensor(geometry.triangles.astype(np.uint32)))
+rays = o3d.core.Tensor(rays)
+rs.cast_rays(rays)
+times = []
+for _ in range(20):
+    t = time.perf_counter()
+    rs.cast_rays(rays)
+    times.append(time.perf_counter() - t)
+print(json.dumps({"cast_s": statistics.median(times), "rays": len(dirs),
+                  "triangles": int(geometry.triangle_count)}))
+"""
+
+
+def _python(script, *args, timeout=3600):
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.run([sys.executable, "-c", script, str(ROOT), *map(str, args)],
+                          env=env, cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode != 0:
+        raise RuntimeError(f"bench drive_costs: {proc.stderr[-2000:]}")
+    return proc.stdout
+
+
+def _rls(*args, timeout=3600):
+    """(wall seconds, CPU seconds of all its threads) of ``python -m rls_addon ...`` as
+    a user runs it."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "rls_addon", *map(str, args)], env=env,
+                          cwd=ROOT, capture_output=True, text=True, timeout=timeout)
+    wall = time.perf_counter() - t
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode != 0:
+        raise RuntimeError(f"rls {args[0]} failed: {proc.stderr[-2000:]}")
+    return wall, (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+
+
+CASES = {  # name: (scene file, command, frames)
+    "traffic_dataset": ("traffic.blend", "dataset", (2, 60)),
+    "traffic_scan": ("traffic.blend", "scan", (2, 60)),
+    "sky_scan": ("sky.blend", "scan", (1, 41)),
+}
+
+
+def _command(name, blend, frames, out):
+    _, command, _ = CASES[name]
+    args = [command, blend, "--frames", frames, "--out", out, "--workers", "1",
+            "--overwrite"]
+    return args + (["--layout", "kitti"] if command == "dataset" else [])
+
+
+def measure(quick=False, repeat=None):
+    from bench.frame_costs import BUILD_DRIVE
+
+    repeat = repeat or (1 if quick else 3)
+    cases = {k: (b, c, (f0, f0 + 20) if quick else (f0, f1))
+             for k, (b, c, (f0, f1)) in CASES.items()}
+    out = {"cases": {}, "repeat": repeat, "loadavg_start": os.getloadavg()[0]}
+    with tempfile.TemporaryDirectory(prefix="rls-drive-") as tmp:
+        tmp = Path(tmp)
+        _python(BUILD_TRAFFIC, tmp / "traffic.blend", SPEED_MPS)
+        _python(BUILD_DRIVE, tmp / "sky.blend")
+        walls = {k: [] for k in cases}
+        cpus = {k: [] for k in cases}
+        casts = {k: [] for k in cases}
+        for _ in range(repeat):  # taking turns
+            for name, (blend, _, (f0, f1)) in cases.items():
+                one = _rls(*_command(name, tmp / blend, f"{f0}-{f0}", tmp / name))
+                many = _rls(*_command(name, tmp / blend, f"{f0}-{f1}", tmp / name))
+                walls[name].append((many[0] - one[0]) / (f1 - f0))
+                cpus[name].append((many[1] - one[1]) / (f1 - f0))
+                casts[name].append(json.loads(
+                    _python(CAST, tmp / blend, (f0 + f1) // 2).strip().splitlines()[-1]))
+        for name, (blend, command, (f0, f1)) in cases.items():
+            got = json.loads(_python(BREAKDOWN, command, tmp / blend, f"{f0}-{f1}",
+                                     tmp / f"{name}-stages",
+                                     json.dumps(STAGES)).strip().splitlines()[-1])
+            rows = got["rows"]
+            stages = {label: statistics.median(r.get(label, 0.0) for r in rows)
+                      for label in got["stages"]}
+            wall = statistics.median(walls[name])
+            cast = statistics.median(c["cast_s"] for c in casts[name])
+            out["cases"][name] = {
+                "command": command, "frames": [f0, f1], "wall_s": walls[name],
+                "per_frame_s": wall, "cpu_s": cpus[name],
+                "cpu_per_frame_s": statistics.median(cpus[name]), "cast_s": cast,
+                "casts_s": [c["cast_s"] for c in casts[name]], "rays": casts[name][0]["rays"],
+                "triangles": casts[name][0]["triangles"], "ratio": wall / cast,
+                "stage_s": stages,
+                "step_s": statistics.median(r["frame"] for r in rows)}
+    out["loadavg_end"] = os.getloadavg()[0]
+    return out
+
+
+def section(r):
+    names = {"traffic_dataset": "through the sample intersection's traffic, "
+                                "`rls dataset --layout kitti`",
+             "traffic_scan": "the same drive, `rls scan`",
+             "sky_scan": "over the open sky, `rls scan`"}
+
+    def ms(s):
+        return f"{s * 1e3:.1f} ms"
+
+    lines = [
+        "## Moving sensors against their casts (issue 40)\n",
+        "`bench/drive_costs.py`: a Hesai Pandar64 driving at 10 m/s, each command run as a "
+        "user runs it (`python -m rls_addon`, one process, `--workers 1`). *Per frame*: "
+        "(wall time of frames A-B - wall time of frame A alone) / (B - A). *Cast*: "
+        "Open3D's `RaycastingScene` (Embree 3 on every core) casting the pattern's rays "
+        "from the sensor's pose at the middle frame into every triangle of the scene at "
+        "that frame, median of 20 casts. The commands and the casts take turns, "
+        f"{r['repeat']} rounds; the medians are shown. *CPU per frame*: the same "
+        "difference of the two runs' CPU time (every thread of the process: the casts', "
+        "the file writer's), less sensitive than wall time to other work on the machine. "
+        "Targets: the traffic drive with boxes <= 3x its cast, the open-sky drive <= 2x.\n",
+        "| drive | frames | rays / triangles | cast | per frame | per frame / cast | target "
+        "| CPU per frame |",
+        "|---|---|---|---|---|---|---|---|"]
+    for name, c in r["cases"].items():
+        ok = "**met**" if c["ratio"] <= TARGETS[name] else "**not met**"
+        lines.append(
+            f"| {names[name]} | {c['frames'][0]}-{c['frames'][1]} | {c['rays']:,} / "
+            f"{c['triangles']:,} | {ms(c['cast_s'])} (casts: "
+            f"{', '.join(f'{w * 1e3:.1f}' for w in c['casts_s'])} ms) | {ms(c['per_frame_s'])} "
+            f"(runs: {', '.join(f'{w * 1e3:.0f}' for w in c['wall_s'])} ms) | "
+            f"**{c['ratio']:.1f}x** | <= {TARGETS[name]:g}x {ok} | "
+            f"{ms(c['cpu_per_frame_s']) if 'cpu_per_frame_s' in c else '-'} |")
+    labels = []
+    for c in r["cases"].values():
+        labels += [k for k in c["stage_s"] if k not in labels]
+    lines += ["",
+              "Where a frame goes: the same frames in one process through the command's own "
+              "`ScanRun`, each stage timed where the core calls it (medians per frame; the "
+              "session's scan holds the sweep, the bodies, `scan_frame` and the boxes; "
+              "*step* is the whole step of the run, what the stages leave of it is the "
+              "session's and the run's own work).\n",
+              "| stage | " + " | ".join(names[n].split(",")[0] if n != "traffic_scan"
+                                        else "traffic, `rls scan`"
+                                        for n in r["cases"]) + " |",
+              "|---|" + "---|" * len(r["cases"])]
+    for label in labels:
+        lines.append(f"| {label} | " + " | ".join(
+            ms(c["stage_s"][label]) if label in c["stage_s"] else "-"
+            for c in r["cases"].values()) + " |")
+    lines.append("| *step* | " + " | ".join(ms(c["step_s"]) for c in r["cases"].values())
+                 + " |")
+    lines += ["", f"Load average at the start / end: {r['loadavg_start']:.2f} / "
+                  f"{r['loadavg_end']:.2f}.", ""]
+    return lines
+
+
+def main(argv=None):
+    return standalone.main(__doc__, measure, section, argv,
+                           quick_help="21 frames of each drive, one round")
+
+
+if __name__ == "__main__":
+    main()

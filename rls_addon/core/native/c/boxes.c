@@ -1,0 +1,157 @@
+/* What every ground-truth box of a frame counts, in C (rls_box_counts): over the rays
+ * toward each box (segments of the rays sorted by direction cell, see
+ * rls_addon/core/output/ray_cells.py), the rays whose path crosses the box within range
+ * and whether each reached the box's object or something in front of it, and the real
+ * points (not ghosts) on those rays that lie inside the box grown by a margin.
+ *
+ * rls_addon/core/output/box_counts.py (box_counts_numpy: visibility, points_inside) is
+ * the readable reference this follows operation by operation: the offset from the
+ * box's centre turned into its axes as ((x * r0j + y * r1j) + z * r2j), the slab test
+ * with 1 / d, a 0 * inf (NaN) slab bound taken as -inf / +inf, and the same
+ * comparisons; the library is built without fused multiply-add, so both make the same
+ * decisions and the counts are the reference's, one for one. Segments are split into
+ * shares on a few threads, each with counts of its own, summed at the end. */
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "rls_shares.h"
+
+#define RLS_BOXES_ABI 1
+
+typedef struct {
+    int64_t boxes;
+    const double *centre;     /* boxes x 3 */
+    const double *rot;        /* boxes x 9: row-major 3x3, its columns the box's axes */
+    const double *half;       /* boxes x 3: half the size */
+    const double *grown;      /* boxes x 3: half the size + the points' margin */
+    const int32_t *object;    /* boxes: its object's index into the rays' objects */
+    const double *reach;      /* boxes: a radius around the centre that holds the box
+                                 grown by the margin, padded (see below) */
+    int64_t segments;
+    const int64_t *seg_box;   /* per segment: its box */
+    const int64_t *seg_lo;    /* per segment: its first position in order */
+    const int64_t *seg_hi;    /*   and the position after its last */
+    const int64_t *order;     /* the rays by direction cell */
+    const double *origins;    /* 3 per ray, or one origin (one_origin) */
+    int64_t one_origin;
+    const double *dirs;       /* 3 per ray */
+    const int32_t *hit;       /* per ray: the object of its first hit, -1: none */
+    const double *dist;       /* per ray: the range of that hit */
+    double rmax;
+    const int64_t *pstart;    /* rays + 1: ray r's points are point_order[pstart[r]..] */
+    const int64_t *point_order;
+    const double *range;      /* per point */
+    const uint8_t *real;      /* per point: not a ghost */
+    int64_t *seen;            /* out, boxes: rays on the box that reached its object */
+    int64_t *blocked;         /* out, boxes: rays on the box stopped in front of it */
+    int64_t *inside;          /* out, boxes: real points inside the grown box */
+} boxes_t;
+
+typedef struct {
+    const boxes_t *a;
+    int64_t lo, hi;  /* this share's segments */
+    int64_t *seen, *blocked, *inside;  /* this share's counts */
+} share_t;
+
+/* v turned into the axes of rotation r (row-major): v @ r, the sums in numpy's order. */
+static void in_axes(const double *v, const double *r, double *out) {
+    for (int j = 0; j < 3; j++) out[j] = v[0] * r[j] + v[1] * r[3 + j] + v[2] * r[6 + j];
+}
+
+static double min2(double a, double b) { return b < a ? b : a; }
+static double max2(double a, double b) { return b > a ? b : a; }
+
+static void run_share(void *arg) {
+    share_t *s = (share_t *)arg;
+    const boxes_t *a = s->a;
+    for (int64_t g = s->lo; g < s->hi; g++) {
+        const int64_t b = a->seg_box[g];
+        const double *c = a->centre + 3 * b, *r = a->rot + 9 * b;
+        const double *half = a->half + 3 * b, *grown = a->grown + 3 * b;
+        for (int64_t p = a->seg_lo[g]; p < a->seg_hi[g]; p++) {
+            const int64_t ray = a->order[p];
+            const double *o = a->one_origin ? a->origins : a->origins + 3 * ray;
+            const double *d = a->dirs + 3 * ray;
+            double rel[3] = {o[0] - c[0], o[1] - c[1], o[2] - c[2]}, ol[3], dl[3];
+            /* A ray whose line passes farther than the reach from the centre, or that
+             * leaves it behind, crosses neither box and has no point in them: no test
+             * below can count it (the reach holds both with a margin far above the
+             * rounding of these sums). */
+            double along = -(rel[0] * d[0] + rel[1] * d[1] + rel[2] * d[2]);
+            double rr = a->reach[b];
+            if (along + rr < 0) continue;
+            double perp2 = rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2] - along * along;
+            if (perp2 > rr * rr) continue;
+            in_axes(rel, r, ol);
+            in_axes(d, r, dl);
+            double t_in = -INFINITY, t_out = INFINITY;
+            for (int k = 0; k < 3; k++) {
+                double inv = 1.0 / dl[k];
+                double t1 = (-half[k] - ol[k]) * inv, t2 = (half[k] - ol[k]) * inv;
+                if (t1 != t1) t1 = -INFINITY;
+                if (t2 != t2) t2 = INFINITY;
+                t_in = max2(t_in, min2(t1, t2));
+                t_out = min2(t_out, max2(t1, t2));
+            }
+            if (t_in <= t_out && t_out > 0 && t_in <= a->rmax) {
+                const int32_t h = a->hit[ray];
+                if (h == a->object[b]) s->seen[b]++;
+                else if (h >= 0 && a->dist[ray] < max2(t_in, 0.0) + 1e-6) s->blocked[b]++;
+            }
+            for (int64_t q = a->pstart[ray]; q < a->pstart[ray + 1]; q++) {
+                const int64_t pt = a->point_order[q];
+                if (!a->real[pt]) continue;
+                const double range = a->range[pt];
+                double w[3], l[3];
+                for (int k = 0; k < 3; k++) w[k] = (o[k] + d[k] * range) - c[k];
+                in_axes(w, r, l);
+                if (((l[0] < 0 ? -l[0] : l[0]) <= grown[0]) && ((l[1] < 0 ? -l[1] : l[1]) <= grown[1])
+                    && ((l[2] < 0 ? -l[2] : l[2]) <= grown[2]))
+                    s->inside[b]++;
+            }
+        }
+    }
+}
+
+/* Below this many segments per share a thread costs more than it saves (the caller
+ * cuts segments to at most a few thousand rays). */
+#define MIN_SHARE 16
+
+/* Counts per box into seen, blocked and inside (zeroed here), on up to ``threads``
+ * threads (the caller's among them). */
+RLS_EXPORT void rls_box_counts(const boxes_t *a, int threads) {
+    int shares = rls_share_count(a->segments, threads, MIN_SHARE);
+    share_t s[RLS_MAX_SHARES];
+    memset(a->seen, 0, (size_t)a->boxes * sizeof(int64_t));
+    memset(a->blocked, 0, (size_t)a->boxes * sizeof(int64_t));
+    memset(a->inside, 0, (size_t)a->boxes * sizeof(int64_t));
+    /* share 0 counts in place, the others in counts of their own */
+    int64_t *extra = shares > 1 ? calloc((size_t)(shares - 1) * 3 * (size_t)a->boxes,
+                                         sizeof(int64_t)) : NULL;
+    if (extra == NULL) shares = 1;
+    for (int k = 0; k < shares; k++) {
+        s[k] = (share_t){a, 0, 0, a->seen, a->blocked, a->inside};
+        if (k > 0) {
+            int64_t *mine = extra + (size_t)(k - 1) * 3 * (size_t)a->boxes;
+            s[k].seen = mine;
+            s[k].blocked = mine + a->boxes;
+            s[k].inside = mine + 2 * a->boxes;
+        }
+        rls_share_bounds(a->segments, shares, k, &s[k].lo, &s[k].hi);
+    }
+    rls_run_shares(run_share, s, sizeof(share_t), shares);
+    for (int k = 1; k < shares; k++)
+        for (int64_t b = 0; b < a->boxes; b++) {
+            a->seen[b] += s[k].seen[b];
+            a->blocked[b] += s[k].blocked[b];
+            a->inside[b] += s[k].inside[b];
+        }
+    free(extra);
+}
+
+/* The interface version of rls_box_counts (RLS_BOXES_ABI). */
+RLS_EXPORT int rls_boxes_abi(void) {
+    return RLS_BOXES_ABI;
+}

@@ -1,0 +1,88 @@
+/* A track's positions at many times, in C (rls_track_positions): a moving sensor's
+ * origin at the firing time of each of its rays (115,136 a Pandar64 frame, every
+ * channel at its own time).
+ *
+ * rls_addon/core/scene/motion.py (Track.positions_at: _segments, then hermite) is the
+ * readable reference this follows operation by operation: the knot interval of each
+ * time (the last knot at or before it, clamped to the first and the last interval),
+ * the fraction along it (clamped to [0, 1]; an interval of no length divides by 1), and
+ * cubic Hermite with the knots' velocities, its four terms summed left to right as
+ * numpy sums them; the library is built without fused multiply-add, so both give the
+ * same bits. Times are split into shares on a few threads. */
+#include <stdint.h>
+
+#include "rls_shares.h"
+
+#define RLS_TRACKS_ABI 1
+
+typedef struct {
+    int64_t knots;          /* K >= 2 */
+    const double *times;    /* K, increasing */
+    const double *position; /* K x 3 */
+    const double *velocity; /* K x 3 */
+    int64_t n;
+    const double *t;        /* n query times */
+    double *out;            /* n x 3 */
+} positions_t;
+
+typedef struct {
+    const positions_t *a;
+    int64_t lo, hi;
+} share_t;
+
+/* numpy's searchsorted(times, t, side="right") - 1, clipped to [0, K - 2]. */
+static int64_t segment(const double *times, int64_t k, double t) {
+    if (t != t) return k - 2;  /* NaN sorts last */
+    int64_t lo = 0, hi = k;    /* the first knot after t, by bisection */
+    while (lo < hi) {
+        int64_t mid = lo + (hi - lo) / 2;
+        if (times[mid] <= t) lo = mid + 1;
+        else hi = mid;
+    }
+    int64_t i = lo - 1;
+    return i < 0 ? 0 : (i > k - 2 ? k - 2 : i);
+}
+
+static void run_share(void *arg) {
+    share_t *s = (share_t *)arg;
+    const positions_t *a = s->a;
+    int64_t i = 0;
+    double last = 0.0;
+    int have = 0;
+    for (int64_t r = s->lo; r < s->hi; r++) {
+        double t = a->t[r];
+        if (!have || t != last) {  /* a firing's channels share their time */
+            i = segment(a->times, a->knots, t);
+            last = t;
+            have = 1;
+        }
+        double span = a->times[i + 1] - a->times[i];
+        double f = (t - a->times[i]) / (span > 0 ? span : 1.0);
+        f = f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);  /* np.clip: a NaN stays NaN */
+        double f2 = f * f, f3 = f * f * f;
+        double h00 = 2 * f3 - 3 * f2 + 1, h10 = (f3 - 2 * f2 + f) * span;
+        double h01 = 3 * f2 - 2 * f3, h11 = (f3 - f2) * span;
+        const double *p0 = a->position + 3 * i, *p1 = p0 + 3;
+        const double *v0 = a->velocity + 3 * i, *v1 = v0 + 3;
+        for (int k = 0; k < 3; k++)
+            a->out[3 * r + k] = h00 * p0[k] + h10 * v0[k] + h01 * p1[k] + h11 * v1[k];
+    }
+}
+
+/* Below this many times per share a thread costs more than it saves. */
+#define MIN_SHARE 32768
+
+RLS_EXPORT void rls_track_positions(const positions_t *a, int threads) {
+    int shares = rls_share_count(a->n, threads, MIN_SHARE);
+    share_t s[RLS_MAX_SHARES];
+    for (int k = 0; k < shares; k++) {
+        s[k] = (share_t){a, 0, 0};
+        rls_share_bounds(a->n, shares, k, &s[k].lo, &s[k].hi);
+    }
+    rls_run_shares(run_share, s, sizeof(share_t), shares);
+}
+
+/* The interface version of rls_track_positions (RLS_TRACKS_ABI). */
+RLS_EXPORT int rls_tracks_abi(void) {
+    return RLS_TRACKS_ABI;
+}

@@ -1,0 +1,68 @@
+"""A writer's files written behind the scan: each write on one background thread while
+the next scans run (encoding, writing and syncing a driving lidar's files cost about a
+third of its scan), the writes one after another in the order given.
+
+Up to ``WRITES_BEHIND`` writes wait their turn, so one slow fsync (a journal commit:
+10 ms among 3 ms frames) does not hold the scan up; a failed write raises at a later
+write or at ``flush`` (the end of a run, a cancel), once nothing runs behind it. The
+writer must not change what it handed over (a scan's points and info) meanwhile.
+"""
+
+from collections import deque
+
+WRITES_BEHIND = 4
+
+_THREAD = []
+
+
+class WritesBehind:
+    """The background writes of one writer (``enabled``; else each write runs at once,
+    in the caller)."""
+
+    def __init__(self, enabled=True):
+        self.enabled = bool(enabled)
+        self.pending = deque()  # writes under way (Futures), oldest first
+
+    def __getstate__(self):  # sent to workers without a write under way
+        return {"enabled": self.enabled, "pending": deque()}
+
+    def run(self, fn, *args):
+        """``fn(*args)``: behind the scan when enabled (returns None), else now (returns
+        its result)."""
+        if not self.enabled:
+            return fn(*args)
+        self.make_room()
+        self.pending.append(_background_thread().submit(fn, *args))
+        return None
+
+    def flush(self):
+        """Wait for every write under way; raises what the first that failed raised
+        (after all of them ended)."""
+        failed = None
+        while self.pending:
+            try:
+                self.pending.popleft().result()
+            except BaseException as exc:  # noqa: BLE001 - the rest still end first
+                failed = failed or exc
+        if failed is not None:
+            raise failed
+
+    def make_room(self, bound=None):
+        """Take the writes that ended (raising what one raised), and wait for the oldest
+        while ``WRITES_BEHIND`` are under way."""
+        bound = WRITES_BEHIND if bound is None else bound
+        while self.pending and (self.pending[0].done() or len(self.pending) >= bound):
+            try:
+                self.pending.popleft().result()
+            except BaseException:
+                self.flush()  # nothing left running behind the error
+                raise
+
+
+def _background_thread():
+    """The one thread background writes run on (started on first use)."""
+    if not _THREAD:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _THREAD.append(ThreadPoolExecutor(1, thread_name_prefix="rls-writer"))
+    return _THREAD[0]

@@ -1,0 +1,193 @@
+"""A frame's rays grouped by direction, so that every ground-truth box looks only at
+the rays (and the points on them) that may come near it, all boxes in one go.
+
+The rays' unit directions are put in cells of azimuth (``AZ_CELLS`` over 360 deg) and
+elevation (``EL_CELLS`` over 180 deg) by two stable radix sorts, once per frame, and
+kept while a sensor casts the very same direction array again (a still sensor, or one
+driving without turning: ``ScanPattern.rotated`` gives one read-only array). A box's
+cone from the middle of the ray origins ``o0`` (half-angle asin(reach / distance), its reach the
+box's radius plus how far a moving sensor's origins lie from the apex) holds every ray that passes
+within that radius of its centre: such a direction lies within the cone's angle of its
+axis, so within that angle of its elevation and within asin(sin a / cos e) of its
+azimuth (the span of a spherical cap that holds no pole). The cells those spans touch
+are a superset; where a cone would hold a pole, or ``o0`` lies inside the reach, every
+ray is taken. A point lies on its ray (``RayRecord.point_world``), so the points near a
+box are the points of the rays near it.
+"""
+
+import math
+
+import numpy as np
+
+AZ_CELLS = 720   # half-degree sectors of azimuth
+EL_CELLS = 360   # half-degree bands of elevation
+PAD = 1e-9       # radians added to every span (rounding of atan2 and asin)
+SEGMENT = 4096   # rays in one run of a box's candidates, at most
+
+_KEPT = [None]   # (directions array, its _Cells): the last frame's, for the same array
+
+
+class _Cells:
+    """Directions sorted by (azimuth sector, elevation band): ``order`` and each cell's
+    first row in it (``starts``)."""
+
+    def __init__(self, dirs):
+        d = np.asarray(dirs, np.float64).reshape(-1, 3)
+        self.n = len(d)
+        az = np.arctan2(d[:, 1], d[:, 0])
+        el = np.arcsin(np.clip(d[:, 2], -1.0, 1.0))
+        sector = _cell(az, -math.pi, AZ_CELLS / (2 * math.pi), AZ_CELLS).astype(np.int16)
+        band = _cell(el, -math.pi / 2, EL_CELLS / math.pi, EL_CELLS).astype(np.int16)
+        order = np.argsort(band, kind="stable")  # radix sorts: 16-bit keys
+        self.order = order[np.argsort(sector[order], kind="stable")]
+        cell = sector.astype(np.int64) * EL_CELLS + band
+        self.starts = np.zeros(AZ_CELLS * EL_CELLS + 1, np.int64)
+        np.cumsum(np.bincount(cell, minlength=AZ_CELLS * EL_CELLS), out=self.starts[1:])
+
+    @classmethod
+    def of(cls, dirs):
+        """The cells of ``dirs``, kept for the next call with the same read-only array
+        (whose contents cannot change)."""
+        kept = _KEPT[0]
+        if kept is not None and kept[0] is dirs:
+            return kept[1]
+        got = cls(dirs)
+        if isinstance(dirs, np.ndarray) and not dirs.flags.writeable:
+            _KEPT[0] = (dirs, got)
+        return got
+
+
+def _cell(angle, low, scale, count):
+    return np.clip(np.floor((angle - low) * scale), 0, count - 1)
+
+
+def _cell1(angle, low, scale, count):
+    """``_cell`` of one angle."""
+    return min(max(int(math.floor((angle - low) * scale)), 0), count - 1)
+
+
+def _ranges(lo, hi):
+    """(owner, index) of every index in the ranges [lo[j], hi[j]): ``owner`` j."""
+    n = np.maximum(hi - lo, 0)
+    total = int(n.sum())
+    owner = np.repeat(np.arange(len(lo)), n)
+    if not total:
+        return owner, np.zeros(0, np.int64)
+    first = np.cumsum(n) - n
+    return owner, np.arange(total, dtype=np.int64) - np.repeat(first - lo, n)
+
+
+class RayCells:
+    """The rays of a ``RayRecord`` (and its points) by direction (see the module
+    docstring)."""
+
+    def __init__(self, rays):
+        self.rays = rays
+        o = np.asarray(rays.origins, np.float64)
+        # The cones' apex: the middle of the origins' bounding box, and how far they may
+        # lie from it (half its diagonal: at least the farthest origin's distance; the
+        # cones widen by it). One origin: itself.
+        self.o0, self.travel = (o[0] if len(o) else np.zeros(3)), 0.0
+        if len(o) > 1:
+            lo = np.array([o[:, k].min() for k in range(3)])
+            hi = np.array([o[:, k].max() for k in range(3)])
+            self.o0 = (lo + hi) / 2
+            half = (hi - lo) / 2
+            self.travel = math.sqrt(float(half @ half)) * (1 + 1e-12) + 1e-12
+        self.cells = _Cells.of(rays.dirs)
+        pr = np.asarray(rays.point_ray, np.int64)
+        # the points grouped by ray: ray r's points are point_order[pstart[r]:pstart[r + 1]]
+        self.point_order = np.arange(len(pr)) if np.all(pr[1:] >= pr[:-1]) \
+            else np.argsort(pr, kind="stable")
+        self.pstart = np.zeros(self.cells.n + 1, np.int64)
+        np.cumsum(np.bincount(pr, minlength=self.cells.n), out=self.pstart[1:])
+
+    def _spans(self, centre, reach):
+        """The cone of rays toward a sphere of ``reach`` around ``centre`` as cell spans
+        (``_cone_spans``), or None: every ray."""
+        v = [float(centre[0] - self.o0[0]), float(centre[1] - self.o0[1]),
+             float(centre[2] - self.o0[2])]
+        dist = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+        if dist <= reach:
+            return None
+        return self._cone_spans(v, math.asin(min(1.0, reach / dist)))
+
+    @staticmethod
+    def _cone_spans(v, angle):
+        """The directions within ``angle`` of ``v`` as cell spans: [(sector lo, sector
+        hi, band lo, band hi)], or None where the cone holds a pole."""
+        h = math.hypot(float(v[0]), float(v[1]))
+        if h == 0.0:
+            return None
+        elevation = math.atan2(abs(float(v[2])), h)
+        if angle >= math.pi / 2 - elevation:
+            return None
+        span = math.asin(min(1.0, math.sin(angle) / math.cos(elevation))) + PAD
+        a = math.atan2(float(v[1]), float(v[0]))
+        e = math.atan2(float(v[2]), h)
+        b0, b1 = (_cell1(x, -math.pi / 2, EL_CELLS / math.pi, EL_CELLS)
+                  for x in (e - angle - PAD, e + angle + PAD))
+        lo, hi = a - span, a + span
+        parts = [(lo, hi)]
+        if lo < -math.pi:
+            parts = [(-math.pi, hi), (lo + 2 * math.pi, math.pi)]
+        elif hi > math.pi:
+            parts = [(lo, math.pi), (-math.pi, hi - 2 * math.pi)]
+        scale = AZ_CELLS / (2 * math.pi)
+        return [(_cell1(p, -math.pi, scale, AZ_CELLS), _cell1(q, -math.pi, scale, AZ_CELLS),
+                 b0, b1) for p, q in parts]
+
+    def segments(self, centres, radii):
+        """(box, lo, hi) arrays: for every box j (a sphere of ``radii[j]`` around
+        ``centres[j]``), runs [lo, hi) of ``cells.order`` that hold a superset of the
+        rays passing within that sphere, each ray once; runs no longer than
+        ``SEGMENT`` (shares of work for the compiled counts)."""
+        boxes, los, his = [], [], []
+        starts = self.cells.starts
+        for j, (c, r) in enumerate(zip(centres, radii)):
+            spans = self._spans(c, float(r) + self.travel)
+            if spans is None:
+                los.append(np.array([0]))
+                his.append(np.array([self.cells.n]))
+                boxes.append(np.array([j]))
+                continue
+            for s0, s1, b0, b1 in spans:
+                sec = np.arange(s0, s1 + 1) * EL_CELLS
+                los.append(starts[sec + b0])
+                his.append(starts[sec + b1 + 1])
+                boxes.append(np.full(len(sec), j))
+        if not boxes:
+            z = np.zeros(0, np.int64)
+            return z, z, z
+        box, lo, hi = (np.concatenate(x).astype(np.int64) for x in (boxes, los, his))
+        keep = hi > lo
+        box, lo, hi = box[keep], lo[keep], hi[keep]
+        pieces = np.maximum((hi - lo + SEGMENT - 1) // SEGMENT, 1)
+        if np.any(pieces > 1):  # long runs cut into pieces
+            owner, k = _ranges(np.zeros(len(lo), np.int64), pieces)
+            box, lo = box[owner], lo[owner] + k * SEGMENT
+            hi = np.minimum(lo + SEGMENT, hi[owner])
+        return box, lo, hi
+
+    def pairs(self, segments):
+        """(box, ray) of every ray in ``segments`` (``segments``' result)."""
+        box, lo, hi = segments
+        seg, pos = _ranges(lo, hi)
+        return box[seg], self.cells.order[pos]
+
+    def within(self, v, angle):
+        """Sorted indices of a superset of the rays whose directions lie within
+        ``angle`` of ``v``."""
+        spans = self._cone_spans(np.asarray(v, np.float64), angle)
+        if spans is None:
+            return np.arange(self.cells.n)
+        starts, parts = self.cells.starts, []
+        for s0, s1, b0, b1 in spans:
+            sec = np.arange(s0, s1 + 1) * EL_CELLS
+            parts.append(_ranges(starts[sec + b0], starts[sec + b1 + 1])[1])
+        return np.sort(self.cells.order[np.concatenate(parts)])
+
+    def points_of(self, box, ray):
+        """(box, point) pairs of the points on the rays of (box, ray) pairs."""
+        owner, pos = _ranges(self.pstart[ray], self.pstart[ray + 1])
+        return box[owner], self.point_order[pos]

@@ -1,0 +1,231 @@
+"""Every ground-truth box of a frame at once (``ground_truth.object_boxes``: one
+evaluation of all tracks, the rays grouped once by direction, the counts in one pass,
+compiled or numpy) against the per-object reference it replaced
+(``box_reference.object_boxes_per_object``): the same boxes, number for number, for
+still, driving and turning sensors, objects that drive, turn and accelerate, boxes on
+the sweep's seam, objects that return nothing, and colliding instance ids."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from rls_addon.core.output import box_counts, box_reference
+from rls_addon.core.output.ray_cells import RayCells
+from rls_addon.core.scan import session as session_module
+from rls_addon.core.scan.frame import RayRecord
+from rls_addon.core.scan.run import ScanRun, SensorJob
+from rls_addon.core.scan.settings import LidarSettings, OutputSettings, ScanSettings
+
+from .fakes import FakeScene, numpy_factory, small_preset, translation
+
+
+def yawed(p, yaw):
+    m = translation(p)
+    c, s = math.cos(yaw), math.sin(yaw)
+    m[:2, :2] = [[c, -s], [s, c]]
+    return m
+
+
+def traffic(sensor="still"):
+    """A ground, a wall, and road users around a sensor: a car driving straight, one
+    turning while it brakes, a cyclist accelerating, a pedestrian behind the wall (no
+    point) and one half behind it, a parked van across the sweep's seam (the sensor's
+    +X), a car far out of
+    range; the sensor still, driving or turning."""
+    boxes = {"ground": ((-80, -80, -1.2), (80, 80, -1.0), 1),
+             "wall": ((-4.0, 6.0, -1.0), (4.0, 6.4, 3.0), 4),
+             "car": ((-2.25, -0.9, 0.0), (2.25, 0.9, 1.5), 11),
+             "turner": ((-2.3, -0.95, 0.0), (2.3, 0.95, 1.6), 11),
+             "bike": ((-0.9, -0.3, 0.0), (0.9, 0.3, 1.7), 18),
+             "walker": ((-0.3, -0.3, 0.0), (0.3, 0.3, 1.8), 12),
+             "peeker": ((-0.3, -0.3, 0.0), (0.3, 0.3, 1.8), 12),
+             "van": ((-2.5, -1.0, 0.0), (2.5, 1.0, 2.2), 11),
+             "far": ((-2.0, -0.9, 0.0), (2.0, 0.9, 1.5), 11)}
+    motion = {
+        "car": lambda s: yawed((8.0 + 14.0 * s, -6.0, -1.0), 0.0),
+        # a right turn of radius 9 m at 8 m/s, slowing at 2 m/s^2
+        "turner": lambda s: yawed((12 + 9 * math.sin((8 * s - s * s) / 9), 9 - 9 * math.cos(
+            (8 * s - s * s) / 9), -1.0), (8 * s - s * s) / 9),
+        "bike": lambda s: yawed((-3.0 + 3.0 * s * s, -12.0, -1.0), 0.2),
+        "walker": lambda s: yawed((0.5 * s, 9.0, -1.0), 1.2),
+        "peeker": lambda s: yawed((4.2 + 0.3 * s, 9.5, -1.0), 0.0),  # half behind the wall
+        "van": lambda s: yawed((20.0, -1.0, -1.0), 0.0),
+        "far": lambda s: yawed((300.0 + 10 * s, 0.0, -1.0), 0.0),
+    }
+    sensors = {"still": lambda s: translation((0.0, 0.0, 1.0)),
+               "driving": lambda s: translation((-4.0 + 12.0 * s, -2.0, 1.0)),
+               "turning": lambda s: yawed((-4.0 + 10 * math.sin(0.8 * s), 8 - 10 * math.cos(
+                   0.8 * s), 1.0), 0.8 * s)}
+    sc = FakeScene(boxes, {sensor: sensors[sensor]}, motion)
+    if sensor != "still":
+        sc.moving_sensors = {sensor}
+    return sc
+
+
+def both_ways(monkeypatch, sc, sensor, frames=(1, 2, 3), **scan_kw):
+    """Scan ``frames`` with every frame's boxes made both ways; returns how many boxes
+    were compared (and asserts they are equal)."""
+    compared = []
+    fast = session_module.object_boxes
+
+    def compare(*args, **kw):
+        got = [json.dumps(b.to_dict()) for b in fast(*args, **kw)]
+        box_counts.compiled = False
+        try:
+            numpy_got = [json.dumps(b.to_dict()) for b in fast(*args, **kw)]
+        finally:
+            box_counts.compiled = True
+        ref = [json.dumps(b.to_dict())
+               for b in box_reference.object_boxes_per_object(*args, **kw)]
+        assert got == ref and numpy_got == ref
+        compared.extend(got)
+        return fast(*args, **kw)
+
+    monkeypatch.setattr(session_module, "object_boxes", compare)
+    preset = small_preset(channels=16, steps=900, noise=0.02)
+    job = SensorJob(sensor, LidarSettings(scan=ScanSettings(**scan_kw),
+                                          output=OutputSettings()), preset)
+    ScanRun(sc, [job], list(frames), factory=numpy_factory).run()
+    return compared
+
+
+@pytest.mark.parametrize("sensor,seam", [("still", 0.0), ("driving", 2.4), ("turning", 0.0)])
+def test_all_boxes_at_once_equal_the_per_object_reference(monkeypatch, sensor, seam):
+    compared = both_ways(monkeypatch, traffic(sensor), sensor, sweep_start_deg=seam)
+    boxes = [json.loads(b) for b in compared]
+    assert len(boxes) == 3 * 7  # every road user, every frame
+    assert any(b["split_by_sweep_seam"] for b in boxes)  # the van on the seam
+    assert any(not b["seen"] for b in boxes)              # the walker behind the wall
+    assert any(b["seen"] and 0 < b["visible_share"] < 1 for b in boxes)  # the peeker
+    assert any(b["visible_share"] is None for b in boxes)  # far out of range
+
+
+def test_snapshot_motion_and_substeps_too(monkeypatch):
+    assert both_ways(monkeypatch, traffic("driving"), "driving", frames=(2,),
+                     motion="snapshot")
+    assert both_ways(monkeypatch, traffic("turning"), "turning", frames=(2,),
+                     motion="substeps", substeps=4)
+
+
+def test_colliding_instance_ids_count_every_object_of_the_id(monkeypatch):
+    from rls_addon.core.scene import instances as instances_module
+
+    real = instances_module.object_table
+
+    def colliding(insts):  # the car and the van share an id, as a name clash would
+        table = real(insts)
+        ids = {o.name: o.instance for o in table}
+        return [type(o)(o.name, o.label, ids["car"] if o.name == "van" else o.instance)
+                if o.name == "van" else o for o in table]
+
+    monkeypatch.setattr(session_module, "object_table", colliding)
+    boxes = [json.loads(b) for b in both_ways(monkeypatch, traffic("still"), "still",
+                                               frames=(1,))]
+    car, van = (next(b for b in boxes if b["object"] == n) for n in ("car", "van"))
+    assert car["instance"] == van["instance"] and car["points"] == van["points"] > 0
+
+
+def spinning_rays(rng, n_az=900, channels=16, moving=False, turning=False):
+    az = np.repeat(np.linspace(-math.pi, math.pi, n_az, endpoint=False), channels)
+    el = np.tile(np.radians(np.linspace(-25, 15, channels)), n_az)
+    dirs = np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], 1)
+    times = np.linspace(0, 0.1, len(dirs))
+    if turning:
+        yaw = 2.0 * times
+        dirs = np.stack([dirs[:, 0] * np.cos(yaw) - dirs[:, 1] * np.sin(yaw),
+                         dirs[:, 0] * np.sin(yaw) + dirs[:, 1] * np.cos(yaw), dirs[:, 2]], 1)
+    dirs.flags.writeable = False
+    origins = (np.array([[0.0, 0.0, 2.0]]) if not moving
+               else np.c_[times * 15.0, times * 3.0, np.full(len(times), 2.0)])
+    obj = rng.integers(-1, 4, len(dirs)).astype(np.int32)
+    dist = np.where(obj >= 0, rng.uniform(1, 80, len(dirs)), np.inf)
+    hit = np.repeat(np.nonzero(obj >= 0)[0], rng.integers(1, 3, np.count_nonzero(obj >= 0)))
+    return RayRecord(origins, dirs, times, obj, dist, hit, [])
+
+
+@pytest.mark.parametrize("moving,turning", [(False, False), (True, False), (True, True)])
+def test_the_compiled_counts_equal_numpys_and_each_boxs_own(moving, turning):
+    """Random boxes (near, far, over the sensor, on the seam, around the pole) and a
+    spinning pattern whose rays graze box faces: the compiled counts, numpy's pairs and
+    the reference's box-by-box tests agree, with points on two returns of a ray and
+    ghosts among them."""
+    rng = np.random.default_rng(5 + moving + turning)
+    rays = spinning_rays(rng, moving=moving, turning=turning)
+    ranges = rays.dist[rays.point_ray] + rng.normal(0, 0.05, len(rays.point_ray))
+    real = rng.random(len(ranges)) > 0.1
+    world = rays.point_world(ranges)
+    n = 120
+    yaw = rng.uniform(-math.pi, math.pi, n)
+    poses = np.repeat(np.eye(4)[None], n, axis=0)
+    poses[:, 0, 0], poses[:, 0, 1], poses[:, 1, 0], poses[:, 1, 1] = \
+        np.cos(yaw), -np.sin(yaw), np.sin(yaw), np.cos(yaw)
+    poses[:, :3, 3] = rng.uniform([-40, -40, -3], [40, 40, 12], (n, 3))
+    poses[:10, :3, 3] = np.c_[-rng.uniform(0.5, 30, 10), rng.uniform(-0.3, 0.3, 10),
+                              rng.uniform(0, 4, 10)]  # on the seam at -pi / pi
+    poses[10:15, :3, 3] = [[0.1, 0.2, 2.0], [0, 0, 9.0], [0.3, -0.2, -6.0], [1.0, 0, 2.0],
+                           [0, 0, 2.0]]  # holding the sensor, over and under it
+    poses[15:20, :3, :3] = np.eye(3)  # axis-aligned: rays parallel to the slabs
+    sizes = rng.uniform([0.5, 0.5, 1.0], [10.0, 3.0, 4.0], (n, 3))
+    objects = rng.integers(-2, 4, n)
+    margin, rmax = 0.05, 120.0
+    cells = RayCells(rays)
+    radii = np.maximum(np.linalg.norm(sizes / 2 + margin, axis=1),
+                       np.linalg.norm(sizes, axis=1) / 2 + 1e-6)
+    segments = cells.segments(poses[:, :3, 3], radii)
+    got = box_counts.box_counts(cells, objects, poses, sizes, margin, rmax, ranges, real,
+                                segments)
+    assert box_counts.BOX_COUNTS.get() is not None  # the library is built here
+    ref = box_counts.box_counts_numpy(cells, objects, poses, sizes, margin, rmax, ranges,
+                                      real, segments)
+    for a, b in zip(got, ref):
+        np.testing.assert_array_equal(a, b)
+    fan = box_reference.RayFan(rays, world)
+    for j in range(n):
+        share, on = box_reference._visibility(rays, objects[j], poses[j], sizes[j], rmax, fan)
+        inside = np.count_nonzero(real & box_reference._inside(world, poses[j], sizes[j],
+                                                                margin))
+        assert (on, int(got[2][j])) == (int(got[1][j]), inside)
+        assert (math.isnan(share) and math.isnan(got[0][j])) or share == got[0][j]
+    assert got[1].sum() > 5000 and got[2].sum() > 500  # the boxes saw a lot
+
+
+@pytest.mark.parametrize("moving", [False, True])
+def test_the_ray_facing_a_centre_is_the_best_of_all(moving):
+    from rls_addon.core.output.box_counts import facing, facing_ray
+
+    rng = np.random.default_rng(11)
+    rays = spinning_rays(rng, moving=moving)
+    cells = RayCells(rays)
+    settled = 0
+    for _ in range(200):
+        centre = rng.uniform([-40, -40, -3], [40, 40, 12])
+        best = facing_ray(cells, centre)
+        if best is not None:
+            assert best == facing(rays, centre, slice(None))[0]
+            settled += 1
+    assert settled > 150
+
+
+def test_every_boxs_record_made_together_is_its_own(monkeypatch):
+    """The sidecar's box records made for all boxes at once (``box_dicts``: the sensor
+    poses inverted and the start matrices decomposed together) are each box's own
+    ``to_dict``, byte for byte, for a driving and a turning sensor."""
+    from rls_addon.core.output.ground_truth import box_dicts
+
+    seen = []
+    fast = session_module.object_boxes
+
+    def compare(*args, **kw):
+        boxes = fast(*args, **kw)
+        assert json.dumps(box_dicts(boxes)) == json.dumps([b.to_dict() for b in boxes])
+        seen.extend(boxes)
+        return boxes
+
+    monkeypatch.setattr(session_module, "object_boxes", compare)
+    for sensor in ("driving", "turning"):
+        job = SensorJob(sensor, LidarSettings(scan=ScanSettings(), output=OutputSettings()),
+                        small_preset(channels=16, steps=900))
+        ScanRun(traffic(sensor), [job], [1, 2], factory=numpy_factory).run()
+    assert len(seen) == 2 * 2 * 7 and all(b.start_matrix is not None for b in seen)

@@ -1,0 +1,123 @@
+"""Many tracks evaluated at once (``TrackSet``) give what each ``Track`` gives on its
+own, byte for byte: driving, accelerating, turning, scaled and sheared, still and
+one-knot tracks, at times inside, on and beyond their knots."""
+
+import numpy as np
+
+from rls_addon.core.scene.motion import Track
+from rls_addon.core.scene.track_set import TrackSet
+
+
+def turned(yaw, pitch=0.0):
+    c, s = np.cos(yaw), np.sin(yaw)
+    m = np.eye(4)
+    m[:2, :2] = [[c, -s], [s, c]]
+    cp, sp = np.cos(pitch), np.sin(pitch)
+    r = np.eye(4)
+    r[[0, 0, 2, 2], [0, 2, 0, 2]] = [cp, sp, -sp, cp]
+    return m @ r
+
+
+def tracks(rng, count=50):
+    out = []
+    for k in range(count):
+        n = int(rng.integers(1, 12))
+        t = np.sort(rng.uniform(0.0, 0.1, n))
+        t[0] = 0.0
+        kind = k % 6
+        mats = []
+        for tt in t:
+            if kind == 0:    # driving straight
+                m = np.eye(4)
+                m[:3, 3] = [10 * tt, 2, 0]
+            elif kind == 1:  # accelerating through a turn
+                m = turned(3 * tt)
+                m[:3, 3] = [5 * tt + 20 * tt * tt, 1, 0]
+            elif kind == 2:  # parked
+                m = turned(0.3)
+                m[:3, 3] = [1, 2, 3]
+            elif kind == 3:  # tumbling, scaled and sheared
+                m = turned(rng.uniform(-3, 3), rng.uniform(-1, 1))
+                m[:3, :3] = m[:3, :3] @ (np.eye(3) + rng.normal(0, 0.3, (3, 3)))
+                m[:3, 3] = rng.normal(size=3)
+            elif kind == 4:  # on a circle
+                m = turned(-20 * tt)
+                m[:3, 3] = [np.cos(20 * tt), np.sin(20 * tt), 0]
+            else:            # mirrored
+                m = turned(2 * tt) @ np.diag([1.0, -1.0, 1.0, 1.0])
+                m[:3, 3] = [tt, -tt, 0]
+            mats.append(m)
+        out.append(Track(t, np.array(mats)))
+    return out
+
+
+def test_a_set_evaluates_every_track_as_the_track_does():
+    rng = np.random.default_rng(1)
+    ts = tracks(rng)
+    both = TrackSet(ts)
+    which = rng.integers(0, len(ts), 4000)
+    t = rng.uniform(-0.02, 0.12, 4000)
+    t[::7] = 0.0
+    t[1::11] = 0.1
+    t[2::13] = [ts[w].times[-1] for w in which[2::13]]  # on their last knot
+    got, pos = both.at(which, t), both.positions_at(which, t)
+    for r in range(len(t)):
+        track = ts[which[r]]
+        assert np.array_equal(track.at([t[r]])[0], got[r])
+        assert np.array_equal(track.positions_at([t[r]])[0], pos[r])
+
+
+def test_many_times_of_one_track_match_its_own_broadcast_evaluation():
+    track = tracks(np.random.default_rng(2), 2)[1]
+    t = np.linspace(0.0, 0.1, 20000)
+    one = TrackSet([track])
+    assert np.array_equal(track.at(t), one.at(np.zeros(len(t), int), t))
+    assert np.array_equal(track.positions_at(t), one.positions_at(np.zeros(len(t), int), t))
+
+
+def test_fixed_tracks_stand_for_objects_that_did_not_move():
+    m = turned(0.7)
+    m[:3, 3] = [4, 5, 6]
+    moving = tracks(np.random.default_rng(3), 2)[1]
+    both = TrackSet.of([None, moving], [m, np.eye(4)])
+    assert np.array_equal(both.at([0, 0], [0.0, 0.05]), np.stack([m, m]))
+    assert np.array_equal(both.at([1], [0.05])[0], moving.at([0.05])[0])
+
+
+def test_a_frames_ray_origins_in_c_are_the_tracks_own():
+    """A moving sensor's position at each ray's time (``track_set.positions_at``: in C
+    where built) equals ``Track.positions_at`` byte for byte: driving, accelerating,
+    turning and mirrored tracks, times repeated (a firing's channels), out of order,
+    on knots and beyond the sweep."""
+    from rls_addon.core.scene import track_set
+
+    assert track_set.TRACK_POSITIONS.get() is not None  # the library is built here
+    rng = np.random.default_rng(6)
+    for track in tracks(rng, 12):
+        t = np.repeat(np.linspace(-0.01, 0.11, 4000), 3)
+        t[::97] = rng.uniform(-0.02, 0.12, len(t[::97]))
+        t[5::101] = track.times[rng.integers(0, len(track.times), len(t[5::101]))]
+        assert np.array_equal(track_set.positions_at(track, t), track.positions_at(t))
+
+
+def test_tracks_made_together_are_each_tracks_own():
+    """``Track.many`` (a sweep's bodies decomposed together) gives each body the track
+    ``Track`` gives it: the same rotations' quaternions, on the same side, and the same
+    scale and shear; and the sweep's check of its samples (``_interp_errors``) the same
+    errors as body by body."""
+    from rls_addon.core.scan.sweep import _interp_error, _interp_errors
+
+    rng = np.random.default_rng(9)
+    times = np.linspace(0.0, 0.1, 9)
+    mats = np.array([tr.at(times) for tr in tracks(rng, 40) if len(tr.times) > 1])
+    mats[::5, 4:] = mats[::5, 4:] @ np.diag([-1.0, 1.0, 1.0, 1.0])  # a flip mid-sweep
+    for one, many in zip([Track(times, m) for m in mats] + [Track(times[:2], mats[0, :2])],
+                         Track.many(times, mats) + Track.many(times[:2], mats[:1, :2])):
+        assert np.array_equal(one._quat, many._quat) and np.array_equal(one._scale, many._scale)
+        assert np.array_equal(one.velocities, many.velocities)
+        assert np.array_equal(one.at(times[:-1] + 0.003), many.at(times[:-1] + 0.003))
+    probe_t = (times[1:] + times[:-1]) / 2
+    probe = mats[:, :8] + rng.normal(0, 1e-4, (len(mats), 8, 4, 4))
+    points = [rng.normal(size=(2, 3)) for _ in mats]
+    assert _interp_errors(times, mats, probe_t, probe, points) == \
+        [_interp_error(times, m, probe_t, p, q) for m, p, q in zip(mats, probe, points)]
