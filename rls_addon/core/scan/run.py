@@ -324,7 +324,7 @@ class ScanRun:
         per sensor, runs of consecutive frames (a worker keeps a still sensor's cast
         and a sensor's prepared scene over its frames); with ``by_sensor=False`` runs
         of frames with every sensor (layouts whose files need a whole frame)."""
-        from .cluster import shards
+        from .dask_run import shards
 
         if not by_sensor:
             return [([j.name for j in self.sensors], f) for f in shards(self.frames, count)]

@@ -18,7 +18,7 @@ from ..errors import SceneError
 from ..labels import label_id
 from ..metrics.infra import resolve_labels
 from ..metrics.polygon import in_arc, points_in_polygon, polygon_arc
-from ..scan.cluster import available_memory
+from ..scan.dask_run import available_memory
 from ..scan.frame import scan_frame, sensor_axes
 from ..scan.session import ScanSession
 from ..scan.device_values import device_values
