@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import freed_pages
-from ..native import blas
+from ..native import blas_threads
 from ..physics import echoes, effects, footprint, ghost, weather
 from ..physics.assemble import Draws, Effects, Hits, Rays, assemble
 from ..world.bodies import PreparedScene
@@ -200,7 +200,7 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     as the device reports them (each in the sensor frame at its own firing time).
     """
     freed_pages.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
-    with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
+    with blas_threads.single_threaded():  # OpenBLAS' spinning threads would slow the caster
         return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
                            frame, sensor, sensor_track, moving, keep_rays, fields, rays)
 

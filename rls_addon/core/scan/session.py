@@ -16,7 +16,7 @@ import dataclasses
 
 import numpy as np
 
-from ..native import blas
+from ..native import blas_threads
 from ..world.bodies import PreparedScene, RigidBodies, TimedScene
 from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
@@ -85,11 +85,11 @@ class ScanSession:
         for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
         objects of these classes go into the info (``ground_truth``).
 
-        All of it with numpy's BLAS on one thread (``blas.single_threaded``, as the
-        frame itself): the sweep's, the bodies' and the boxes' many small products
+        All of it with numpy's BLAS on one thread (``blas_threads.single_threaded``, as
+        the frame itself): the sweep's, the bodies' and the boxes' many small products
         and inverses cost 3x as much on OpenBLAS' threads (a 4x4 inverse 80 us
         against 25 us here, and far more when other work shares the cores)."""
-        with blas.single_threaded():
+        with blas_threads.single_threaded():
             return self._scan(source, sensor, preset, settings, frame, object_classes)
 
     def _scan(self, source, sensor, preset, settings, frame, object_classes):
