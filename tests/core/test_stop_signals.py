@@ -101,7 +101,7 @@ def test_a_signal_while_the_command_line_puts_its_handlers_back_is_ignored(handl
         restores = getattr(previous, "__name__", "") == "stop" and handler is not previous
         if restores and not restoring:  # the first handler put back
             restoring.append(signum)
-            other = next(s for s in signals.stop_signals() if s != signum)
+            other = next(s for s in stop_signals.stop_signals() if s != signum)
             os.kill(os.getpid(), other)  # its handler is still the command line's
         return previous
 
