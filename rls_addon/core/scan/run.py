@@ -22,6 +22,7 @@ from ..errors import SceneError
 from ..scene.instances import check_ids
 from ..scene.traffic_keys import check_keyed, source_span
 from ..labels import label_id, label_name
+from .device_values import device_values
 from .session import ScanSession, settings_record
 
 
@@ -136,7 +137,10 @@ class ScanRun:
                 self.free_outputs()
             if not piece and (getattr(writer, "resume", False) or getattr(writer, "overwrite", False)):
                 self.remove_leftovers()  # what a killed earlier run of these outputs left
-        self._records = {j.name: settings_record(j.preset, j.settings.scan) for j in self.sensors}
+        # each sensor's device after its settings, resolved once for the run
+        self._values = {j.name: device_values(j.preset, j.settings.scan) for j in self.sensors}
+        self._records = {j.name: settings_record(j.preset, j.settings.scan, self._values[j.name])
+                         for j in self.sensors}
         self._told_stale = set()  # sensors whose files of other settings were reported
         self.sessions, self.notices = ({} if sessions is None else sessions), []
         if writer is not None and not piece and hasattr(writer, "orphans"):
@@ -217,7 +221,7 @@ class ScanRun:
         out = job.settings.output
         classes = [label_id(c) for c in out.object_classes] if out.ground_truth else None
         result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
-                                    object_classes=classes)
+                                    object_classes=classes, values=self._values[job.name])
         info["frame_rate_hz"] = self.source.fps
         info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
         self._add_labels(info["labels"])
