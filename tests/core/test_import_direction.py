@@ -170,3 +170,68 @@ def test_a_wrong_import_is_caught(tmp_path, case):
     target.write_text(target.read_text() + "\n" + planted)
     bad = wrong_imports(copy)
     assert len(bad) == 1 and "rls_addon/core/scan/frames.py" in bad[0], bad
+
+
+def circles(root=PACKAGE):
+    """Groups of modules that import each other in a loop (imports inside functions
+    count: a loop closed by a late import is still a loop), each as a sorted list."""
+    base = root.parent
+    files = sorted(root.rglob("*.py"))
+    modules = {module_name(p, base) for p in files}
+    graph = {}
+    for path in files:
+        me = graph.setdefault(module_name(path, base), set())
+        for _, target in imports(path, modules, base):
+            while target not in modules and "." in target:
+                target = target.rsplit(".", 1)[0]
+            name = module_name(path, base)
+            if target in modules and target != name and not name.startswith(target + "."):
+                me.add(target)  # a module's own package (its __init__) is not a loop
+    found, index, low, stack, on = [], {}, {}, [], set()
+
+    def visit(v):  # Tarjan's strongly connected components
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                found.append(sorted(group))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_circles():
+    """No modules import each other in a loop (output/io had bag_writer -> paths ->
+    formats -> bag_writer, closed by an import inside a function)."""
+    assert circles() == []
+
+
+def test_a_circle_is_caught(tmp_path):
+    import shutil
+
+    copy = tmp_path / "rls_addon"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("*.so", "*.dll", "*.dylib",
+                                                                 "__pycache__", "c"))
+    names = copy / "core" / "output" / "io" / "names.py"
+    names.write_text(names.read_text() + "\n\ndef _f():\n    from .paths import output_path\n"
+                     "    return output_path\n")
+    assert circles(copy) == [["rls_addon.core.output.io.bag_writer",
+                              "rls_addon.core.output.io.formats",
+                              "rls_addon.core.output.io.names",
+                              "rls_addon.core.output.io.paths"]]
