@@ -41,7 +41,7 @@ TRIALS = 50
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 # the modules rls_addon/__main__.py imports before its handlers are in place
 START_MODULES = ("rls_addon/__main__.py", "rls_addon/__init__.py", "rls_addon/core/__init__.py",
-                 "rls_addon/core/signals.py", "rls_addon/core/errors.py")
+                 "rls_addon/core/stop_signals.py", "rls_addon/core/errors.py")
 
 
 @pytest.fixture(scope="module")
