@@ -351,8 +351,15 @@ class WatertightCaster(CasterBase):
         return (has.take(code) != 0) & (near <= far) & (far >= 0) & (near <= max_dist)
 
     def _starts_inside(self, o):
-        """True unless ``o`` is one origin outside every hull box (then a ray's first
-        hull hit is where it enters one; per-ray origins are not checked)."""
-        if o.shape[0] != 1:
-            return True
-        return bool(np.any(np.all((self.box_lo <= o[0]) & (o[0] <= self.box_hi), axis=1)))
+        """True unless every origin of ``o`` ((1, 3) or (N, 3): a driving sensor's, one
+        per ray) lies outside every hull box (then a ray's first hull hit is where it
+        enters one). Per-ray origins are judged by their bounds: when the box around
+        them all meets no hull box, none of them lies in one (a sensor driving over a
+        road keeps its limit; before, every per-ray origin counted as inside, and a
+        driving Pandar64 re-cast each ray that hit a car: 27,585 rays of frame 40
+        through the sample traffic)."""
+        o = np.asarray(o, np.float64).reshape(-1, 3)
+        # per column: numpy's min over axis 0 of an (N, 3) array is ~25x slower
+        lo = np.array([o[:, k].min() for k in range(3)])
+        hi = np.array([o[:, k].max() for k in range(3)])
+        return bool(np.any(np.all((self.box_lo <= hi) & (lo <= self.box_hi), axis=1)))
