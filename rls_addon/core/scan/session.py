@@ -311,8 +311,12 @@ def sensor_pose_record(pose, track, period):
         return {"sensor_pose_start": pose.tolist(), "sensor_pose_end": pose.tolist(),
                 "sensor_moves": False, "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
     times, mats = pose_knots(track)
-    return {"sensor_pose_start": rigid(track.at([0.0])[0]).tolist(),
-            "sensor_pose_end": rigid(track.at([period])[0]).tolist(), "sensor_moves": True,
+    # the knots' first and last are the poses at the sweep's start and end when the
+    # track spans the sweep (as sampled): the same evaluation
+    start = mats[0] if times[0] == 0.0 else rigid(track.at([0.0])[0])
+    end = mats[-1] if times[-1] == period else rigid(track.at([period])[0])
+    return {"sensor_pose_start": start.tolist(),
+            "sensor_pose_end": end.tolist(), "sensor_moves": True,
             "sensor_poses": {"times_s": times.tolist(), "matrices": mats.tolist(),
                              "interpolation": "between knots: translation linear, rotation "
                                               "by quaternion slerp; within 0.5 mm of the "
