@@ -4,7 +4,7 @@ writes it, character for character, in a fraction of its time.
 With an indent, Python's ``json`` encodes in pure Python, a generator per nested
 value: a driving lidar's sidecar (its pose knots, a box per road user) or a dataset
 frame's meta took 3-4 ms of every frame's writing, on the thread that writes behind
-the scan and under the lock that thread shares with it. Here each value goes straight
+the scan, holding Python's global lock that the scan needs too. Here each value goes straight
 into one list of pieces, and a list of plain floats or ints (matrices, times,
 positions) is joined in one call. Anything outside plain JSON values (a dict with keys
 other than strings, a subclass of a JSON type, a value ``json`` refuses, such as NaN,
