@@ -8,6 +8,7 @@ import sys
 import threading
 
 from .commands import load_commands
+from .commands.stderr import say
 from .core.errors import RLSError, interrupt_exit_code
 from .core.stop_signals import deliver, held, raise_noted, stop_raised, stop_signals
 from .version import VERSION
@@ -65,7 +66,7 @@ def main(argv=None, prepare_blender=None):
             return _interrupted(128 + stop_raised())  # import into an ImportError): a stop
         if not isinstance(exc, RLSError):
             raise
-        print(f"rls: error: {exc}", file=sys.stderr)
+        say(f"rls: error: {exc}")
         return 1
     finally:
         # a signal from here on finds the command ended (its code decided, its files
@@ -81,8 +82,7 @@ _command = {"ended": False}
 
 
 def _interrupted(code):
-    print("rls: interrupted: files already written are complete, none is left half-written",
-          file=sys.stderr)
+    say("rls: interrupted: files already written are complete, none is left half-written")
     return code
 
 

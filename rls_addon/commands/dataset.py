@@ -3,7 +3,6 @@ on, with ground-truth boxes: ``kitti`` (OpenPCDet's custom dataset) or ``opv2v``
 (OPV2V/OpenCOOD). See docs/datasets.md for the frames and conventions."""
 
 import json
-import sys
 
 from ..core.choices import BACKENDS, MOTION
 from ..core.output.datasets import LAYOUTS
@@ -11,6 +10,7 @@ from ..core.errors import SceneError
 from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from .distribute import add_arguments as add_cluster_arguments
 from .scan import _print_step, interrupted_at, open_scene, parse_frames
+from .stderr import say
 
 
 def add_parser(sub):
@@ -104,10 +104,10 @@ def dataset_run(args):
 
 
 def _print_sweep(step):
-    print(f"[background] {step.sensor}: a sweep of the scene without road users, "
-          f"{step.points} points in {step.seconds:.2f} s", file=sys.stderr, flush=True)
+    say(f"[background] {step.sensor}: a sweep of the scene without road users, "
+        f"{step.points} points in {step.seconds:.2f} s")
     for w in step.warnings:
-        print(f"rls: warning: {w}", file=sys.stderr)
+        say(f"rls: warning: {w}")
 
 
 def run(args):
@@ -119,16 +119,16 @@ def run(args):
     try:
         job, writer, (sweeps, hidden, sweep_notices) = dataset_run(args)
         for notice in job.notices + sweep_notices:
-            print(f"rls: notice: {notice}", file=sys.stderr)
+            say(f"rls: notice: {notice}")
         run_all(sweeps)
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
-        print(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-              "partial was left; rerun with --resume to continue", file=sys.stderr)
+        say(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
+            "partial was left; rerun with --resume to continue")
         return interrupt_exit_code(exc)
     for notice in writer.notices:
-        print(f"rls: notice: {notice}", file=sys.stderr)
+        say(f"rls: notice: {notice}")
     summary = job.summary()
     summary.update(layout=args.layout, dataset=str(args.out), background=None if not sweeps else {
         "sweeps": len(sweeps), "sensors": [j.name for j in sweeps[0].sensors],

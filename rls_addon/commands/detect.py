@@ -16,9 +16,9 @@ reads, with detector.json (the detector and its background) beside them. It is n
 learned detector: see docs/evaluate.md.
 """
 
-import sys
 
 from ..core.choices import BACKGROUNDS
+from .stderr import say
 
 
 def add_parser(sub):
@@ -50,7 +50,7 @@ def run(args):
               if args.background_frames else None)
 
     def progress(i, n, frame):
-        print(f"[{i}/{n}] frame {frame}", file=sys.stderr, flush=True)
+        say(f"[{i}/{n}] frame {frame}")
 
     background = args.background or ("frames" if frames is not None else "empty")
     found = run_detection(DetectSettings(tuple(args.datasets), args.out, frames,

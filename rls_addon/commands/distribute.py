@@ -26,6 +26,7 @@ from ..core.scan.dask_run import (
     worker_memory,
 )
 from ..core.errors import SceneError
+from .stderr import say
 
 
 def add_arguments(p):
@@ -78,7 +79,7 @@ def worker_count(args, scans, rays, blend=None, estimate=None):
     n = choose_workers(requested, scans, rays, args.scheduler, local_ok,
                        worker_memory(scene_bytes, rays // max(1, scans)), notices, estimate)
     for notice in notices:
-        print(f"rls: notice: {notice}", file=sys.stderr, flush=True)
+        say(f"rls: notice: {notice}")
     return n
 
 
@@ -98,8 +99,7 @@ def run_scan(args, run, blend, by_sensor=True):
     workers = worker_count(args, run.total, rays, blend, estimate)
     if workers != 1 and not run.writer.shardable:
         if args.scheduler or parse_workers(args.workers) != "auto":
-            print("rls: notice: a ROS 2 bag is written by one process: running here",
-                  file=sys.stderr)
+            say("rls: notice: a ROS 2 bag is written by one process: running here")
         workers = 1
     if workers == 1:
         return run.run()
@@ -115,22 +115,21 @@ def run_scan(args, run, blend, by_sensor=True):
         with cluster_client(workers, args.scheduler) as client:
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
             pieces = run.pieces(piece_count(size, run.total, rays, estimate), by_sensor)
-            print(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
-                  + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"),
-                  file=sys.stderr, flush=True)
+            say(f"rls: {len(pieces)} pieces on {size} Dask worker(s)"
+                + (f" at {args.scheduler}" if args.scheduler else " (local cluster)"))
 
             def absorb(i, got):
                 run.absorb(got.steps, got.id_map, got.warnings)
                 notices.extend(n for n in got.notices if n not in notices)
                 names, frames = pieces[i]
                 pts = sum(s.points for s in got.steps)
-                print(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
-                      f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
-                      "left", file=sys.stderr, flush=True)
+                say(f"[{run.index}/{run.total}] {', '.join(names)} frames {frames[0]}-{frames[-1]} "
+                    f"({got.worker}): {pts} points, about {_eta(run.index, run.total, t0):.1f} s "
+                    "left")
                 for w in (w for s in got.steps for w in s.warnings):  # as a serial run says
                     if w not in said:  # them, each once
                         said.add(w)
-                        print(f"rls: warning: {w}", file=sys.stderr)
+                        say(f"rls: warning: {w}")
 
             run_tasks(client, [(scan_piece, (blend, [jobs[n] for n in names], frames, writer,
                                              args.prepare_blender))
@@ -172,8 +171,7 @@ def study_scan_all(args, blend):
             size = max(1, len(client.scheduler_info().get("workers", {})) or workers)
             blocks = shards([c.index for c in cands],
                             piece_count(size, len(cands) * (1 + len(scanner.traffic)), rays))
-            print(f"rls: {len(blocks)} candidate blocks on {size} Dask worker(s)",
-                  file=sys.stderr, flush=True)
+            say(f"rls: {len(blocks)} candidate blocks on {size} Dask worker(s)")
             run_tasks(client, [(study_piece, (blend, scanner.cfg, b, args.prepare_blender)) for b in blocks],
                       lambda i, scans: [on_scan(s) for s in scans])
 

@@ -15,10 +15,10 @@ all-point, as OpenCOOD) per class and IoU; --out writes everything as JSON (curv
 counts per frame, each detection's match). See docs/evaluate.md."""
 
 import argparse
-import sys
 from pathlib import Path
 
 from ..core.errors import InputError, OutputError
+from .stderr import say
 
 FORMAT_CHOICES = ("auto", "kitti", "openpcdet", "opencood")
 
@@ -171,7 +171,7 @@ def run(args):
         iou_thresholds=tuple(thresholds), distance_bins=None if bins is None else tuple(bins)))
     fmt = result["inputs"]["format"]
     for notice in result["notices"]:
-        print(f"rls: notice: {notice}", file=sys.stderr)
+        say(f"rls: notice: {notice}")
     g, d = result["ground_truth"], result["detections"]
     where = "everywhere" if polygon is None else \
         f"region {region_name} ({result['region']['area_m2']:.0f} m^2, box centres inside)"

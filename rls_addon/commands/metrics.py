@@ -26,6 +26,7 @@ from ..core.metrics.infra import (
     DEFAULT_SEED,
     infra_lob_metrics,
 )
+from .stderr import say
 
 
 def add_parser(sub):
@@ -197,7 +198,7 @@ def run(args):
                                   polygon=result.polygon_xy,
                                   sensors=sensor_markers(args.clouds))
         if notice:
-            print(f"rls: notice: {notice}", file=sys.stderr)
+            say(f"rls: notice: {notice}")
         atomic_write_bytes(args.density_png, png, overwrite=args.overwrite)
         out["density_png"] = args.density_png
     if args.out:

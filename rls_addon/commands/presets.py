@@ -1,10 +1,10 @@
 """``rls presets``: list, show, validate, import and export device presets (no bpy)."""
 
 import json
-import sys
 from pathlib import Path
 
 from ..core.errors import PresetError
+from .stderr import say
 
 
 def add_parser(sub):
@@ -74,7 +74,7 @@ def run(args):
                 print(f"{p.id:22s} {p.family:9s} {p.frequency_hz:5g} Hz {rays:>8} rays/frame  "
                       f"{p.name}{fit}")
         for problem in problems:  # listed, then named: a broken file is never silent
-            print(f"rls: error: {problem}", file=sys.stderr)
+            say(f"rls: error: {problem}")
         return 1 if problems else 0
     if args.action == "show":
         p = pr.get_preset(args.name, args.user_dir)

@@ -5,7 +5,6 @@ Output: folder, format, fields, frame, file names); a flag overrides that settin
 every LiDAR of the run."""
 
 import json
-import sys
 
 from ..core.choices import (
     BACKENDS,
@@ -21,6 +20,7 @@ from ..core.output.io.formats import FORMATS
 from ..core.output.io.point_types import POINT_TYPES
 from ..core.scan.frames import parse_frames
 from .distribute import add_arguments as add_cluster_arguments
+from .stderr import say
 
 
 def add_parser(sub):
@@ -188,13 +188,13 @@ def step_time(step):
 
 def _print_step(step):
     if step.resumed:
-        print(f"[{step.done}/{step.total}] frame {step.frame} {step.sensor}: kept {step.points} "
-              f"points from an earlier run", file=sys.stderr)
+        say(f"[{step.done}/{step.total}] frame {step.frame} {step.sensor}: kept {step.points} "
+            f"points from an earlier run")
         return
-    print(f"[{step.done}/{step.total}] frame {step.frame} {step.sensor}: {step.points} points "
-          f"in {step_time(step)}, about {step.eta_s:.1f} s left", file=sys.stderr, flush=True)
+    say(f"[{step.done}/{step.total}] frame {step.frame} {step.sensor}: {step.points} points "
+        f"in {step_time(step)}, about {step.eta_s:.1f} s left")
     for w in step.warnings:
-        print(f"rls: warning: {w}", file=sys.stderr)
+        say(f"rls: warning: {w}")
 
 
 def scan_run(args):
@@ -228,8 +228,8 @@ def scan_run(args):
             folders.setdefault((settings.output.directory, own), []).append(obj.name)
         jobs.append(sensor_job(obj, settings))
     for (folder, own), names in folders.items():  # no --out: say where the files go
-        print(f"rls: notice: no --out given: {', '.join(names)} write{'s' if len(names) == 1 else ''} "
-              f"to {folder} (the Output folder '{own}' of the LiDAR panel)", file=sys.stderr)
+        say(f"rls: notice: no --out given: {', '.join(names)} write{'s' if len(names) == 1 else ''} "
+            f"to {folder} (the Output folder '{own}' of the LiDAR panel)")
     frames = parse_frames(args.frames, scene.frame_current)
     source = BlenderScene(scene, edited=False)  # a background Blender: nobody edits it
     writer = make_writer(jobs, scene.name, source.fps, source.frame_start,
@@ -260,11 +260,11 @@ def run(args):
     try:
         job = scan_run(args)
         for notice in job.notices:
-            print(f"rls: notice: {notice}", file=sys.stderr)
+            say(f"rls: notice: {notice}")
         run_scan(args, job, scene_file(args))
     except KeyboardInterrupt as exc:
-        print(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-              "partial was left; rerun with --resume to continue", file=sys.stderr)
+        say(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
+            "partial was left; rerun with --resume to continue")
         return interrupt_exit_code(exc)
     print(json.dumps(job.summary(), indent=2))
     return 0

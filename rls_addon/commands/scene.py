@@ -8,7 +8,7 @@ file is only read. Prints a JSON summary; progress on stderr. See docs/roads.md.
 
 import argparse
 import json
-import sys
+from .stderr import say
 
 
 def add_parser(sub):
@@ -32,7 +32,7 @@ def add_parser(sub):
 
 
 def _say(text):
-    print(f"rls: scene: {text}", file=sys.stderr, flush=True)
+    say(f"rls: scene: {text}")
 
 
 def run(args):

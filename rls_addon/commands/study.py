@@ -29,7 +29,6 @@ PNG writer and the other charts are skipped (a notice says so). Prints a JSON su
 import argparse
 import json
 import os
-import sys
 
 from ..core.choices import BACKENDS, BACKGROUNDS, DISK_PLACEMENTS, YAW_MODES
 from ..core.errors import SceneError
@@ -45,6 +44,7 @@ from ..core.study.report import report_clash, write_report
 from .distribute import add_arguments as add_cluster_arguments
 from ..core.study.config import parse_values  # noqa: F401  (tests read it from here)
 from .scan import check_output_dir, open_scene
+from .stderr import say
 
 
 def add_parser(sub):
@@ -143,9 +143,8 @@ def config_from_args(args):
 
 
 def _progress(done, total, cand, eta):
-    print(f"[{done}/{total}] {cand.name}: {cand.n_points} points in the region "
-          f"({cand.scan_points} in all) in {cand.seconds:.2f} s, about {eta:.1f} s left",
-          file=sys.stderr, flush=True)
+    say(f"[{done}/{total}] {cand.name}: {cand.n_points} points in the region "
+        f"({cand.scan_points} in all) in {cand.seconds:.2f} s, about {eta:.1f} s left")
 
 
 def run(args):
@@ -175,10 +174,10 @@ def _study(args, cfg, scene):
     result = run_study(scene, cfg, progress=_progress,
                        scan_all=study_scan_all(args, scene_file(args)))
     for note in result.notices:
-        print(f"rls: notice: {note}", file=sys.stderr)
+        say(f"rls: notice: {note}")
     notices = []
     summary = write_report(result, args.out, overwrite=args.overwrite, notices=notices)
     for note in notices:
-        print(f"rls: notice: {note}", file=sys.stderr)
+        say(f"rls: notice: {note}")
     print(json.dumps(summary, indent=2))
     return 0

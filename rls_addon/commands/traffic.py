@@ -12,11 +12,11 @@ eclipse-sumo wheel, or SUMO_HOME). See docs/traffic.md.
 import argparse
 import json
 import os
-import sys
 import time
 
 from ..core.errors import InputError, OutputError
 from ..core.roads.layout import STEP_S
+from .stderr import say
 
 
 def add_parser(sub):
@@ -81,7 +81,7 @@ def check_out(scene_path, out, overwrite):
 
 
 def _say(text):
-    print(f"rls: traffic: {text}", file=sys.stderr, flush=True)
+    say(f"rls: traffic: {text}")
 
 
 def run_import(args):
@@ -122,7 +122,7 @@ def run_import(args):
     save_blend(args.out, overwrite=args.overwrite)
     info["out"] = args.out
     for notice in info["notices"]:
-        print(f"rls: notice: {notice}", file=sys.stderr)
+        say(f"rls: notice: {notice}")
     print(json.dumps(info, indent=2))
     return 0
 

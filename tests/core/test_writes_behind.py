@@ -91,3 +91,28 @@ def test_a_kitti_dataset_written_behind_the_scan_is_the_one_written_in_place(tmp
             writer.write("lidar", None, f, points(), info(pose, object_boxes(pose, (f, 0, 0))))
         writer.flush()
     assert not writer._behind.pending
+
+
+def test_a_stop_while_waiting_for_the_last_write_leaves_no_write_running():
+    """Ctrl-C (or the command line's SIGTERM handler) raises in the main thread while it
+    waits for the last write behind (a run's flush as it winds down): the stop is
+    raised, but only once that write has ended, so a run never ends (and Python never
+    shuts down) with a write under way."""
+    import os
+    import signal
+
+    from rls_addon.core.output.io.behind import WritesBehind
+
+    behind, gate, done = WritesBehind(), threading.Event(), []
+
+    def write(n):
+        gate.wait(10)
+        time.sleep(0.05)
+        done.append(n)
+
+    behind.run(write, 0)
+    threading.Timer(0.2, os.kill, (os.getpid(), signal.SIGINT)).start()
+    threading.Timer(0.6, gate.set).start()  # the write ends after the stop
+    with pytest.raises(KeyboardInterrupt):
+        behind.flush()
+    assert done == [0] and not behind.pending  # the write waited on had ended

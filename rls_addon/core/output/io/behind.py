@@ -41,9 +41,10 @@ class WritesBehind:
         failed = None
         while self.pending:
             try:
-                self.pending.popleft().result()
+                _wait(self.pending[0])
             except BaseException as exc:  # noqa: BLE001 - the rest still end first
                 failed = failed or exc
+            self.pending.popleft()
         if failed is not None:
             raise failed
 
@@ -53,10 +54,25 @@ class WritesBehind:
         bound = WRITES_BEHIND if bound is None else bound
         while self.pending and (self.pending[0].done() or len(self.pending) >= bound):
             try:
-                self.pending.popleft().result()
+                _wait(self.pending[0])
             except BaseException:
                 self.flush()  # nothing left running behind the error
                 raise
+            self.pending.popleft()
+
+
+def _wait(write):
+    """The result of ``write`` (a Future). A stop signal raised while waiting for it
+    (the command line's handler raises in the main thread) is raised only once the
+    write has ended: a write is never left running when the run winds down."""
+    try:
+        return write.result()
+    except BaseException:
+        if not write.done():
+            from concurrent.futures import wait
+
+            wait([write])
+        raise
 
 
 def _background_thread():
