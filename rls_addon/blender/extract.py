@@ -40,7 +40,12 @@ def _bounds_distance(matrix, bound_box, centre):
     """Distance from ``centre`` to an object's bounds in the world; 0 when they are not
     finite (a NaN or infinite vertex or matrix): the object is read, and the core skips
     its broken triangles with a warning naming it."""
-    corners = np.array([tuple(c) for c in bound_box], dtype=np.float64)
+    if hasattr(bound_box, "foreach_get"):  # Blender's (8, 3) floats in one call
+        flat = np.empty(24, np.float32)
+        bound_box.foreach_get(flat)
+        corners = flat.reshape(8, 3).astype(np.float64)
+    else:
+        corners = np.array([tuple(c) for c in bound_box], dtype=np.float64)
     m = np.array(matrix, dtype=np.float64)
     if not (np.isfinite(corners).all() and np.isfinite(m).all()):
         return 0.0

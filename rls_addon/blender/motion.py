@@ -106,6 +106,9 @@ def read_state(depsgraph, keys, deform_keys, sensor_name):
     """World matrices of instances named in ``keys``, local vertices of those in
     ``deform_keys``, and the sensor matrix, at the depsgraph's current time."""
     mats, verts, sensor = {}, {}, None
+    if not keys:  # the sensor alone (a drive through a still scene): no walk over all
+        obj = depsgraph.objects.get(sensor_name) if sensor_name else None
+        return mats, verts, None if obj is None else np.array(obj.matrix_world, np.float64)
     for inst in depsgraph.object_instances:
         orig = inst.object.original
         if orig.name == sensor_name and not inst.is_instance:

@@ -70,6 +70,7 @@ class BlenderScene:
         self.edited = edited
         self._kept_read = None  # (key, SceneRead) of the last read, when it may be kept
         self._timeless = {}     # exclude -> motion.timeless, for an unedited file
+        self._mobility = {}     # what was read -> its Mobility, for an unedited file
 
     def depsgraph(self):
         return self.context.evaluated_depsgraph_get()
@@ -122,6 +123,20 @@ class BlenderScene:
         return self._timeless[exclude]
 
     def mobility(self, instances, sensor):
+        # What may move cannot change while nobody edits the file: an unedited file's
+        # answer is kept for the same objects read (a copy given back each time).
+        key = None if self.edited else (sensor, tuple((i.key, i.source, i.parent)
+                                                      for i in instances))
+        kept = self._mobility.get(key) if key is not None else None
+        if kept is None:
+            kept = self._mobility_of(instances, sensor)
+            if key is not None:
+                if len(self._mobility) >= 16:
+                    self._mobility.clear()
+                self._mobility[key] = kept
+        return Mobility(list(kept.candidates), set(kept.deformable), kept.sensor_moves)
+
+    def _mobility_of(self, instances, sensor):
         objects = self.scene.objects
         out = Mobility(sensor_moves=may_move(objects[sensor]))
         for k, inst in enumerate(instances):

@@ -22,3 +22,24 @@ def test_a_scene_with_nothing_animated_is_timeless_and_one_key_is_not(scene):
     lidar.keyframe_insert("rotation_euler", frame=1)
     source = BlenderScene(scene, edited=False)
     assert source.timeless() and source.sensor_may_move(lidar.name)
+
+
+def test_an_unedited_scenes_mobility_is_kept_and_given_as_a_copy(scene):
+    """What may move is worked out once per objects read in an unedited file (it cannot
+    change there); each call gets its own copy, equal to a fresh answer."""
+    still = mesh_object("Still", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)])
+    car = mesh_object("Car", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)])
+    car.keyframe_insert("location", frame=1)
+    lidar = add_lidar()
+    source = BlenderScene(scene, edited=False)
+    read = source.read(still.location, 1e6, {lidar.name})
+    first = source.mobility(read.instances, lidar.name)
+    keys = [read.instances[k].key for k in first.candidates]
+    assert keys == ["Car"] and not first.sensor_moves
+    first.candidates.append(0)
+    first.deformable.add("Still")
+    again = source.mobility(read.instances, lidar.name)
+    fresh = BlenderScene(scene).mobility(read.instances, lidar.name)
+    assert (again.candidates, again.deformable, again.sensor_moves) == \
+        (fresh.candidates, fresh.deformable, fresh.sensor_moves)
+    assert [read.instances[k].key for k in again.candidates] == ["Car"]

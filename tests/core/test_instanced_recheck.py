@@ -40,13 +40,11 @@ def cracked_street():
                          [MaterialInfo("default")]), v
 
 
-@pytest.mark.parametrize("moving_sensor", [False, True])
-def test_the_instanced_recheck_in_the_loop_equals_numpys(moving_sensor):
-    """The static scene's re-check of the rays that miss it in an instanced cast, done
-    in the loop's threads after refinement, wins back the same rays with the same bits
-    as the numpy reference (InstancedWorld._finish), from one origin (a crack counts
-    only before the ray's moving hit) and from an origin per ray (a driving sensor),
-    with cars in front of some of the cracks."""
+def street_cars_and_rays(moving_sensor):
+    """(static scene, the cars' RigidBodies, origins, directions, times): rays aimed at
+    the cracked street's vertices and edge midpoints, with cars in front of some of
+    them, from one origin or from an origin per ray (a driving sensor, outside every
+    hull box)."""
     fast = Embree.configured(robust=False)
     g, verts = cracked_street()
     base = len(g.objects)
@@ -69,6 +67,17 @@ def test_the_instanced_recheck_in_the_loop_equals_numpys(moving_sensor):
         origins = np.array([[0.2, 0.5, 1.0]])
     d = targets - origins
     d /= np.linalg.norm(d, axis=1)[:, None]
+    return static, rb, origins, d, times
+
+
+@pytest.mark.parametrize("moving_sensor", [False, True])
+def test_the_instanced_recheck_in_the_loop_equals_numpys(moving_sensor):
+    """The static scene's re-check of the rays that miss it in an instanced cast, done
+    in the loop's threads after refinement, wins back the same rays with the same bits
+    as the numpy reference (InstancedWorld._finish), from one origin (a crack counts
+    only before the ray's moving hit) and from an origin per ray (a driving sensor),
+    with cars in front of some of the cracks."""
+    static, rb, origins, d, times = street_cars_and_rays(moving_sensor)
     got = []
     for compiled in (True, False):
         static.caster.compiled, static.caster.retried = compiled, 0
@@ -86,3 +95,41 @@ def test_the_instanced_recheck_in_the_loop_equals_numpys(moving_sensor):
     static.instanced_cache.clear()
     unchecked = World(static, [rb]).cast(origins, d, times, 100.0, watertight=False)[1]
     assert np.count_nonzero((unchecked < 0) & (body == 0)) > 500  # cracks won back
+
+
+@pytest.mark.parametrize("compiled", [True, False], ids=["compiled", "numpy"])
+def test_a_driving_sensor_outside_the_hull_rechecks_only_up_to_its_moving_hits(
+        compiled, monkeypatch):
+    """Origins per ray (a driving sensor) that all lie outside every hull box re-check a
+    ray that hit a car only where a hull box comes before the car, as one origin does:
+    the same bits as re-checking every such ray (what a driving sensor did before,
+    re-casting each ray that hit a car), with far fewer rays re-cast."""
+    static, rb, origins, d, times = street_cars_and_rays(moving_sensor=True)
+    caster = static.caster
+    assert not caster._starts_inside(origins)
+    got = []
+    for limited in (True, False):
+        if not limited:  # every origin taken as inside a box: every such ray re-cast
+            monkeypatch.setattr(type(caster), "_starts_inside", lambda self, o: True)
+        caster.compiled, caster.retried = compiled, 0
+        static.instanced_cache.clear()
+        got.append((World(static, [rb]).cast(origins, d, times, 100.0), caster.retried))
+    caster.compiled = True
+    (a, limited), (b, every) = got
+    for x, y in zip(a, b):
+        assert x.tobytes() == y.tobytes()
+    assert np.count_nonzero(a[1] >= 1) > 400  # rays that hit a car (541)
+    assert every - limited > 400  # most of them were re-cast before (1,872 against 1,331)
+
+
+def test_origins_whose_bounds_meet_a_hull_box_count_as_inside():
+    """Per-ray origins are judged by the box around them: outside every hull box only
+    when that box meets none (one origin inside a box among many outside makes it
+    inside)."""
+    static, _, origins, _, _ = street_cars_and_rays(moving_sensor=True)
+    caster = static.caster
+    assert not caster._starts_inside(origins)
+    inside = origins.copy()
+    inside[-1] = (caster.box_lo[0] + caster.box_hi[0]) / 2
+    assert caster._starts_inside(inside)
+    assert caster._starts_inside(inside[-1:]) and not caster._starts_inside(origins[:1])

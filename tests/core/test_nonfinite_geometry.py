@@ -81,3 +81,31 @@ def test_an_object_whose_matrix_is_not_finite_is_skipped_whole_with_the_warning(
         "skipped 12 triangle(s) with NaN or infinite vertex coordinates: 'wall' (12); fix "
         "those objects' vertices or transforms to scan them"]
     assert "wall" not in {v["object"] for v in info["labels"].values()}
+
+
+def test_instances_are_cleared_by_their_sums_as_row_by_row():
+    """``without_nonfinite`` clears an instance by the sum of its vertices and of its
+    matrix (a NaN or an infinity never cancels out of a sum): the same instances as
+    looking at every row, with finite coordinates whose sum overflows kept whole."""
+    from rls_addon.core.scene.instances import Instance, without_nonfinite
+
+    def inst(key, vertices, matrix=None):
+        v = np.asarray(vertices, np.float64)
+        return Instance(key, key, "", 1, v, np.array([[0, 1, 2], [1, 2, 3]]),
+                        np.zeros(2, np.int32), np.eye(4) if matrix is None else matrix,
+                        np.zeros(1, np.int32))
+
+    quad = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]
+    huge = [[1.7e308, 0, 0], [1.7e308, 0, 0], [1.7e308, 0, 0], [1, 1, 0]]  # sum overflows
+    nan, inf_matrix = [row[:] for row in quad], np.eye(4)
+    nan[3][2] = np.nan
+    inf_matrix[0, 3] = np.inf
+    given = [inst("a", quad), inst("huge", huge), inst("nan", nan), inst("inf", quad, inf_matrix),
+             inst("empty", np.zeros((0, 3)))]
+    skipped = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning from numpy
+        got = without_nonfinite(given, skipped)
+    assert [i.key for i in got] == ["a", "huge", "nan", "empty"]
+    assert got[0] is given[0] and got[1] is given[1] and got[3] is given[4]
+    assert got[2].triangles.tolist() == [[0, 1, 2]] and skipped == {"nan": 1, "inf": 2}

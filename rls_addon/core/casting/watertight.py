@@ -3,7 +3,7 @@ never slip between the triangles (see ``WatertightCaster``)."""
 
 import numpy as np
 
-from ..native.vectors import row_dot
+from ..native.vectors import column_bounds, row_dot
 from .base import CasterBase, cast_exact, refine_hits
 from .envelope import ElevationEnvelope
 
@@ -305,10 +305,7 @@ class WatertightCaster(CasterBase):
         hull boxes a ray from any of ``origins`` ((1, 3) or (N, 3)) moving that way
         can reach (those ahead of the origins' bounds along each axis): ((8, 6) lo xyz
         hi xyz, (8,) int32 1 where the octant has any box)."""
-        o = np.asarray(origins, np.float64).reshape(-1, 3)
-        # per column: numpy's min over axis 0 of an (N, 3) array is ~25x slower
-        lo_o = np.array([o[:, k].min() for k in range(3)])
-        hi_o = np.array([o[:, k].max() for k in range(3)])
+        lo_o, hi_o = column_bounds(origins)
         # The table depends on the origins' bounds alone: a still sensor's frames (and a
         # study's candidates on one mount) ask for the same one (read-only, shared).
         key = lo_o.tobytes() + hi_o.tobytes()
@@ -351,8 +348,12 @@ class WatertightCaster(CasterBase):
         return (has.take(code) != 0) & (near <= far) & (far >= 0) & (near <= max_dist)
 
     def _starts_inside(self, o):
-        """True unless ``o`` is one origin outside every hull box (then a ray's first
-        hull hit is where it enters one; per-ray origins are not checked)."""
-        if o.shape[0] != 1:
-            return True
-        return bool(np.any(np.all((self.box_lo <= o[0]) & (o[0] <= self.box_hi), axis=1)))
+        """True unless every origin of ``o`` ((1, 3) or (N, 3): a driving sensor's, one
+        per ray) lies outside every hull box (then a ray's first hull hit is where it
+        enters one). Per-ray origins are judged by their bounds: when the box around
+        them all meets no hull box, none of them lies in one (a sensor driving over a
+        road keeps its limit; before, every per-ray origin counted as inside, and a
+        driving Pandar64 re-cast each ray that hit a car: 27,585 rays of frame 40
+        through the sample traffic)."""
+        lo, hi = column_bounds(o)
+        return bool(np.any(np.all((self.box_lo <= hi) & (lo <= self.box_hi), axis=1)))

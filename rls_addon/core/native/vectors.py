@@ -3,10 +3,46 @@
 The numpy references and the compiled kernels (native/c/embree_loop.c, points.c,
 edges.c, ghosts.c) sum a dot product left to right, ((x0 y0 + x1 y1) + x2 y2), so
 both give the same bits. numpy's einsum sums in an order of its own build's choosing
-((x0 y0 + x2 y2) + x1 y1 on the project's machine), so the references use this."""
+((x0 y0 + x2 y2) + x1 y1 on the project's machine), so the references use this.
+And the bounds of such an array's columns, fast (``column_bounds``)."""
+
+import numpy as np
 
 
 def row_dot(a, b):
     """Dot products of the rows of ``a`` and ``b`` ((N, 3), or broadcasting to it),
     summed left to right."""
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+
+
+# the last two read-only arrays whose bounds were asked for, and them: a driving
+# sensor's origins per ray (and the same centred on its prepared scene) are bounded
+# four times a frame (the prepared scene's cover, the re-check's octant table and its
+# limit, the ground-truth boxes' cones)
+_BOUNDS = []
+_FOLD = 32  # rows folded side by side, so that numpy reduces along long rows
+
+
+def column_bounds(a):
+    """((3,) least, (3,) greatest) of the columns of an (N, 3) array with N >= 1.
+    numpy reduces an (N, 3) array along its rows (or a strided column) slowly: the
+    rows are folded ``_FOLD`` at a time into long ones first (the same extremes).
+    The answers for the last two read-only arrays that own their data (whose
+    contents cannot change) are kept for the next calls with them."""
+    for kept, got in _BOUNDS:
+        if kept is a:
+            return got[0].copy(), got[1].copy()
+    m = np.asarray(a, np.float64).reshape(-1, 3)
+    n = len(m) - len(m) % _FOLD
+    if n:
+        wide = np.ascontiguousarray(m[:n]).reshape(-1, 3 * _FOLD)
+        lo = wide.min(axis=0).reshape(_FOLD, 3).min(axis=0)
+        hi = wide.max(axis=0).reshape(_FOLD, 3).max(axis=0)
+        if n < len(m):
+            lo, hi = np.minimum(lo, m[n:].min(axis=0)), np.maximum(hi, m[n:].max(axis=0))
+    else:
+        lo, hi = m.min(axis=0), m.max(axis=0)
+    if isinstance(a, np.ndarray) and a.base is None and not a.flags.writeable:
+        _BOUNDS[:] = [(a, (lo, hi))] + _BOUNDS[:1]
+        return lo.copy(), hi.copy()
+    return lo, hi

@@ -19,6 +19,8 @@ import math
 
 import numpy as np
 
+from ..native.vectors import column_bounds
+
 AZ_CELLS = 720   # half-degree sectors of azimuth
 EL_CELLS = 360   # half-degree bands of elevation
 PAD = 1e-9       # radians added to every span (rounding of atan2 and asin)
@@ -89,8 +91,7 @@ class RayCells:
         # cones widen by it). One origin: itself.
         self.o0, self.travel = (o[0] if len(o) else np.zeros(3)), 0.0
         if len(o) > 1:
-            lo = np.array([o[:, k].min() for k in range(3)])
-            hi = np.array([o[:, k].max() for k in range(3)])
+            lo, hi = column_bounds(rays.origins)
             self.o0 = (lo + hi) / 2
             half = (hi - lo) / 2
             self.travel = math.sqrt(float(half @ half)) * (1 + 1e-12) + 1e-12

@@ -45,6 +45,8 @@ class ScanSession:
         self._prepared = {}
         self._bodies = {}
         self.builds = 0
+        self._last_read = None        # (read, instances, skipped, objects): _finite
+        self._last_static_key = None  # ((read, selection), key): _static_key
 
     def _cached(self, store, key, make):
         item = store.get(key)
@@ -104,9 +106,9 @@ class ScanSession:
         centre = pose[:3, 3]
         anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
         read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
-        skipped = {}  # triangles with NaN or infinite coordinates, per object
-        instances, materials = without_nonfinite(read.instances, skipped), read.materials
-        objects = object_table(instances)
+        # skipped: triangles with NaN or infinite coordinates, per object
+        instances, skipped, objects = self._finite(read)
+        materials = read.materials
         motion = SweepMotion()
         if settings.motion != "snapshot":
             with source.sweep(frame, preset.period) as sweep:
@@ -133,7 +135,7 @@ class ScanSession:
         # Joined (and digested) only when the session has not built it before.
         scene = self.prepared(
             lambda: world_geometry(instances, objects, materials, select=static_sel), anchor,
-            reach, static_key(instances, objects, materials, static_sel))
+            reach, self._static_key(read, instances, objects, materials, static_sel))
         classes = set(object_classes or ())
         boxes = bool(classes) and any(i.label in classes for i in instances)
         result = scan_frame(scene, scan_pattern(preset, settings, frame), pose, values,
@@ -153,6 +155,32 @@ class ScanSession:
             info["object_classes"] = sorted(classes)
         result.rays_cast = None  # large; the boxes hold what was wanted from it
         return result, info
+
+    def _finite(self, read):
+        """(the read's instances without their non-finite triangles, how many each lost,
+        the object table): kept for the same read, which a source gives again while
+        nothing in an unedited file but the sensors can change (``skipped`` a copy
+        each time: a frame adds its deforming sub-steps' to it)."""
+        kept = self._last_read
+        if kept is not None and kept[0] is read:
+            return kept[1], dict(kept[2]), kept[3]
+        skipped = {}
+        instances = without_nonfinite(read.instances, skipped)
+        objects = object_table(instances)
+        self._last_read = (read, instances, dict(skipped), objects)
+        self._last_static_key = None
+        return instances, skipped, objects
+
+    def _static_key(self, read, instances, objects, materials, select):
+        """``static_key`` of the static part ``select``, kept for the same read and
+        selection (see ``_finite``)."""
+        key = (read, frozenset(select))
+        kept = self._last_static_key
+        if kept is not None and kept[0][0] is read and kept[0][1] == key[1]:
+            return kept[1]
+        got = static_key(instances, objects, materials, select)
+        self._last_static_key = (key, got)
+        return got
 
     @staticmethod
     def _substep_counts(tol, settings, instances, motion):
@@ -316,8 +344,12 @@ def sensor_pose_record(pose, track, period):
         return {"sensor_pose_start": pose.tolist(), "sensor_pose_end": pose.tolist(),
                 "sensor_moves": False, "label_names": {str(k): v for k, v in DEFAULT_LABELS.items()}}
     times, mats = pose_knots(track)
-    return {"sensor_pose_start": rigid(track.at([0.0])[0]).tolist(),
-            "sensor_pose_end": rigid(track.at([period])[0]).tolist(), "sensor_moves": True,
+    # the knots' first and last are the poses at the sweep's start and end when the
+    # track spans the sweep (as sampled): the same evaluation
+    start = mats[0] if times[0] == 0.0 else rigid(track.at([0.0])[0])
+    end = mats[-1] if times[-1] == period else rigid(track.at([period])[0])
+    return {"sensor_pose_start": start.tolist(),
+            "sensor_pose_end": end.tolist(), "sensor_moves": True,
             "sensor_poses": {"times_s": times.tolist(), "matrices": mats.tolist(),
                              "interpolation": "between knots: translation linear, rotation "
                                               "by quaternion slerp; within 0.5 mm of the "

@@ -5,6 +5,7 @@ a moving body."""
 
 import dataclasses
 import hashlib
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,21 +62,34 @@ def without_nonfinite(instances, skipped):
     for ``geometry.nonfinite_warning``). Instances with nothing to skip are kept as they
     are; instances left with no triangle are left out."""
     out = []
-    for inst in instances:
-        ok = np.isfinite(inst.vertices).all(axis=1)
-        if ok.all() and np.isfinite(inst.matrix).all():
-            out.append(inst)
-            continue
-        keep = ok[inst.triangles].all(axis=1) if np.isfinite(inst.matrix).all() \
-            else np.zeros(len(inst.triangles), bool)
-        skipped[inst.key] = skipped.get(inst.key, 0) + int(np.count_nonzero(~keep))
-        if not keep.any():
-            continue
-        used, inverse = np.unique(inst.triangles[keep], return_inverse=True)
-        out.append(dataclasses.replace(inst, vertices=inst.vertices[used],
-                                       triangles=inverse.reshape(-1, 3),
-                                       materials=np.asarray(inst.materials)[keep]))
+    with np.errstate(over="ignore", invalid="ignore"):  # numpy says nothing
+        for inst in instances:
+            _keep_finite(inst, out, skipped)
     return out
+
+
+def _keep_finite(inst, out, skipped):
+    """``without_nonfinite`` of one instance: appended to ``out`` as it is, cleaned, or
+    not at all."""
+    # A sum is finite only when every term is (a NaN or an infinity never cancels
+    # out): one reduction each clears nearly every instance (an overflowing sum of
+    # finite numbers is looked at row by row below, and kept as it is).
+    if math.isfinite(float(inst.vertices.sum())) and math.isfinite(float(inst.matrix.sum())):
+        out.append(inst)
+        return
+    ok = np.isfinite(inst.vertices).all(axis=1)
+    if ok.all() and np.isfinite(inst.matrix).all():
+        out.append(inst)
+        return
+    keep = ok[inst.triangles].all(axis=1) if np.isfinite(inst.matrix).all() \
+        else np.zeros(len(inst.triangles), bool)
+    skipped[inst.key] = skipped.get(inst.key, 0) + int(np.count_nonzero(~keep))
+    if not keep.any():
+        return
+    used, inverse = np.unique(inst.triangles[keep], return_inverse=True)
+    out.append(dataclasses.replace(inst, vertices=inst.vertices[used],
+                                   triangles=inverse.reshape(-1, 3),
+                                   materials=np.asarray(inst.materials)[keep]))
 
 
 def world_geometry(instances, objects, materials, select=None, matrices=None, local=False):

@@ -380,11 +380,15 @@ def pose_knots(track, tolerance_m=KNOT_TOLERANCE_M, reach_m=1.0):
     probe = np.array([[0, 0, 0, 1], [reach_m, 0, 0, 1], [0, reach_m, 0, 1], [0, 0, reach_m, 1]],
                      float).T
     times = np.array([lo, hi]) if hi > lo else np.array([lo])
-    mats = rigid(track.at(times))
+    mids = (times[1:] + times[:-1]) / 2
+    # the ends and their midpoint in one evaluation (each row as on its own)
+    first = rigid(track.at(np.concatenate([times, mids])))
+    mats, at_mids = first[:len(times)], first[len(times):]
     while len(times) > 1:
         # each pose is evaluated once: the midpoints that fail become knots as they are
-        mids = (times[1:] + times[:-1]) / 2
-        at_mids = rigid(track.at(mids))
+        if at_mids is None:
+            mids = (times[1:] + times[:-1]) / 2
+            at_mids = rigid(track.at(mids))
         err = np.linalg.norm((poses_at(times, mats, mids) - at_mids) @ probe, axis=1)
         bad = err.max(axis=1) > tolerance_m
         if not bad.any() or len(times) >= 4097:
@@ -392,6 +396,7 @@ def pose_knots(track, tolerance_m=KNOT_TOLERANCE_M, reach_m=1.0):
         order = np.argsort(np.concatenate([times, mids[bad]]), kind="stable")
         times = np.concatenate([times, mids[bad]])[order]
         mats = np.concatenate([mats, at_mids[bad]])[order]
+        at_mids = None
     return times, mats
 
 

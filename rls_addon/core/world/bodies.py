@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from ..casting import WatertightCaster, cast_exact, triangle_planes
+from ..native.vectors import column_bounds
 from ..scene.geometry import clean_for_casting, concatenate
 
 
@@ -62,6 +63,17 @@ class PreparedScene:
         """True when every ray from ``origin`` (one point or (N, 3)) stays inside the
         culled region."""
         o = np.asarray(origin, np.float64).reshape(-1, 3)
+        if len(o) > 1:
+            # The farthest corner of the box around the origins first (a driving
+            # sensor's origin per ray): no origin's offset from the centre exceeds the
+            # corner's along any axis, in floating point too (rounding keeps order), so
+            # when the corner is covered every origin is; else each is looked at.
+            c = self.centre
+            lo, hi = column_bounds(origin)
+            far = [max(abs(float(lo[k]) - c[k]), abs(float(hi[k]) - c[k])) for k in range(3)]
+            if math.sqrt(far[0] * far[0] + far[1] * far[1] + far[2] * far[2]) + max_range \
+                    <= self.reach * (1 + 1e-12):
+                return True
         d = o - self.centre
         # column by column: a norm along the rows' three numbers is 8x slower on a
         # driving sensor's origin per ray (the same sums, the same largest distance)
@@ -124,6 +136,7 @@ class PreparedScene:
             got = np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
             return lambda: got
         o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
+        o.flags.writeable = False  # its bounds are kept (vectors.column_bounds)
         caster = self.caster if watertight else self.primary
         pending = caster.start_refined(o, directions, max_range, self.planes, order)
         if pending is None:  # a backend that casts from Python: here, refined after

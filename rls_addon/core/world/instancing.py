@@ -216,6 +216,7 @@ class InstancedWorld:
         t = np.asarray(times, np.float64)
         tau = np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0) if self.moving else None
         oc = o - self.centre
+        oc.flags.writeable = False  # its bounds are kept (vectors.column_bounds)
         recheck = None
         if self.first and watertight and self.static.watertight:
             # the static scene's re-check in the loop's threads, where it is compiled

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ...errors import OutputError, SettingsError
+from ..io import json_text
 from ..io.atomic import atomic_write_bytes, writable_folder
 from ...points import xyz
 from ..io.sidecar import points_to_world
@@ -52,7 +53,7 @@ def frame_id(frame):
 
 
 def write_json(path, data, overwrite):
-    atomic_write_bytes(path, (json.dumps(data, indent=1, allow_nan=False) + "\n").encode("utf-8"),
+    atomic_write_bytes(path, (json_text.dumps(data, indent=1) + "\n").encode("utf-8"),
                        overwrite=overwrite)
 
 

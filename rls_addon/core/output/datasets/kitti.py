@@ -156,7 +156,7 @@ class KittiWriter:
             xyz = points_world(points, info) @ to_frame[:3, :3].T + to_frame[:3, 3]
         else:
             frame_to_world = start
-            xyz = np.stack([points["x"], points["y"], points["z"]], 1)
+            xyz = None  # the sensor-frame columns, as they are
             if tilt_deg(start) > 1.0 and not any(n.startswith(f"{sensor} leans")
                                                  for n in self.notices):
                 self.notices.append(
@@ -165,7 +165,11 @@ class KittiWriter:
                     "sensor); pass --level for points and boxes in a gravity-aligned frame "
                     "(the pitched sensor's roll/pitch are lost in KITTI labels otherwise)")
         arr = np.empty((len(points), 4), np.float32)
-        arr[:, :3] = xyz
+        if xyz is None:  # column by column: no (N, 3) float64 stack in between
+            for k, f in enumerate("xyz"):
+                arr[:, k] = points[f]
+        else:
+            arr[:, :3] = xyz
         arr[:, 3] = points["intensity"] * self.scale
         return arr, frame_to_world
 

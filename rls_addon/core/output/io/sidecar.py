@@ -18,6 +18,7 @@ import numpy as np
 from ...errors import InputError, OutputError
 from ...points import xyz
 from ...scene.motion import poses_at
+from . import json_text
 from .atomic import atomic_write_bytes
 
 
@@ -46,7 +47,7 @@ def write_sidecar(cloud_path, info, overwrite=False):
     """Write ``info`` as JSON beside ``cloud_path``; returns the JSON path."""
     path = sidecar_path(cloud_path)
     try:
-        text = json.dumps(_plain(info), indent=2, sort_keys=True, allow_nan=False)
+        text = json_text.dumps(_plain(info), indent=2, sort_keys=True)
     except (TypeError, ValueError) as exc:
         raise OutputError(f"cannot write {path}: metadata is not JSON-serialisable ({exc})") from None
     return atomic_write_bytes(path, (text + "\n").encode("utf-8"), overwrite=overwrite)
