@@ -46,8 +46,11 @@ def check_follows(sc, lidars):
     from rls_addon.core.live.coverage import cells
     from rls_addon.core.metrics.infra import infra_lob_metrics
 
+    from rls_addon.blender import live
+
     clouds = [fresh(o) for o in lidars]
     for obj, pts in zip(lidars, clouds):
+        assert live.session().clouds[obj.name].tobytes() == pts.tobytes()  # byte for byte
         got = preview_xyz(obj)
         want = np.stack([pts["x"], pts["y"], pts["z"]], 1).astype(np.float32)
         assert got.shape == want.shape
@@ -239,4 +242,127 @@ def test_undo_of_a_move_is_followed(live_scene):
     a, b = bpy.data.objects["LiDAR"], bpy.data.objects["LiDAR.001"]
     assert tuple(a.location) == pytest.approx((-9.0, -9.0, 4.0))
     assert (sc.rls_live.infra_d, sc.rls_live.points) == pytest.approx(first)
+    check_follows(sc, [a, b])
+
+
+def moving_car(frames=(1, 21)):
+    """A car driving across in front of both LiDARs (keyed at ``frames``), labelled a
+    vehicle: what a LiDAR's exact motion samples over each sweep."""
+    from rls_addon.blender.scenes.build import action_curves
+
+    car = mesh_object("Car", [(-2.2, -0.9, 0), (2.2, -0.9, 0), (2.2, 0.9, 0), (-2.2, 0.9, 0),
+                              (-2.2, -0.9, 1.5), (2.2, -0.9, 1.5), (2.2, 0.9, 1.5),
+                              (-2.2, 0.9, 1.5)],
+                      [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6),
+                       (3, 0, 4, 7)])
+    car["rls_label"] = "vehicle"
+    car.location = (-8.0, 0.0, 0.0)
+    car.keyframe_insert("location", frame=frames[0])
+    car.location = (8.0, 0.0, 0.0)
+    car.keyframe_insert("location", frame=frames[1])
+    for fc in action_curves(car.animation_data.action):
+        for kp in fc.keyframe_points:
+            kp.interpolation = "LINEAR"
+    bpy.context.scene.frame_set(frames[0] + 4)
+    return car
+
+
+def test_a_still_lidars_rescans_reuse_the_traffics_samples_until_another_object_changes(
+        live_scene):
+    from rls_addon.blender.scenes.build import action_curves
+
+    sc, live, a, b = live_scene
+    car = moving_car()
+    assert a.rls_lidar.motion == "exact"
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    kept = live.session().sweeps
+    assert kept.misses > 0 and len(kept) > 0  # the first scans sampled the car's sweep
+    misses = kept.misses
+    for x in (-7.0, -6.0):  # moved: the car is not sampled again, and a fresh scan's
+        a.location.x = x
+        bpy.context.view_layer.update()
+        drive(live)
+        assert kept.misses == misses and kept.hits > 0
+        check_follows(sc, [a, b])
+    # the car's animation edited (a key moved): the kept samples are forgotten, and
+    # both LiDARs are rescanned with the car sampled anew, as a fresh scan does
+    (fx,) = [fc for fc in action_curves(car.animation_data.action)
+             if fc.data_path == "location" and fc.array_index == 0]
+    fx.keyframe_points[1].co.y = 2.0
+    fx.update()
+    scans = sc.rls_live.scans
+    bpy.context.view_layer.update()
+    assert len(kept) == 0
+    drive(live)
+    assert kept.misses > misses and sc.rls_live.scans == scans + 2
+    check_follows(sc, [a, b])
+    # another object moved (not animated: the kiosk): the same
+    misses = kept.misses
+    bpy.data.objects["Kiosk"].location.x += 1.0
+    bpy.context.view_layer.update()
+    assert len(kept) == 0
+    a.location.x = -4.0  # (and a LiDAR moved meanwhile)
+    bpy.context.view_layer.update()
+    drive(live)
+    assert kept.misses > misses and sc.rls_live.scans == scans + 4
+    check_follows(sc, [a, b])
+
+
+def test_another_frame_or_frame_rate_samples_the_sweep_anew(live_scene):
+    sc, live, a, b = live_scene
+    moving_car()
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    kept = live.session().sweeps
+    misses = kept.misses
+    sc.frame_set(sc.frame_current + 1)  # both LiDARs rescanned at the new frame
+    drive(live)
+    assert kept.misses > misses
+    check_follows(sc, [a, b])
+    misses = kept.misses
+    sc.render.fps = 30  # the sweep's sub-frames fall elsewhere
+    bpy.context.view_layer.update()
+    assert len(kept) == 0
+    drive(live)
+    assert kept.misses > misses
+    check_follows(sc, [a, b])
+
+
+def test_a_newer_move_supersedes_a_rescan_not_shown_yet(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    scans = sc.rls_live.scans
+    a.location.x = -7.0
+    bpy.context.view_layer.update()
+    time.sleep(sc.rls_live.debounce_ms / 1000.0)
+    assert live.tick() == 0.0 and sc.rls_live.scans == scans + 1  # scanned, not shown
+    a.location.x = -6.0  # moved again before the timer shows it: that scan is dropped
+    bpy.context.view_layer.update()
+    drive(live)
+    assert sc.rls_live.scans == scans + 2 and sc.rls_live.superseded == 1
+    check_follows(sc, [a, b])  # the newer pose's
+
+
+def test_a_drag_of_20_steps_costs_one_scan(live_scene):
+    """A drag at 60 Hz with Blender's timer called in between (a clock of the test's
+    own: the machine's load cannot make a step late)."""
+    sc, live, a, b = live_scene
+    clock = [0.0]
+    session = live.start(sc, bpy.data.objects["InfraLOB"], 40.0, 150.0,
+                         clock=lambda: clock[0])
+    scans = session.scheduler.scans
+    for i in range(20):
+        a.location.y += 0.1
+        bpy.context.view_layer.update()
+        end = clock[0] + 1 / 60
+        while True:  # the timer between steps: asked to wait for the LiDAR to be still
+            wait = live.tick()
+            assert wait is not None and wait > 0
+            if clock[0] + wait >= end:
+                break
+            clock[0] += wait
+        clock[0] = end
+    assert session.scheduler.scans == scans  # nothing while it moves
+    while (wait := live.tick()) is not None:
+        clock[0] += wait
+    assert session.scheduler.scans == scans + 1 and session.scheduler.superseded == 0
     check_follows(sc, [a, b])
