@@ -41,9 +41,9 @@ def preview_xyz(obj):
 
 def check_follows(sc, lidars):
     """The previews, the panel's numbers and the map are a fresh scan's."""
-    from rls_addon.blender.coverage_map import map_colours
+    from rls_addon.blender.coverage_map import map_bands, map_colours
     from rls_addon.blender.region import lob_polygon_world
-    from rls_addon.core.live.coverage import cells
+    from rls_addon.core.live.coverage import cells, level_colours, levels
     from rls_addon.core.metrics.infra import infra_lob_metrics
 
     from rls_addon.blender import live
@@ -66,6 +66,10 @@ def check_follows(sc, lidars):
     shown = map_colours(bpy.data.objects["RLS coverage InfraLOB"])
     want = cells(ref.density)[1]
     np.testing.assert_allclose(shown, want, atol=1 / 255 + 1e-6)
+    # Solid shading's default (Color: Material): each cell's band, in its colour
+    band, colours = map_bands(bpy.data.objects["RLS coverage InfraLOB"])
+    np.testing.assert_array_equal(band, levels(ref.density))
+    np.testing.assert_allclose(colours, level_colours(), atol=1e-4)
     return ref
 
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rls_addon.core.casting import NumpyCaster
-from rls_addon.core.live.coverage import Coverage, cells
+from rls_addon.core.live.coverage import Coverage, cells, level_colours, levels
 from rls_addon.core.live.schedule import LIVE, ON_DEMAND, LiveScheduler, LiveSettings
 from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.points import empty_points
@@ -208,6 +208,29 @@ def test_map_cells_are_coloured_as_the_chart_with_empty_cells_white():
     assert first[(0.0, 0.0)][:3] == pytest.approx(np.array([253, 231, 37]) / 255)  # densest
     assert first[(0.0, 1.0)] == pytest.approx((1.0, 1.0, 1.0, 1.0))  # no return: white
     assert corners[0][1] - corners[0][0] == pytest.approx([1.0, 1.0])
+
+
+def test_map_levels_band_the_cells_as_the_chart_with_no_return_apart():
+    cov = Coverage([(0, 0), (4, 0), (4, 2), (2, 2), (2, 4), (0, 4)], disks=50, cell=1.0)
+    p = empty_points(10)
+    # 5 points in (0,0), 4 in (1,0), 1 in (2,0): densities 5, 4, 1 per m²
+    p["x"] = [0.5] * 5 + [1.5] * 4 + [2.5]
+    p["y"], p["label"] = 0.5, 1
+    cov.set_cloud("A", p)
+    dm = cov.state().density
+    corners, rgba = cells(dm)
+    band = levels(dm, n=4)
+    first = {tuple(c[0]): int(b) for c, b in zip(corners, band)}
+    assert first[(0.0, 0.0)] == 4 and first[(1.0, 0.0)] == 4  # 4/5 = 0.8: the top band
+    assert first[(2.0, 0.0)] == 1 and first[(0.0, 1.0)] == 0  # 0.2: the first; none: 0
+    colours = level_colours(4)
+    assert colours.shape == (5, 4) and colours[0] == pytest.approx([1, 1, 1, 1])
+    # a band's colour is viridis at its middle: matplotlib's viridis(0.5) is #21918c
+    assert level_colours(1)[1, :3] * 255 == pytest.approx([33, 145, 140], abs=1.0)
+    assert (np.diff(colours[1:, 1]) > 0).all()  # green rises from purple to yellow
+    cov.set_cloud("A", empty_points(0))  # no points: every cell is 'no return'
+
+    assert (levels(cov.state().density, n=4) == 0).all()
 
 
 # -- a still LiDAR's sampled sweep kept between live rescans (core/scan/kept_sweeps) -----
