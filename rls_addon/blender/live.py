@@ -332,12 +332,16 @@ def stop():
 
 
 def update_now():
-    """Rescan every changed LiDAR and show them now (on demand)."""
+    """Rescan every changed LiDAR and show them now (on demand); with none changed,
+    every LiDAR, the scene sampled anew (after an edit live coverage does not follow:
+    a material, a visibility)."""
     live = _STATE["live"]
     if live is None:
         return None
     flush_edits()
     live.check()
+    if not live.scheduler.busy:
+        live.scene_edited()
     live.busy = True
     try:
         got = live.scheduler.update_now()

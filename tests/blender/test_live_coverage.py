@@ -189,9 +189,32 @@ def test_live_off_removes_handlers_timer_and_map(live_scene):
     assert bpy.app.timers.is_registered(live.tick)
     assert bpy.ops.rls.live_coverage() == {"FINISHED"}  # the toggle: off
     assert not sc.rls_live.active and not bpy.app.timers.is_registered(live.tick)
-    assert live.on_change not in bpy.app.handlers.depsgraph_update_post
+    assert live.session() is None and not live_handlers(live)
     assert "RLS coverage InfraLOB" not in bpy.data.objects
     assert "LiDAR points" in bpy.data.objects  # the previews stay: the last scans
+
+
+def live_handlers(live):
+    """Live coverage's functions still in any of Blender's handler lists."""
+    fns = {live.on_edit, live.on_change, live.on_undo, live.on_load}
+    h = bpy.app.handlers
+    return [(name, fn.__name__) for name in ("depsgraph_update_post", "frame_change_post",
+                                             "undo_post", "redo_post", "load_pre")
+            for fn in getattr(h, name) if fn in fns]
+
+
+def test_another_file_ends_live_coverage(live_scene, tmp_path):
+    sc, live, a, b = live_scene
+    path = str(tmp_path / "other.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    a.location.x = -5.0
+    bpy.context.view_layer.update()  # a rescan waiting for the timer
+    assert bpy.app.timers.is_registered(live.tick)
+    bpy.ops.wm.open_mainfile(filepath=path)  # (RLS stays registered: load_pre ends it)
+    assert hasattr(bpy.types.Object, "rls_lidar")
+    assert live.session() is None and not bpy.app.timers.is_registered(live.tick)
+    assert live_handlers(live) in ([], [("load_pre", "on_load")])  # (idle till the next start)
 
 
 def test_live_needs_a_region_and_a_lidar(scene):
@@ -369,4 +392,16 @@ def test_a_drag_of_20_steps_costs_one_scan(live_scene):
     while (wait := live.tick()) is not None:
         clock[0] += wait
     assert session.scheduler.scans == scans + 1 and session.scheduler.superseded == 0
+    check_follows(sc, [a, b])
+
+
+def test_update_coverage_rescans_every_lidar_after_an_edit_live_does_not_follow(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    scans = sc.rls_live.scans
+    bpy.data.objects["Kiosk"].hide_render = True  # a visibility: not followed by itself
+    bpy.context.view_layer.update()
+    assert not live.session().scheduler.busy
+    assert bpy.ops.rls.live_update() == {"FINISHED"}  # the panel's Update button
+    assert sc.rls_live.scans == scans + 2
     check_follows(sc, [a, b])
