@@ -95,9 +95,12 @@ def live_scene(scene):
 
 def test_live_coverage_follows_each_step_of_a_lidar(live_scene):
     sc, live, a, b = live_scene
+    moving_car()  # (exact motion through it: every rescan below reuses its samples)
     bpy.context.view_layer.objects.active = bpy.data.objects["InfraLOB"]
     assert bpy.ops.rls.live_coverage() == {"FINISHED"}
     assert sc.rls_live.active and sc.rls_live.scans == 2  # both scanned once
+    kept = live.session().sweeps
+    misses = kept.misses
     check_follows(sc, [a, b])
     scans = sc.rls_live.scans
     target = bpy.data.objects.new("Target", None)
@@ -134,6 +137,8 @@ def test_live_coverage_follows_each_step_of_a_lidar(live_scene):
         bpy.context.view_layer.update()
         assert not live.session().scheduler.busy
     assert sc.rls_live.latency_ms > 0 and "live: 2 LiDAR(s) over InfraLOB" in sc.rls_live.status
+    # the car sampled by the first scans only (the VLP-16 sweeps in the same 0.1 s)
+    assert kept.misses == misses and kept.hits > 0
 
 
 def test_another_frame_rescans_an_animated_lidar(live_scene):
