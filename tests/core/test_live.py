@@ -268,11 +268,26 @@ def test_a_moved_still_lidar_reuses_the_frames_samples_and_equals_a_fresh_scan()
     for dx in (0.3, 0.6, -0.2):  # the LiDAR moved: its rescans sample nothing anew
         moved_pole(scene, dx)
         got = scan_bytes(live, scene)
-        assert scene.calls["state"] == read and kept.hits > 0
+        assert scene.calls["state"] == read and kept.reused > 0
         want = scan_bytes(ScanSession(NumpyCaster), scene)  # a fresh scan, same state
         read = scene.calls["state"]
         assert got == want  # byte for byte: points and sidecar
     assert got != first
+    # a still box added ahead of the car (its index in the read moves, its motion not):
+    # the classification is given back with the car's new index
+    reused = kept.reused
+    scene.boxes["bench"] = ((-6.0, 3.0, -1.0), (-4.0, 4.0, 0.0), 4)
+    got = scan_bytes(live, scene)
+    assert kept.reused == reused + 1 and scene.calls["state"] == read
+    assert got == scan_bytes(ScanSession(NumpyCaster), scene)
+    # the car's bounds changed (another mesh; the fake keeps its mesh id, so a new
+    # session, which has not built it): classified again, from the kept states
+    scene.boxes["car"] = ((-2.0, -0.9, -1.0), (2.0, 0.9, 0.5), 11)
+    read = scene.calls["state"]
+    hits = kept.hits
+    got = scan_bytes(ScanSession(NumpyCaster, kept_sweeps=kept), scene)
+    assert kept.reused == reused + 1 and kept.hits > hits and scene.calls["state"] == read
+    assert got == scan_bytes(ScanSession(NumpyCaster), scene)
 
 
 def test_kept_samples_are_keyed_by_frame_and_sweep_time_and_cleared_on_an_edit():
@@ -306,4 +321,4 @@ def test_a_moving_lidar_samples_its_sweep_anew():
     live = ScanSession(NumpyCaster, kept_sweeps=kept)
     for _ in range(2):
         assert scan_bytes(live, scene) == scan_bytes(ScanSession(NumpyCaster), scene)
-    assert kept.hits == kept.misses == 0 and len(kept) == 0
+    assert kept.hits == kept.misses == kept.reused == 0 and len(kept) == 0

@@ -22,10 +22,15 @@ preset with another sweep time samples anew (a preset's firing times do not ente
 samples: they only pick which sampled interval each ray falls in, per scan).
 
 What is kept: the matrices and (for objects that may deform) the local vertices at each
-sampled time, as the source gave them (read-only). A deforming object's sub-step meshes
-(``Sweep.instance_at``) are read from the source anew at each scan.
+sampled time, as the source gave them (read-only), and what ``sweep.classify`` made of
+them (``_KeptSweep.motion``: the sample times, which objects move and how, their
+tracks), given back while the objects that may move are the same ones, in the same
+order, with the same local bounds and matrices at the frame (else classified again,
+from the kept states). A deforming object's sub-step meshes (``Sweep.instance_at``) are
+read from the source anew at each scan.
 """
 
+import dataclasses
 from collections import OrderedDict
 
 KEEP_SWEEPS = 4  # (frame, period) sweeps kept: a few frames or sweep times
@@ -56,14 +61,23 @@ class _Kept:
                 {k: self.verts[k] for k in deform_keys if k in self.verts}, None)
 
 
+class _Sweep:
+    """What is kept of one sweep: the states by time, and the last classification."""
+
+    def __init__(self):
+        self.states = {}     # t -> _Kept
+        self.motion = None   # (signature of the candidates, their keys, SweepMotion)
+
+
 class KeptSweeps:
     """Sampled states of the last ``keep`` sweeps (see the module docstring)."""
 
     def __init__(self, keep=KEEP_SWEEPS):
         self.keep = keep
-        self._sweeps = OrderedDict()  # (scene, frame, period) -> {t: _Kept}
-        self.hits = 0    # states given back
-        self.misses = 0  # states read from the source (and kept)
+        self._sweeps = OrderedDict()  # (scene, frame, period) -> _Sweep
+        self.hits = 0      # states given back
+        self.misses = 0    # states read from the source (and kept)
+        self.reused = 0    # classifications given back (no state asked for)
         self.clears = 0
 
     def clear(self):
@@ -73,27 +87,28 @@ class KeptSweeps:
         self._sweeps.clear()
 
     def __len__(self):
-        return sum(len(times) for times in self._sweeps.values())
+        return sum(len(sweep.states) for sweep in self._sweeps.values())
 
     def sweep(self, source, frame, period):
         """A ``Sweep`` over ``frame`` of ``source`` that gives kept states back and
         reads (and keeps) the others; the source's own sweep is entered only then."""
         key = (getattr(source, "name", None), int(frame), float(period))
-        times = self._sweeps.pop(key, None)
-        if times is None:
-            times = {}
+        kept = self._sweeps.pop(key, None)
+        if kept is None:
+            kept = _Sweep()
             while len(self._sweeps) >= self.keep:
                 self._sweeps.popitem(last=False)
-        self._sweeps[key] = times  # (the most recent last)
-        return _KeptSweep(self, times, lambda: source.sweep(frame, period))
+        self._sweeps[key] = kept  # (the most recent last)
+        return _KeptSweep(self, kept, lambda: source.sweep(frame, period))
 
 
 class _KeptSweep:
     """``core.scene.source.Sweep`` for a sensor that cannot move: the sensor's matrix
     is never read (``state`` gives None for it)."""
 
-    def __init__(self, store, times, open_source):
-        self.store, self.times, self.open_source = store, times, open_source
+    def __init__(self, store, kept, open_source):
+        self.store, self.kept, self.open_source = store, kept, open_source
+        self.times = kept.states
         self._cm = self._inner = None
 
     def _source_sweep(self):
@@ -114,6 +129,24 @@ class _KeptSweep:
         kept.add(keys, deform_keys, mats, verts)
         return kept.state(keys, deform_keys)
 
+    def motion(self, instances, mobility, classify):
+        """``classify()`` (``sweep.classify`` over this sweep), or the ``SweepMotion``
+        it gave for the same candidates (keys in order, local bounds and matrices at
+        the frame, deformable keys), its instance indices made this read's."""
+        cand = list(mobility.candidates)
+        keys = [instances[k].key for k in cand]
+        signature = (tuple(keys), tuple(sorted(mobility.deformable)),
+                     b"".join(instances[k].vertices.min(0).tobytes()
+                              + instances[k].vertices.max(0).tobytes()
+                              + instances[k].matrix.tobytes() for k in cand))
+        if self.kept.motion is not None and self.kept.motion[0] == signature:
+            self.store.reused += 1
+            old_keys, motion = self.kept.motion[1:]
+            return _reindexed(motion, {old: new for old, new in zip(old_keys, cand)})
+        motion = classify()
+        self.kept.motion = (signature, cand, motion)
+        return motion
+
     def instance_at(self, t, instance):
         return self._source_sweep().instance_at(t, instance)
 
@@ -125,3 +158,12 @@ class _KeptSweep:
             cm, self._cm, self._inner = self._cm, None, None
             return cm.__exit__(*exc)
         return False
+
+
+def _reindexed(motion, index):
+    """``motion`` (a ``SweepMotion`` of a still sensor) with its instance indices mapped
+    by ``index`` (old -> new)."""
+    return dataclasses.replace(
+        motion, rigid=[(index[k], tr) for k, tr in motion.rigid],
+        deforming=[(index[k], d) for k, d in motion.deforming],
+        tracks={index[k]: tr for k, tr in motion.tracks.items()})

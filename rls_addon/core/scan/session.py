@@ -110,7 +110,7 @@ class ScanSession:
         if settings.motion != "snapshot":
             mobility = source.mobility(instances, sensor)
             with self._sweep(source, frame, preset.period, mobility) as sweep:
-                motion = classify(sweep, preset.period, instances, mobility, sensor)
+                motion = self._classify(sweep, preset.period, instances, mobility, sensor)
                 n_used, substeps = self._substep_counts(preset, settings, instances, motion)
                 moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
                                          motion, substeps, skipped)
@@ -158,6 +158,16 @@ class ScanSession:
         if self.kept_sweeps is None or mobility.sensor_moves:
             return source.sweep(frame, period)
         return self.kept_sweeps.sweep(source, frame, period)
+
+    @staticmethod
+    def _classify(sweep, period, instances, mobility, sensor):
+        """``sweep.classify``; a kept sweep gives back its last classification of the
+        same objects (``kept_sweeps``)."""
+        def fresh():
+            return classify(sweep, period, instances, mobility, sensor)
+
+        kept = getattr(sweep, "motion", None)
+        return fresh() if kept is None else kept(instances, mobility, fresh)
 
     @staticmethod
     def _substep_counts(preset, settings, instances, motion):
