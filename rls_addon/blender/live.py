@@ -219,6 +219,8 @@ class LiveSession:
             props.work_ms = 1000 * last.work_s
         props.status = (sched.reason if sched.mode != LIVE else self.error
                         or f"live: {len(self.clouds)} LiDAR(s) over {self.lob_name}")
+        props.on_demand = sched.mode != LIVE
+        redraw_panels()
 
     # -- the timer ----------------------------------------------------------------------
 
@@ -274,6 +276,17 @@ def changes_others(updates):
                     and not is_rls_helper(obj)):
                 return True
     return False
+
+
+def redraw_panels():
+    """Redraw the Properties editors and 3D viewports of every window: a timer's writes
+    to Python-defined properties send Blender no notifier, so the panel's numbers would
+    wait for the mouse (no window in the bpy module: nothing to do)."""
+    wm = getattr(bpy.context, "window_manager", None)
+    for window in (wm.windows if wm is not None else ()):
+        for area in window.screen.areas:
+            if area.type in {"PROPERTIES", "VIEW_3D"}:
+                area.tag_redraw()
 
 
 def flush_edits():

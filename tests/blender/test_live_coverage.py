@@ -174,14 +174,26 @@ def test_a_scene_over_budget_falls_back_to_on_demand(live_scene):
         bpy.context.view_layer.update()
         drive(live)
     assert "over the 1 ms budget" in sc.rls_live.status
-    assert "updated on demand" in sc.rls_live.status
+    assert "updated on demand" in sc.rls_live.status and sc.rls_live.on_demand
+    from types import SimpleNamespace
+
+    from rls_addon import ui
+
+    from .test_ui_panels import _draw
+
+    lob = bpy.data.objects["InfraLOB"]
+    log = _draw(ui.OBJECT_PT_rls_live, SimpleNamespace(object=lob, active_object=lob, scene=sc))
+    assert [kw for n, a_, kw in log if n == "operator" and a_ == ("rls.live_update",)] == [
+        {"text": "Update Coverage", "icon": "FILE_REFRESH"}]  # said, and the button named
+    assert ("label", {"text": sc.rls_live.status, "icon": "ERROR"}) in [
+        (n, kw) for n, _, kw in log]
     scans = sc.rls_live.scans
     a.location.x = -6.0
     bpy.context.view_layer.update()
     time.sleep(0.03)
     assert live.tick() is None and sc.rls_live.scans == scans  # nothing by itself
     assert bpy.ops.rls.live_update() == {"FINISHED"}  # the panel's Update button
-    assert sc.rls_live.scans == scans + 1
+    assert sc.rls_live.scans == scans + 1 and not sc.rls_live.on_demand  # live again
     check_follows(sc, [a, b])
 
 
