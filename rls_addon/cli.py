@@ -45,6 +45,7 @@ def main(argv=None, prepare_blender=None):
     """Run one command; return the process exit code. ``prepare_blender`` registers
     the extension in this Blender (the entry points pass ``ensure_registered``); the
     commands that open a scene call it (``args.prepare_blender``)."""
+    _command["ended"] = False
     previous = _stop_on_signals()
     try:
         raise_noted()  # a stop signal that came while Python loaded RLS stops it here
@@ -67,11 +68,16 @@ def main(argv=None, prepare_blender=None):
         print(f"rls: error: {exc}", file=sys.stderr)
         return 1
     finally:
+        # a signal from here on finds the command ended (its code decided, its files
+        # complete): ignored, never raised inside this loop, which restores the handlers
+        # one signal at a time
+        _command["ended"] = True
         for signum, handler in previous.items():
             signal.signal(signum, handler)
 
 
 STOP_SIGNALS = stop_signals()
+_command = {"ended": False}
 
 
 def _interrupted(code):
@@ -100,6 +106,8 @@ def _stop_on_signals():
         return {}
 
     def stop(signum, frame):
+        if _command["ended"]:
+            return
         for s in STOP_SIGNALS:
             signal.signal(s, signal.SIG_IGN)
         deliver(signum)  # now, or where a step that must not be cut ends

@@ -79,3 +79,32 @@ def test_signals_from_the_start_are_noted_then_raised_where_the_command_starts(h
     signals.ignore_after_end()  # the command has ended: Python's shutdown takes none
     os.kill(os.getpid(), signal.SIGHUP)
     assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+
+
+def test_a_signal_while_the_command_line_puts_its_handlers_back_is_ignored(handlers,
+                                                                          monkeypatch):
+    """A stop that lands after a command has ended, while ``cli.main`` restores the
+    handlers it replaced one signal at a time (the others still its own), finds the
+    command ended: main returns the command's code instead of raising from its
+    ``finally`` (a traceback after the last frame, seen under load in the start-up
+    signal test)."""
+    import os
+    import signal
+
+    from rls_addon import cli
+
+    restoring = []
+    real = signal.signal
+
+    def restore_then_signal(signum, handler):
+        previous = real(signum, handler)
+        restores = getattr(previous, "__name__", "") == "stop" and handler is not previous
+        if restores and not restoring:  # the first handler put back
+            restoring.append(signum)
+            other = next(s for s in signals.stop_signals() if s != signum)
+            os.kill(os.getpid(), other)  # its handler is still the command line's
+        return previous
+
+    monkeypatch.setattr(cli.signal, "signal", restore_then_signal)
+    assert cli.main(["--version"]) == 0
+    assert restoring
