@@ -23,7 +23,7 @@ and the cores other work kept busy during it (/proc/stat less the command's own 
 * That the 2-worker outputs are the 1-worker ones: sha256 of every file (the study's
   timing columns and fields set aside).
 * What the 1-worker runs say about the cost model of ``--workers auto``
-  (``rls_addon/core/scan/cluster.py``).
+  (``rls_addon/core/scan/dask_run.py``).
 """
 
 import argparse
@@ -280,12 +280,12 @@ def estimate(serial_run_s, b, workers=(1, 2, 4, 8, 16)):
 # ---- the cost model of --workers auto ----------------------------------------------------
 
 def cost_model(dataset_summary, study_summary, traffic_frames):
-    """What the in-process runs say about ``core.cluster``'s serial cost model
+    """What the in-process runs say about ``core.scan.dask_run``'s serial cost model
     (seconds per scan + seconds per ray), against what the model estimates. The
     dataset's steps time each scan (``seconds``); the rest of the run (frame changes,
     ground truth, files) is the per-scan overhead. Rays are counted as
     ``commands.distribute`` counts them (the pattern's rays per scan)."""
-    from rls_addon.core.scan import cluster
+    from rls_addon.core.scan import dask_run
     from rls_addon.core.device.presets import get_preset
 
     frames = dataset_summary["frames"]
@@ -300,13 +300,13 @@ def cost_model(dataset_summary, study_summary, traffic_frames):
 
     return {"dataset": {"scans": scans, "rays": rays, "run_s": run_s, "scan_s": scan_s,
                         "per_scan_s": (run_s - scan_s) / scans, "per_ray_s": scan_s / rays,
-                        "model_s": cluster.model_seconds(scans, rays)},
+                        "model_s": dask_run.model_seconds(scans, rays)},
             "study": {"scans": study_scans, "rays": study_rays, "run_s": study_s,
                       "per_scan_s": study_s / study_scans, "per_ray_s": study_s / study_rays,
-                      "model_s": cluster.model_seconds(study_scans, study_rays)},
-            "constants": {"SECONDS_PER_SCAN": cluster.SECONDS_PER_SCAN,
-                          "SECONDS_PER_RAY": cluster.SECONDS_PER_RAY,
-                          "AUTO_MIN_SECONDS": cluster.AUTO_MIN_SECONDS}}
+                      "model_s": dask_run.model_seconds(study_scans, study_rays)},
+            "constants": {"SECONDS_PER_SCAN": dask_run.SECONDS_PER_SCAN,
+                          "SECONDS_PER_RAY": dask_run.SECONDS_PER_RAY,
+                          "AUTO_MIN_SECONDS": dask_run.AUTO_MIN_SECONDS}}
 
 
 def break_even(d):
@@ -501,7 +501,7 @@ def section(res):
     cm, be = res.get("cost_model"), d.get("break_even")
     if cm:
         c, md, ms_ = cm["constants"], cm["dataset"], cm["study"]
-        L.append(f"**`--workers auto`** (`rls_addon/core/scan/cluster.py`) estimates a run's time "
+        L.append(f"**`--workers auto`** (`rls_addon/core/scan/dask_run.py`) estimates a run's time "
                  f"in one process as scans x {c['SECONDS_PER_SCAN']:g} s + rays x "
                  f"{c['SECONDS_PER_RAY']:g} s and starts workers above "
                  f"{c['AUTO_MIN_SECONDS']:g} s. Measured in the 1-worker runs above: the "

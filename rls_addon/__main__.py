@@ -1,6 +1,6 @@
 """``python -m rls_addon ...``: the command line on the ``bpy`` module."""
 
-from .core.signals import ignore_after_end, note_from_start
+from .core.stop_signals import ignore_after_end, note_from_start
 
 note_from_start()  # first: a stop signal during the imports below ends like one later
 

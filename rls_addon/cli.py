@@ -9,7 +9,7 @@ import threading
 
 from .commands import load_commands
 from .core.errors import RLSError, interrupt_exit_code
-from .core.signals import deliver, held, raise_noted, stop_raised, stop_signals
+from .core.stop_signals import deliver, held, raise_noted, stop_raised, stop_signals
 from .version import VERSION
 
 
@@ -97,7 +97,7 @@ def _held(prepare_blender):
 
 def _stop_on_signals():
     """SIGINT (Ctrl-C), SIGTERM and SIGHUP raise ``Interrupted`` (a KeyboardInterrupt),
-    or wait for the end of a step that must not be cut (``core.signals.held``: loading
+    or wait for the end of a step that must not be cut (``core.stop_signals.held``: loading
     Blender), so every command stops the same way: the write under way ends or its
     temporary is removed, and the exit code is 128 + the signal (130, 143, 129). The
     first signal counts; a repeat while the run winds down is ignored. Returns the

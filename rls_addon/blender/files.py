@@ -10,7 +10,7 @@ import bpy
 from ..core.errors import OutputError, SceneError
 from ..core.output.io.atomic import place, temporary_name
 from ..core.output.io.blend_file import incomplete_blend
-from ..core.signals import held
+from ..core.stop_signals import held
 from .quiet import blender_output_silenced
 
 

@@ -14,7 +14,7 @@ import os
 import sys
 import time
 
-from ..core.scan.cluster import (
+from ..core.scan.dask_run import (
     ClusterError,
     choose_workers,
     cluster_client,

@@ -74,7 +74,7 @@ def polygon_from_blend(spec):
     path, sep, name = spec.rpartition(":")
     if not sep or not path or not name:
         raise InputError(f"--lob expects SCENE.blend:OBJECT, got {spec!r}")
-    from ..core.signals import held
+    from ..core.stop_signals import held
 
     with held():  # a stop signal waits for Blender to be loaded (as in open_scene)
         from ..blender import bpy  # only here: the rest of this command needs no Blender

@@ -156,8 +156,8 @@ def _offset(text):
 def open_scene(path, prepare_blender):
     """Load a .blend (or keep the loaded one when path is None) and make sure the
     extension is registered (``prepare_blender``, from the entry point). A stop signal
-    waits for Blender to be loaded (``core.signals.held``)."""
-    from ..core.signals import held
+    waits for Blender to be loaded (``core.stop_signals.held``)."""
+    from ..core.stop_signals import held
 
     with held():
         from ..blender import bpy

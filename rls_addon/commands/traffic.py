@@ -85,7 +85,7 @@ def _say(text):
 
 
 def run_import(args):
-    from ..core.progress import Throttled, eta
+    from ..core.progress import Throttled, left_text
     from ..core.traffic.fcd import check_origin, load
 
     if not os.path.isfile(args.blend):
@@ -96,8 +96,7 @@ def run_import(args):
 
     def reading(share):
         spent = tell.elapsed()
-        tell(f"reading {args.fcd}: {share:.0%} in {spent:.0f} s, about "
-             f"{eta(share, 1.0, spent):.0f} s left")
+        tell(f"reading {args.fcd}: {share:.0%} in {spent:.0f} s{left_text(share, 1.0, spent)}")
 
     fcd, types = load(args.fcd, args.vtypes, args.begin, args.end, reading)  # before Blender
     tell(f"{len(fcd.tracks)} vehicles and persons read in {tell.elapsed():.1f} s",
@@ -110,7 +109,7 @@ def run_import(args):
 
     def keying(done, total):
         spent = time.perf_counter() - t_keys
-        tell(f"keying objects: {done} of {total}, about {eta(done, total, spent):.0f} s left",
+        tell(f"keying objects: {done} of {total}{left_text(done, total, spent)}",
              final=done == total)
 
     info = import_traffic(scene, fcd, types, origin=traffic_origin(scene, args.origin),

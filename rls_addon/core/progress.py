@@ -32,3 +32,9 @@ class Throttled:
 def eta(done, total, spent):
     """Seconds left at a constant rate, from ``done`` of ``total`` in ``spent``."""
     return spent / done * (total - done) if done > 0 else float("nan")
+
+
+def left_text(done, total, spent):
+    """", about N s left" from ``done`` of ``total`` in ``spent`` seconds, or "" while
+    nothing is done (no rate to go by: never "about nan s left")."""
+    return f", about {eta(done, total, spent):.0f} s left" if done > 0 else ""

@@ -89,10 +89,24 @@ def assert_complete(case, out):
         assert not report or {"study.json", "candidates.csv", "placements.csv"} <= report, report
 
 
+def progress_line(line):
+    """True for what a run says as it goes rather than its outcome: a scan's frame
+    lines ("[1/2] ..."), the throttled progress and status lines of the commands that
+    report as they work ("rls: scene: ...", "rls: traffic: ...": they start after a
+    quiet second, so a busy machine shows more of them) and notices."""
+    return line.startswith(("[", "rls: scene: ", "rls: traffic: ", "rls: notice: "))
+
+
+def outcome_lines(stderr):
+    """The lines of ``stderr`` that are not progress (``progress_line``) nor blank."""
+    return [ln for ln in stderr.splitlines() if ln.strip() and not progress_line(ln)]
+
+
 def one_line_error(proc):
-    """Assert a failed run printed exactly one error line on stderr; return it."""
+    """Assert a failed run printed exactly one error line on stderr (besides progress,
+    which a busy machine may show before a late refusal); return it."""
     assert proc.returncode != 0, proc.stdout
-    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    lines = outcome_lines(proc.stderr)
     assert len(lines) == 1, proc.stderr
     assert lines[0].startswith("rls: error: "), lines[0]
     return lines[0]

@@ -9,7 +9,7 @@ import json
 
 import pytest
 
-from .conftest import ROOT, SCENE_SCRIPT_HEAD, build_blend, one_line_error, rls
+from .conftest import SCENE_SCRIPT_HEAD, build_blend, one_line_error, rls
 
 MOUNT = SCENE_SCRIPT_HEAD + r"""
 from rls_addon.blender.scenes import build_scene

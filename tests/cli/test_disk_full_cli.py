@@ -20,7 +20,7 @@ import pytest
 from tests.core.external_tools import missing
 from tests.sumo_nets import ONE_CAR_FCD, grid_net
 
-from .conftest import ROOT, rls
+from .conftest import ROOT, outcome_lines, rls
 
 TMPFS_KIB = 200
 # inside the namespace: the tmpfs on $1, the command, then what it left in $1 into $2
@@ -60,9 +60,8 @@ def on_full_disk(tmp_path, *args):
 
 
 def the_error(proc):
-    """The one line besides from-net's progress lines; it must be an error."""
-    lines = [ln for ln in proc.stderr.splitlines()
-             if ln.strip() and not ln.startswith("rls: scene: ")]
+    """The one line besides progress lines; it must be an error."""
+    lines = outcome_lines(proc.stderr)
     assert len(lines) == 1 and lines[0].startswith("rls: error: "), proc.stderr
     return lines[0]
 

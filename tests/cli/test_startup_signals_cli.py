@@ -33,7 +33,7 @@ import pytest
 
 from tests.sumo_nets import ONE_CAR_FCD, grid_net
 
-from .conftest import ROOT, assert_complete, rls
+from .conftest import ROOT, assert_complete, outcome_lines, rls
 
 pytestmark = pytest.mark.slow
 
@@ -41,7 +41,7 @@ TRIALS = 50
 SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 # the modules rls_addon/__main__.py imports before its handlers are in place
 START_MODULES = ("rls_addon/__main__.py", "rls_addon/__init__.py", "rls_addon/core/__init__.py",
-                 "rls_addon/core/signals.py", "rls_addon/core/errors.py")
+                 "rls_addon/core/stop_signals.py", "rls_addon/core/errors.py")
 
 
 @pytest.fixture(scope="module")
@@ -161,8 +161,7 @@ def test_stop_signals_at_start_up_end_like_later(inputs, tmp_path, case):
                      f"exit {code}; stderr: {stderr[-1500:]}")
             python_start = before_rls(sig, code, stderr)
             assert "Traceback" not in stderr or python_start, where
-            lines = [ln for ln in stderr.splitlines() if ln.strip()
-                     and not ln.startswith(("[", "rls: scene: ", "rls: notice: "))]
+            lines = outcome_lines(stderr)
             if code == 128 + sig:
                 assert len(lines) == 1 and lines[0].startswith("rls: interrupted"), where
                 written(case, out)

@@ -23,5 +23,7 @@ def test_benchmark_modules_import():
     """make bench is not run by the tests: at least its modules must load."""
     import importlib
 
-    for name in ("bench.run", "bench.engine_costs"):
+    for name in ("bench.run", "bench.report", "bench.machine", "bench.timing", "bench.backends",
+                 "bench.devices", "bench.scaling", "bench.memory", "bench.tessellation",
+                 "bench.blender_scan", "bench.engine_costs"):
         importlib.import_module(name)

@@ -45,14 +45,56 @@ def test_noise_off_is_zero_sigma_and_the_tolerance_keeps_the_devices_noise():
     assert device_values(small_preset(noise=0.0), ScanSettings()).motion_tolerance_m == 0.01
 
 
-def test_resolved_once_per_preset_and_settings():
-    p, s = small_preset(noise=0.02), ScanSettings(max_range_m=30.0)
-    assert device_values(p, s) is device_values(p, dataclasses.replace(s))
-    assert device_values(p, s) is not device_values(p, ScanSettings(max_range_m=31.0))
-    other = small_preset(noise=0.02)  # same id, another object: its own values
-    assert device_values(other, s) == device_values(p, s)
-    assert device_values(other, s) is not device_values(p, s)
-    assert DeviceValues.resolve(p, s) == device_values(p, s)
+def test_a_run_resolves_each_sensors_device_once_and_passes_it_down(monkeypatch):
+    """Issue 41: the values were worked out three times per scan (the session twice, the
+    frame once, behind a process-wide cache) and the raw preset went down to the frame.
+    A run resolves them once per sensor; the session's sub-steps and sidecar, and the
+    frame, read those (the frame gets the values, not the preset)."""
+    from rls_addon.core.scan import session
+
+    resolved, given = [], []
+    resolve = DeviceValues.resolve.__func__
+    monkeypatch.setattr(DeviceValues, "resolve", classmethod(
+        lambda cls, p, s: resolved.append(p.id) or resolve(cls, p, s)))
+    frame = session.scan_frame
+    monkeypatch.setattr(session, "scan_frame", lambda scene, pattern, pose, device, *a, **k:
+                        given.append(device) or frame(scene, pattern, pose, device, *a, **k))
+    jobs = [SensorJob(name, LidarSettings(preset=p.id, scan=ScanSettings(
+        motion="substeps", substeps=0, max_range_m=rmax)), p)
+        for name, p, rmax in (("pole", small_preset(pid="a"), 40.0),
+                              ("mast", small_preset(pid="b"), 50.0))]
+    run = ScanRun(street(car_speed=8.0), jobs, [1, 2, 3], factory=numpy_factory).run()
+    assert run.scanned == 6 and sorted(resolved) == ["a", "b"]
+    assert len(given) == 6 and all(isinstance(d, DeviceValues) for d in given)
+    assert {d.max_range_m for d in given} == {40.0, 50.0}
+    effects = run.last[1]["effects"]
+    # the moving car's sub-steps chosen against the device's tolerance
+    assert effects["range_m"] == [0.3, 50.0] and effects["substeps_used"] > 1
+
+
+def test_a_frame_given_the_values_or_the_preset_gives_the_same_points():
+    """``scan_frame`` takes the values a session resolved, or a preset (scripts, tests)
+    that it resolves itself: the same bytes."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.scan.frame import scan_frame
+    from rls_addon.core.scene.instances import object_table, world_geometry
+
+    p = small_preset(noise=0.02)
+    p = dataclasses.replace(p, dropout=dataclasses.replace(p.dropout, general_rate=0.2))
+    s = ScanSettings(seed=5, max_range_m=35.0)
+    source = street()
+    source.set_frame(1)
+    read = source.read(np.zeros(3), 100.0, set())
+    scene = world_geometry(read.instances, object_table(read.instances), read.materials)
+    pose = source.sensor_pose("pole")
+    values = device_values(p, s)
+    assert values.dropout == p.dropout
+    by_preset = scan_frame(scene, p.pattern(), pose, p, s, NumpyCaster).points
+    by_values = scan_frame(scene, p.pattern(), pose, values, s, NumpyCaster).points
+    assert len(by_values) > 100 and by_values.tobytes() == by_preset.tobytes()
+    full = scan_frame(scene, p.pattern(), pose, p, dataclasses.replace(s, dropout=False),
+                      NumpyCaster).points
+    assert len(full) > len(by_values)  # the dropout the values carry was applied
 
 
 def test_the_sidecar_records_the_noise_the_frame_drew_with():

@@ -1,46 +1,46 @@
 """--workers N beyond what the machine holds (its cores, its memory for a worker of this
 scene) is capped, with a notice naming the cap."""
 
-from rls_addon.core.scan import cluster
+from rls_addon.core.scan import dask_run
 
 
 def test_workers_beyond_the_cores_are_capped(monkeypatch):
-    monkeypatch.setattr(cluster, "cores", lambda: 2)
-    monkeypatch.setattr(cluster, "available_memory", lambda: 64 * 1024 ** 3)
+    monkeypatch.setattr(dask_run, "cores", lambda: 2)
+    monkeypatch.setattr(dask_run, "available_memory", lambda: 64 * 1024 ** 3)
     notices = []
-    assert cluster.choose_workers(64, scans=100, rays=10 ** 6, notices=notices) == 2
+    assert dask_run.choose_workers(64, scans=100, rays=10 ** 6, notices=notices) == 2
     assert len(notices) == 1 and "--workers 64" in notices[0] and "2" in notices[0], notices
     assert "cores" in notices[0]
     notices.clear()
-    assert cluster.choose_workers(2, scans=100, rays=10 ** 6, notices=notices) == 2
+    assert dask_run.choose_workers(2, scans=100, rays=10 ** 6, notices=notices) == 2
     assert notices == []
 
 
 def test_workers_beyond_the_memory_are_capped(monkeypatch):
-    monkeypatch.setattr(cluster, "cores", lambda: 64)
-    monkeypatch.setattr(cluster, "available_memory", lambda: 16 * 1024 ** 3)
-    need = cluster.worker_memory(scene_bytes=400 * 1024 ** 2, rays_per_scan=200_000)
-    assert need > cluster.WORKER_MEMORY_BYTES  # a bigger scene needs more
+    monkeypatch.setattr(dask_run, "cores", lambda: 64)
+    monkeypatch.setattr(dask_run, "available_memory", lambda: 16 * 1024 ** 3)
+    need = dask_run.worker_memory(scene_bytes=400 * 1024 ** 2, rays_per_scan=200_000)
+    assert need > dask_run.WORKER_MEMORY_BYTES  # a bigger scene needs more
     notices = []
-    n = cluster.choose_workers(48, scans=1000, rays=10 ** 8, worker_bytes=need,
+    n = dask_run.choose_workers(48, scans=1000, rays=10 ** 8, worker_bytes=need,
                                notices=notices)
     assert n == max(1, 16 * 1024 ** 3 // need) < 48
     assert len(notices) == 1 and f"capped at {n}" in notices[0] and "memory" in notices[0]
     # auto takes the same estimate
-    assert cluster.choose_workers("auto", scans=10 ** 5, rays=10 ** 10, worker_bytes=need) == n
+    assert dask_run.choose_workers("auto", scans=10 ** 5, rays=10 ** 10, worker_bytes=need) == n
 
 
 def test_a_scheduler_decides_its_own_workers(monkeypatch):
-    monkeypatch.setattr(cluster, "cores", lambda: 2)
+    monkeypatch.setattr(dask_run, "cores", lambda: 2)
     notices = []
-    assert cluster.choose_workers(64, 10, 10, scheduler="tcp://h:8786", notices=notices) == 0
+    assert dask_run.choose_workers(64, 10, 10, scheduler="tcp://h:8786", notices=notices) == 0
     assert notices == []
 
 
 def test_pieces_are_short_enough_for_progress_every_few_seconds():
     """Issue 31: --frames 1-1000000 on 2 workers went in 8 pieces of 125,000 frames, with
     no progress line for 10 minutes."""
-    from rls_addon.core.scan.cluster import (
+    from rls_addon.core.scan.dask_run import (
         MAX_PIECES,
         PIECE_SECONDS,
         SECONDS_PER_RAY,
@@ -63,17 +63,17 @@ def test_auto_stays_here_for_a_still_sensor_over_a_still_scene(monkeypatch):
     """Issue 31: 300 frames of one still Pandar64 over a scene where nothing moves
     started two workers (5.8 s against 5.7 s in one process): its frames reuse their
     first cast, and the model now counts them as such."""
-    monkeypatch.setattr(cluster, "cores", lambda: 2)
-    monkeypatch.setattr(cluster, "available_memory", lambda: 64 * 1024 ** 3)
+    monkeypatch.setattr(dask_run, "cores", lambda: 2)
+    monkeypatch.setattr(dask_run, "available_memory", lambda: 64 * 1024 ** 3)
     rays = 115_200
-    still = cluster.run_seconds([(300, rays, True)])
-    moving = cluster.run_seconds([(300, rays, False)])
-    assert still < 5 < cluster.AUTO_MIN_SECONDS < moving
-    assert cluster.choose_workers("auto", 300, 300 * rays, estimate=still) == 1
-    assert cluster.choose_workers("auto", 300, 300 * rays, estimate=moving) == 2
+    still = dask_run.run_seconds([(300, rays, True)])
+    moving = dask_run.run_seconds([(300, rays, False)])
+    assert still < 5 < dask_run.AUTO_MIN_SECONDS < moving
+    assert dask_run.choose_workers("auto", 300, 300 * rays, estimate=still) == 1
+    assert dask_run.choose_workers("auto", 300, 300 * rays, estimate=moving) == 2
     # the default is the full model, as before
-    assert cluster.choose_workers("auto", 300, 300 * rays) == 2
-    assert cluster.run_seconds([(300, rays, True), (300, rays, False)]) == \
+    assert dask_run.choose_workers("auto", 300, 300 * rays) == 2
+    assert dask_run.run_seconds([(300, rays, True), (300, rays, False)]) == \
         still + moving
 
 

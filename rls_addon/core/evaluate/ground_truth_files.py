@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..output.io.paths import sanitize_name
+from ..output.io.names import sanitize_name
 from .detections import CLASS_IDS, Boxes
 from .kitti_meta import KittiMeta
 

@@ -1,10 +1,14 @@
-"""A device preset's values after a LiDAR's scan settings, resolved once per (preset,
-settings) into one object that the session, the frame and the study read: the range
-limits, the range noise, the attenuation, the motion tolerance, the detection model,
-the weather and the beam. Each override of ``ScanSettings`` is applied here and
-nowhere else."""
+"""A device preset's values after a LiDAR's scan settings, in one object: the range
+limits, the range noise, the dropout, the attenuation, the motion tolerance, the
+detection model, the weather and the beam. Each override of ``ScanSettings`` is
+applied here and nowhere else.
 
-import threading
+Resolved once by whoever starts a scan and passed down, so what a frame draws with is
+what the sidecar records: ``ScanRun`` once per sensor of a run, ``ScanSession.scan``
+when it is called without them (a single scan, live coverage), the study's scanner
+once per study. ``scan_frame`` takes them in place of the preset (a preset handed to
+it is resolved there, for scripts and tests)."""
+
 from dataclasses import dataclass
 
 from ..physics.detection import detection_of
@@ -19,6 +23,7 @@ class DeviceValues:
     min_range_m: float        # blind zone (m)
     max_range_m: float        # maximum range (m)
     noise_sigma_m: float      # the range noise's sigma (m) the scan draws with; 0 when off
+    dropout: object           # device.presets.DropoutModel: the preset's (rates, limits)
     attenuation_per_m: float  # CARLA's intensity attenuation (1/m)
     motion_tolerance_m: float  # how far anything may move within one sub-step (m)
     detection: object         # physics.detection.DetectionModel, or None: CARLA's model
@@ -38,6 +43,7 @@ class DeviceValues:
             min_range_m=rng.min_m if s.min_range_m is None else s.min_range_m,
             max_range_m=rng.max_m if s.max_range_m is None else s.max_range_m,
             noise_sigma_m=sigma if s.noise else 0.0,
+            dropout=preset.dropout,
             attenuation_per_m=(preset.attenuation_per_m if s.attenuation_per_m is None
                                else s.attenuation_per_m),
             # the preset's own noise, not an override: a tolerance of the device
@@ -48,22 +54,6 @@ class DeviceValues:
             beam=beam_of(preset, s))
 
 
-_CACHE = {}
-_LOCK = threading.Lock()
-_CACHE_SIZE = 64
-
-
 def device_values(preset, settings):
-    """``DeviceValues.resolve(preset, settings)``, worked out once per (preset, settings)
-    in this process (a frame asks for it every frame)."""
-    key = (id(preset), settings)
-    with _LOCK:
-        got = _CACHE.get(key)
-        if got is not None and got[0] is preset:
-            return got[1]
-    values = DeviceValues.resolve(preset, settings)
-    with _LOCK:
-        if len(_CACHE) >= _CACHE_SIZE:
-            _CACHE.clear()
-        _CACHE[key] = (preset, values)
-    return values
+    """The ``DeviceValues`` of ``preset`` under ``settings`` (a ``ScanSettings``)."""
+    return DeviceValues.resolve(preset, settings)

@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import allocator
-from ..native import blas
+from . import freed_pages
+from ..native import blas_threads
 from ..physics import echoes, effects, footprint, ghost, weather
 from ..physics.assemble import Draws, Effects, Hits, Rays, assemble
 from ..world.bodies import PreparedScene
@@ -18,7 +18,7 @@ from ..errors import SceneError
 from ..scene.motion import effective_times
 # sensor_axes, sensor_frame and distinct_times are imported from here too
 from .aim import _Aim, distinct_times, sensor_axes, sensor_frame  # noqa: F401
-from .device_values import device_values
+from .device_values import DeviceValues, device_values
 from .sweep import adaptive_substeps
 from ..native.vectors import row_dot
 from ..world.world import World
@@ -174,7 +174,7 @@ def _inside_warnings(world, ray_obj, rows, back, in_air=None, min_hits=100, shar
             for i, t in zip(cand[sel], total[sel])]
 
 
-def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory=None,
+def scan_frame(scene, pattern, sensor_to_world, device, settings, caster_factory=None,
                frame=0, sensor="sensor", sensor_track=None, moving=(), keep_rays=False,
                fields=None, rays=None):
     """Scan one frame.
@@ -183,6 +183,10 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
                      coordinates), prepared here around the sensor with caster_factory
     pattern          ScanPattern (directions in the sensor frame, per-ray times)
     sensor_to_world  4x4 pose of the sensor at the start of the sweep
+    device           the device's ``DeviceValues`` under ``settings``, resolved once by
+                     whoever starts the scan (the session, the study's scanner); or its
+                     ``DevicePreset``, resolved here (scripts, tests)
+    settings         ``ScanSettings``
     sensor_track     optional Track of the sensor over the sweep (a moving sensor)
     moving           RigidBody / TimedScene bodies (moving and deforming objects)
     keep_rays        also return every ray and its first hit (``RayRecord``, for
@@ -199,18 +203,18 @@ def scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
-    allocator.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
-    with blas.single_threaded():  # OpenBLAS' spinning threads would slow the caster
-        return _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory,
+    freed_pages.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
+    with blas_threads.single_threaded():  # OpenBLAS' spinning threads would slow the caster
+        dv = device if isinstance(device, DeviceValues) else device_values(device, settings)
+        return _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory,
                            frame, sensor, sensor_track, moving, keep_rays, fields, rays)
 
 
-def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factory, frame,
+def _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory, frame,
                 sensor, sensor_track, moving, keep_rays=False, fields=None, ray_rows=None):
     """``scan_frame``'s steps, in the order their random draws are taken."""
     t0 = time.perf_counter()
     s = settings
-    dv = device_values(preset, s)
     rmin, rmax = dv.range_m
     n = len(pattern)  # every ray of the pattern draws its numbers (see ``rays``)
     substeps_used = None
@@ -235,7 +239,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
     pending = world.start(aim.origins, aim.dirs, aim.times, rmax, order=aim.order,
                           reuse=pick.rows is None)
     rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
-    draws, glossy, glossy_u = _draws(rng, ghost_rng, n, pick, s, preset, dv, world)
+    draws, glossy, glossy_u = _draws(rng, ghost_rng, n, pick, s, dv, world)
 
     dist, body, tri, normals = pending()
     reused = scene.reused > reused
@@ -258,7 +262,7 @@ def _scan_frame(scene, pattern, sensor_to_world, preset, settings, caster_factor
                 ghost_int, refl, g.object_field("label"), g.object_field("instance"),
                 medium_rows, medium_dist)
     rays = Rays(aim.dirs, aim.origins, aim.columns, aim.channels, aim.ray_times)
-    pts, idx, back = _points(hits, rays, draws, _effects(preset, dv), s, fields, beam_echoes)
+    pts, idx, back = _points(hits, rays, draws, _effects(dv), s, fields, beam_echoes)
     if aim.beam_origins is not None and s.frame_space != "world":
         _from_beam_origins(pts, aim.beam_origins, idx)
     in_air = _air_stats(dv.weather, medium_rows, len(aim.dirs), idx, stats)
@@ -305,7 +309,7 @@ def _empty_scene_warnings(scene, moving, rmax):
     return []
 
 
-def _draws(rng, ghost_rng, n, pick, s, preset, dv, world):
+def _draws(rng, ghost_rng, n, pick, s, dv, world):
     """Every random number of the effects, drawn per ray, not per hit, so a ray's draws
     never depend on which other rays returned (ghosting or moving objects change only
     their own rays); drawn while the rays are cast (the compiled loop's threads cast
@@ -315,8 +319,8 @@ def _draws(rng, ghost_rng, n, pick, s, preset, dv, world):
                   else None)
     if s.dropout:
         draws.general, draws.low = (pick(u) for u in effects.dropout_draws(
-            rng, n, preset.dropout.general_rate, preset.dropout.intensity_limit,
-            preset.dropout.intensity_zero))
+            rng, n, dv.dropout.general_rate, dv.dropout.intensity_limit,
+            dv.dropout.intensity_zero))
     # Drawn after noise and dropout, and only when used: a frame without datasheet
     # figures and weather draws what it drew before the LiDAR equation.
     if dv.detection is not None:
@@ -387,10 +391,10 @@ def _echoes(sub, ret, dirs, bounces, rows, medium_rows, refl, dv, draws, rng, rm
     return beam_echoes
 
 
-def _effects(preset, dv):
+def _effects(dv):
     model, air = dv.detection, dv.weather
-    return Effects(preset.dropout.general_rate, preset.dropout.intensity_limit,
-                   preset.dropout.intensity_zero, dv.attenuation_per_m, model,
+    return Effects(dv.dropout.general_rate, dv.dropout.intensity_limit,
+                   dv.dropout.intensity_zero, dv.attenuation_per_m, model,
                    "carla" if model is None else model.intensity,
                    0.0 if air is None else air.alpha)
 

@@ -22,6 +22,8 @@ from ..errors import SceneError
 from ..scene.instances import check_ids
 from ..scene.traffic_keys import check_keyed, source_span
 from ..labels import label_id, label_name
+from . import run_files
+from .device_values import device_values
 from .session import ScanSession, settings_record
 
 
@@ -128,7 +130,7 @@ class ScanRun:
         self._cancelled = cancelled or (lambda: False)
         self.plan = [(f, job) for f in self.frames for job in self.sensors]
         if writer is not None:  # fail before scanning anything
-            self._distinct_outputs()
+            run_files.distinct_outputs(self.plan, writer)
             for job in self.sensors:
                 writer.check(job.name, job.settings.output, self.frames[0])
             if not piece and not (getattr(writer, "resume", False)
@@ -136,7 +138,10 @@ class ScanRun:
                 self.free_outputs()
             if not piece and (getattr(writer, "resume", False) or getattr(writer, "overwrite", False)):
                 self.remove_leftovers()  # what a killed earlier run of these outputs left
-        self._records = {j.name: settings_record(j.preset, j.settings.scan) for j in self.sensors}
+        # each sensor's device after its settings, resolved once for the run
+        self._values = {j.name: device_values(j.preset, j.settings.scan) for j in self.sensors}
+        self._records = {j.name: settings_record(j.preset, j.settings.scan, self._values[j.name])
+                         for j in self.sensors}
         self._told_stale = set()  # sensors whose files of other settings were reported
         self.sessions, self.notices = ({} if sessions is None else sessions), []
         if writer is not None and not piece and hasattr(writer, "orphans"):
@@ -160,7 +165,8 @@ class ScanRun:
         self.id_map = {}  # instance id -> {object name: label id}, over the whole run
         self._frame_set = None
         self._scan_time = 0.0
-        self._budget = self._disk_budget() if writer is not None and not piece else None
+        self._budget = run_files.disk_budget(self.plan, writer) \
+            if writer is not None and not piece else None
         self.t0 = time.perf_counter()
 
     @property
@@ -217,7 +223,7 @@ class ScanRun:
         out = job.settings.output
         classes = [label_id(c) for c in out.object_classes] if out.ground_truth else None
         result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
-                                    object_classes=classes)
+                                    object_classes=classes, values=self._values[job.name])
         info["frame_rate_hz"] = self.source.fps
         info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
         self._add_labels(info["labels"])
@@ -227,7 +233,7 @@ class ScanRun:
             path = str(self.writer.write(job.name, out, frame, result.points, info))
             self.paths.append(path)
             if self._budget is not None:
-                self._budget.written(job.name, self._files(job, frame))
+                self._budget.written(job.name, run_files.files_of(self.writer, job, frame))
         if self.on_result is not None:
             self.on_result(job, frame, result, info)
         self.scanned += 1
@@ -246,28 +252,6 @@ class ScanRun:
     def _add_labels(self, labels):
         for iid, o in labels.items():
             self.id_map.setdefault(int(iid), {})[o["object"]] = o["label"]
-
-    def _disk_budget(self):
-        """The run's ``DiskBudget``: per sensor, the scans whose files are not there yet
-        (a --resume keeps the others, an --overwrite replaces them in place; without
-        either, ``free_outputs`` made sure none is there: no file is looked at again)."""
-        from .disk_budget import DiskBudget
-
-        remaining = {}
-        if getattr(self.writer, "resume", False) or getattr(self.writer, "overwrite", False):
-            for _, job, files in self._planned():
-                if not all(os.path.isfile(p) for p in files):
-                    remaining[job.name] = remaining.get(job.name, 0) + 1
-        else:
-            for _, job in self.plan:
-                remaining[job.name] = remaining.get(job.name, 0) + 1
-        return DiskBudget(remaining)
-
-    def _files(self, job, frame):
-        planned = getattr(self.writer, "planned_files", None)
-        out = job.settings.output
-        return planned(job.name, out, frame) if planned is not None \
-            else [self.writer.path(job.name, out, frame)]
 
     def _stale_notice(self, job, frame):
         """Once per sensor, when resuming: its earlier files written with other settings
@@ -324,7 +308,7 @@ class ScanRun:
         per sensor, runs of consecutive frames (a worker keeps a still sensor's cast
         and a sensor's prepared scene over its frames); with ``by_sensor=False`` runs
         of frames with every sensor (layouts whose files need a whole frame)."""
-        from .cluster import shards
+        from .dask_run import shards
 
         if not by_sensor:
             return [([j.name for j in self.sensors], f) for f in shards(self.frames, count)]
@@ -346,8 +330,8 @@ class ScanRun:
                 if step.path:
                     self.paths.append(step.path)
                     if self._budget is not None:
-                        self._budget.written(step.sensor, self._files(jobs[step.sensor],
-                                                                      step.frame))
+                        self._budget.written(step.sensor, run_files.files_of(
+                            self.writer, jobs[step.sensor], step.frame))
         for iid, names in id_map.items():
             self.id_map.setdefault(int(iid), {}).update(names)
         self.warnings += [w for w in warnings if w not in self.warnings]
@@ -362,23 +346,10 @@ class ScanRun:
             self._complete()
 
     def remove_leftovers(self):
-        """Remove what a killed process left of this run's outputs: temporaries of
-        writes in progress (``io.atomic``: a SIGKILL, a lost node or a dead worker can
-        leave one) and the files of a scan whose last file was never written (a cloud
-        without its sidecar); those scans are then done again. Only for runs that may
-        replace their outputs (--resume, --overwrite) and once every worker stopped."""
-        from ..output.io.atomic import stale_temporaries
-
-        incomplete = getattr(self.writer, "incomplete", None)
-        planned = []
-        for frame, job in self.plan:
-            out = job.settings.output
-            if incomplete is not None:
-                for path in incomplete(job.name, out, frame):
-                    _unlink(path)
-            planned += self.writer.planned_files(job.name, out, frame)
-        for tmp in stale_temporaries(planned):
-            _unlink(tmp)
+        """Remove what a killed process left of this run's outputs (``run_files``);
+        only for runs that may replace their outputs (--resume, --overwrite) and once
+        every worker stopped."""
+        run_files.remove_leftovers(self.plan, self.writer)
 
     def still_sensors(self):
         """The sensors whose frames reuse their first frame's cast: those that cannot
@@ -395,61 +366,12 @@ class ScanRun:
         back from (``index`` counts those only)."""
         if self.writer is None:
             return self.index
-        incomplete = getattr(self.writer, "incomplete", None)
-        done = 0
-        for frame, job, files in self._planned():
-            if all(os.path.isfile(p) for p in files) and not (
-                    incomplete is not None and incomplete(job.name, job.settings.output, frame)):
-                done += 1
-        return done
-
-    def _planned(self):
-        """(frame, job, files) of every step: the files a writer says a scan writes."""
-        planned = getattr(self.writer, "planned_files", None)
-        for frame, job in self.plan:
-            out = job.settings.output
-            yield frame, job, (planned(job.name, out, frame) if planned is not None
-                               else [self.writer.path(job.name, out, frame)])
-
-    def _distinct_outputs(self):
-        """Every scan writes files of its own, decided before any work: two LiDARs whose
-        names give the same file names (names that differ only in characters a file
-        name cannot hold), or a file name template without {frame} over several frames,
-        end the run here, naming them. Writers of one file per run (a bag) say so
-        (``per_scan = False``)."""
-        from ..errors import OutputError
-
-        if not getattr(self.writer, "per_scan", True):
-            return
-        owner = {}
-        for frame, job, files in self._planned():
-            for path in files:
-                key = os.path.abspath(os.fspath(path))
-                first = owner.setdefault(key, (frame, job))
-                if first == (frame, job):
-                    continue
-                f0, j0 = first
-                if j0.name != job.name:
-                    raise OutputError(
-                        f"LiDARs '{j0.name}' and '{job.name}' would write the same file "
-                        f"{path} (their names give the same file name): rename one, or give "
-                        "it an output folder or file name template of its own")
-                raise OutputError(
-                    f"{job.name}'s file name template {job.settings.output.template!r} gives "
-                    f"the same file {path} for frames {f0} and {frame}: put {{frame}} in it "
-                    "(e.g. --template '{scene}_{sensor}_{frame:06d}'), or scan one frame")
+        return run_files.complete_on_disk(self.plan, self.writer)
 
     def free_outputs(self):
         """Without --overwrite or --resume, an existing file of this run is an error
-        before anything is scanned (pieces run again after a failed worker then keep
-        what they wrote the first time)."""
-        from ..errors import OutputExists
-
-        existing = [p for _, _, files in self._planned() for p in files if os.path.exists(p)]
-        if existing:
-            more = f" (and {len(existing) - 1} more of this run's files)" if len(existing) > 1 else ""
-            raise OutputExists(f"{existing[0]} already exists{more}; pass --overwrite to replace "
-                               "it or --resume to keep it", existing)
+        before anything is scanned (``run_files.free_outputs``)."""
+        run_files.free_outputs(self.plan, self.writer)
 
     def run(self, interrupt_cancels=False):
         """Every step to the end; Ctrl+C ends the run as a cancel when
@@ -504,9 +426,3 @@ class ScanRun:
             out["resumed"] = True
         return out
 
-
-def _unlink(path):
-    try:
-        os.unlink(path)
-    except OSError:
-        pass

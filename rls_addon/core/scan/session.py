@@ -16,7 +16,7 @@ import dataclasses
 
 import numpy as np
 
-from ..native import blas
+from ..native import blas_threads
 from ..world.bodies import PreparedScene, RigidBodies, TimedScene
 from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
@@ -82,24 +82,28 @@ class ScanSession:
         anchor = np.round(np.asarray(centre, np.float64) / cell) * cell
         return anchor, rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M
 
-    def scan(self, source, sensor, preset, settings, frame, object_classes=None):
+    def scan(self, source, sensor, preset, settings, frame, object_classes=None, values=None):
         """Scan ``frame`` (the source is already at it) of sensor ``sensor`` with device
         ``preset`` and ``ScanSettings`` ``settings``. Returns (ScanResult, info dict
         for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
-        objects of these classes go into the info (``ground_truth``).
+        objects of these classes go into the info (``ground_truth``). ``values``: the
+        preset's ``DeviceValues`` under ``settings`` when the caller has them (a run
+        resolves them once per sensor), else resolved here; either way once per scan,
+        and what the frame, the sub-steps, the boxes and the sidecar read.
 
-        All of it with numpy's BLAS on one thread (``blas.single_threaded``, as the
-        frame itself): the sweep's, the bodies' and the boxes' many small products
+        All of it with numpy's BLAS on one thread (``blas_threads.single_threaded``, as
+        the frame itself): the sweep's, the bodies' and the boxes' many small products
         and inverses cost 3x as much on OpenBLAS' threads (a 4x4 inverse 80 us
         against 25 us here, and far more when other work shares the cores)."""
-        with blas.single_threaded():
-            return self._scan(source, sensor, preset, settings, frame, object_classes)
+        if values is None:
+            values = device_values(preset, settings)
+        with blas_threads.single_threaded():
+            return self._scan(source, sensor, preset, settings, values, frame, object_classes)
 
-    def _scan(self, source, sensor, preset, settings, frame, object_classes):
+    def _scan(self, source, sensor, preset, settings, values, frame, object_classes):
         pose = source.sensor_pose(sensor)
         frame_pose = sensor_frame(pose, sensor)  # its sensor frame (no scale): the sidecar's
-        values = device_values(preset, settings)
-        rmin, rmax = values.range_m
+        rmax = values.max_range_m
         centre = pose[:3, 3]
         anchor, reach = self.anchor(centre, rmax, source.sensor_may_move(sensor))
         read = source.read(anchor, reach + MOVER_MARGIN_M, {sensor})
@@ -111,7 +115,8 @@ class ScanSession:
             mobility = source.mobility(instances, sensor)
             with self._sweep(source, frame, preset.period, mobility) as sweep:
                 motion = self._classify(sweep, preset.period, instances, mobility, sensor)
-                n_used, substeps = self._substep_counts(preset, settings, instances, motion)
+                n_used, substeps = self._substep_counts(values.motion_tolerance_m, settings,
+                                                        instances, motion)
                 moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
                                          motion, substeps, skipped)
         else:
@@ -134,13 +139,13 @@ class ScanSession:
             reach, static_key(instances, objects, materials, static_sel))
         classes = set(object_classes or ())
         boxes = bool(classes) and any(i.label in classes for i in instances)
-        result = scan_frame(scene, scan_pattern(preset, settings, frame), pose, preset,
+        result = scan_frame(scene, scan_pattern(preset, settings, frame), pose, values,
                             cast_settings,
                             frame=frame, sensor=sensor, sensor_track=track, moving=moving,
                             keep_rays=boxes)
         if skipped:
             result.warnings.insert(0, nonfinite_warning(skipped))
-        info = self._info(preset, settings, sensor, frame, frame_pose, rmin, rmax, motion,
+        info = self._info(preset, settings, values, sensor, frame, frame_pose, motion,
                           instances, substeps, n_used, objects, scene, result, read)
         info.update(sensor_pose_record(frame_pose, track, preset.period))
         if object_classes is not None:
@@ -170,10 +175,10 @@ class ScanSession:
         return fresh() if kept is None else kept(instances, mobility, fresh)
 
     @staticmethod
-    def _substep_counts(preset, settings, instances, motion):
+    def _substep_counts(tol, settings, instances, motion):
         """(N of "substeps" motion or None, {deforming instance index: N}). Both follow
-        ``settings.substeps``: fixed, or (0) chosen from how far things move."""
-        tol = device_values(preset, settings).motion_tolerance_m
+        ``settings.substeps``: fixed, or (0) chosen from how far things move within
+        ``tol`` (m, the device's motion tolerance)."""
         n_used = None
         if settings.motion == "substeps":
             n_used = substep_count(motion.max_travel(instances), tol, settings.substeps)
@@ -233,7 +238,7 @@ class ScanSession:
         return out
 
     @staticmethod
-    def _info(preset, settings, sensor, frame, pose, rmin, rmax, motion, instances, substeps,
+    def _info(preset, settings, values, sensor, frame, pose, motion, instances, substeps,
               n_used, objects, scene, result, read):
         keys = {k: instances[k].key for k in range(len(instances))}
         summary = {"rigid": [keys[k] for k, _ in motion.rigid],
@@ -251,8 +256,7 @@ class ScanSession:
             "frame_space": settings.frame_space,
             "sensor_to_world": pose.tolist(),
             "seed": settings.seed,
-            "effects": dict(effects_info(preset, settings), range_m=[rmin, rmax],
-                            substeps_used=n_used),
+            "effects": dict(effects_info(preset, settings, values), substeps_used=n_used),
             "motion": summary,
             "labels": {str(o.instance): {"object": o.name, "label": o.label} for o in objects},
             "backend": scene.backend,
@@ -270,10 +274,10 @@ class ScanSession:
         }
 
 
-def effects_info(preset, settings):
-    """The sidecar's ``effects``: what a scan's settings made of the device (all but the
-    sub-steps a frame chose, ``substeps_used``)."""
-    values = device_values(preset, settings)
+def effects_info(preset, settings, values):
+    """The sidecar's ``effects``: what a scan's settings made of the device (``values``,
+    its ``DeviceValues`` under them), all but the sub-steps a frame chose
+    (``substeps_used``)."""
     return {"noise": settings.noise, "dropout": settings.dropout,
             "range_m": list(values.range_m), "noise_sigma_m": values.noise_sigma_m,
             "motion": settings.motion, "substeps": settings.substeps,
@@ -290,12 +294,13 @@ def _lidar_mode(preset, settings):
     return settings.lidar_mode or (modes.default_lidar_mode if modes else None)
 
 
-def settings_record(preset, settings):
+def settings_record(preset, settings, values):
     """The settings of a scan as its sidecar states them (``_info``), by name: the
-    device, the seed, the frame space and every effect. A resumed run keeps a frame only
-    when its sidecar states the same (``io.sidecar.settings_differences``)."""
+    device, the seed, the frame space and every effect (``values``: the preset's
+    ``DeviceValues`` under ``settings``). A resumed run keeps a frame only when its
+    sidecar states the same (``io.sidecar.settings_differences``)."""
     return {"device": preset.id, "seed": settings.seed, "frame_space": settings.frame_space,
-            **effects_info(preset, settings)}
+            **effects_info(preset, settings, values)}
 
 
 def _weather_info(values):

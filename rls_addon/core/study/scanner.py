@@ -18,7 +18,7 @@ from ..errors import SceneError
 from ..labels import label_id
 from ..metrics.infra import resolve_labels
 from ..metrics.polygon import in_arc, points_in_polygon, polygon_arc
-from ..scan.cluster import available_memory
+from ..scan.dask_run import available_memory
 from ..scan.frame import scan_frame, sensor_axes
 from ..scan.session import ScanSession
 from ..scan.device_values import device_values
@@ -78,7 +78,9 @@ class StudyScanner:
         self.settings = ScanSettings(seed=cfg.scan_seed, frame_space="world", noise=cfg.noise,
                                      dropout=cfg.dropout, motion="snapshot",
                                      ghosting=cfg.ghosting)
-        rmax = device_values(preset, self.settings).max_range_m
+        # the device after the study's settings, once: every candidate's frames read it
+        self.values = device_values(preset, self.settings)
+        rmax = self.values.max_range_m
         centre = np.r_[polygon.mean(axis=0), 0.0]
         reach = max(np.linalg.norm(np.array(c.position) - centre) for c in candidates) + rmax + 1.0
         self.session = ScanSession(self.backend_cls)
@@ -101,7 +103,7 @@ class StudyScanner:
         self.detector = cfg.detector
         if self.detector is None and cfg.evaluate_frames:
             self.detector = RoadsideDetector(
-                noise_sigma=device_values(preset, self.settings).noise_sigma_m,
+                noise_sigma=self.values.noise_sigma_m,
                 types=truth_types(self.truths))
         self._empty = None  # the scene without road users, when the static one has them
 
@@ -141,7 +143,7 @@ class StudyScanner:
         over the static scene: only x, y and label are gathered, and only the rays that
         may put a point in the region are cast (``rays_toward_region``)."""
         result = scan_frame(self.prepared, self.preset.pattern(self.frame), cand.pose,
-                            self.preset, self.settings, frame=self.frame, sensor=cand.name,
+                            self.values, self.settings, frame=self.frame, sensor=cand.name,
                             fields=STUDY_FIELDS, rays=self.rays_toward_region(cand))
         return self.layout.select([result.points], self.label_ids), result
 
@@ -155,7 +157,7 @@ class StudyScanner:
         which sees it in a quarter of its turn, casts a quarter of its rays. All rays
         are cast with beam footprints (a footprint needs its neighbours) and with
         traffic frames (they reuse the candidate's whole static cast)."""
-        if self.traffic or device_values(self.preset, self.settings).beam is not None:
+        if self.traffic or self.values.beam is not None:
             return None
         where = tuple(cand.pose[:2, 3])
         if where not in self._arcs:  # per mount: its pitches and yaws share it
@@ -186,7 +188,7 @@ class StudyScanner:
         for k in range(int(self.cfg.background_sweeps)):
             settings = dataclasses.replace(self.settings,
                                            seed=sweep_seed(self.cfg.scan_seed, k))
-            p = scan_frame(prepared, self.preset.pattern(self.frame), cand.pose, self.preset,
+            p = scan_frame(prepared, self.preset.pattern(self.frame), cand.pose, self.values,
                            settings, frame=self.frame, sensor=cand.name,
                            fields=("x", "y", "z")).points
             out.append(np.stack([p["x"], p["y"], p["z"]], 1).astype(np.float64))
@@ -204,7 +206,7 @@ class StudyScanner:
             seen = np.zeros(len(self.vehicle_frames), np.int64)
             for f, group, scored in self.traffic:
                 evaluated = f in self.truths
-                res = scan_frame(self.prepared, self.preset.pattern(f), cand.pose, self.preset,
+                res = scan_frame(self.prepared, self.preset.pattern(f), cand.pose, self.values,
                                  self.settings, frame=f, sensor=cand.name,
                                  moving=[group] if group is not None else [],
                                  fields=EVALUATE_FIELDS if evaluated else TRAFFIC_FIELDS)

@@ -29,7 +29,7 @@ import numpy as np
 from ...errors import RLSError
 from ..io.atomic import atomic_write_bytes
 from ..io.behind import WritesBehind
-from ..io.paths import sanitize_name
+from ..io.names import sanitize_name
 from .common import (
     BackgroundSweepWriter,
     Split,

@@ -37,7 +37,7 @@ from ...errors import RLSError
 from ...scene.instances import instance_id
 from ..io import pcd
 from ..io.atomic import atomic_write_bytes
-from ..io.paths import sanitize_name
+from ..io.names import sanitize_name
 from .common import (
     BackgroundSweepWriter,
     check_root,

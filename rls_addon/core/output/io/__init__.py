@@ -7,7 +7,8 @@ from .atomic import atomic_write_bytes, ensure_directory, writable_folder
 from .cloud import encode_cloud, read_cloud, read_records, write_cloud
 from .fields import DEFAULT_FIELDS, FILE_TYPES
 from .formats import FORMATS
-from .paths import output_path, sanitize_name
+from .names import sanitize_name
+from .paths import output_path
 from .sidecar import read_sidecar, sidecar_path, write_sidecar
 
 __all__ = [

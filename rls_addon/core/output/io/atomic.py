@@ -16,7 +16,7 @@ import re
 import tempfile
 
 from ...errors import OutputError
-from ...signals import held
+from ...stop_signals import held
 
 
 TEMPORARY_MARK = ".rls-"
@@ -95,7 +95,7 @@ def atomic_write_bytes(path, data, overwrite=False):
 
     Returns the path. Raises ``OutputError`` if the file exists and
     ``overwrite`` is false, or the directory cannot be created or written. A stop
-    signal (SIGTERM, SIGHUP) waits for the write to end (``core.signals.held``): one
+    signal (SIGTERM, SIGHUP) waits for the write to end (``core.stop_signals.held``): one
     between creating the temporary and the line that cleans it up left it behind.
     """
     with held():

@@ -6,7 +6,7 @@ import os
 
 from ...errors import OutputError, SettingsError
 from .atomic import writable_folder
-from .paths import sanitize_name
+from .names import sanitize_name
 from .point_types import to_point_type
 
 

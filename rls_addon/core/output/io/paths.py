@@ -2,20 +2,14 @@
 
 import os
 import pathlib
-import re
 
 from ...errors import OutputError
+from .formats import FORMATS
+from .names import sanitize_name
 
-_UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
 # Point files of other kinds: a template ending in one of these (or in another output
 # format's extension) is a mistake, not part of the name
 _OTHER_EXT = {".bin", ".laz", ".xyz", ".npy"}
-
-
-def sanitize_name(name):
-    """A file-name-safe version of a scene or sensor name (never empty, no leading dot)."""
-    safe = _UNSAFE.sub("_", str(name)).lstrip(".")
-    return safe or "_"
 
 
 def output_path(directory, template, *, scene, sensor, frame, fmt):
@@ -26,8 +20,6 @@ def output_path(directory, template, *, scene, sensor, frame, fmt):
     sub-directories; a result that is absolute or climbs out of ``directory``
     through ``..`` is refused with ``OutputError``.
     """
-    from .formats import FORMATS  # here: the formats' writers name their files with this
-
     ext = FORMATS.get(fmt).extension
     try:
         rendered = str(template).format(

@@ -16,7 +16,8 @@ from ...labels import DEFAULT_LABELS
 from .atomic import atomic_write_bytes, writable_folder
 from .behind import WRITES_BEHIND, WritesBehind  # noqa: F401 - WRITES_BEHIND: the bound
 from .formats import FORMATS, Cloud
-from .paths import output_path, sanitize_name
+from .names import sanitize_name
+from .paths import output_path
 from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
 
 

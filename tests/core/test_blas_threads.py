@@ -2,28 +2,28 @@
 
 import numpy as np
 
-from rls_addon.core.native import blas
+from rls_addon.core.native import blas_threads
 
 
 def test_single_threaded_restores_the_thread_count():
-    before = blas.threads()
-    with blas.single_threaded():
-        assert all(n == 1 for n in blas.threads())
-        with blas.single_threaded():  # nested: still one, and not restored early
+    before = blas_threads.threads()
+    with blas_threads.single_threaded():
+        assert all(n == 1 for n in blas_threads.threads())
+        with blas_threads.single_threaded():  # nested: still one, and not restored early
             pass
-        assert all(n == 1 for n in blas.threads())
+        assert all(n == 1 for n in blas_threads.threads())
         np.ones((300, 300)) @ np.ones((300, 300))  # BLAS still works
-    assert blas.threads() == before
+    assert blas_threads.threads() == before
 
 
 def test_restored_even_when_the_block_raises():
-    before = blas.threads()
+    before = blas_threads.threads()
     try:
-        with blas.single_threaded():
+        with blas_threads.single_threaded():
             raise RuntimeError("boom")
     except RuntimeError:
         pass
-    assert blas.threads() == before
+    assert blas_threads.threads() == before
 
 
 def test_numpy_wheel_openblas_is_found():
@@ -31,4 +31,4 @@ def test_numpy_wheel_openblas_is_found():
     cfg = np.show_config(mode="dicts") if "mode" in np.show_config.__code__.co_varnames else {}
     blas_name = str(cfg.get("Build Dependencies", {}).get("blas", {}).get("name", ""))
     if "openblas" in blas_name:
-        assert blas.threads(), "numpy links OpenBLAS but its thread controls were not found"
+        assert blas_threads.threads(), "numpy links OpenBLAS but its thread controls were not found"

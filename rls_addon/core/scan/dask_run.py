@@ -222,7 +222,7 @@ def cluster_client(workers, scheduler=None, threads=None):
     # in this process's environment still reaches them).
     import dask
 
-    from ..signals import held
+    from ..stop_signals import held
 
     cluster = client = None
     try:

@@ -1,26 +1,26 @@
-"""core.signals: a stop signal waits for the end of a held step, in the main thread;
+"""core.stop_signals: a stop signal waits for the end of a held step, in the main thread;
 a background write holds nothing and never takes a signal."""
 
 import threading
 
 import pytest
 
-from rls_addon.core import signals
+from rls_addon.core import stop_signals
 from rls_addon.core.errors import Interrupted
 
 
 def test_a_signal_in_a_held_step_is_raised_when_it_ends():
     done = []
     with pytest.raises(Interrupted) as got:
-        with signals.held():
-            with signals.held():  # nested: the outermost decides
-                signals.deliver(15)
+        with stop_signals.held():
+            with stop_signals.held():  # nested: the outermost decides
+                stop_signals.deliver(15)
                 done.append("inner")
             done.append("outer")  # the step runs to its end
     assert done == ["inner", "outer"] and got.value.exit_code == 143
     with pytest.raises(Interrupted):  # outside a held step: at once
-        signals.deliver(1)
-    with signals.held():  # nothing left pending from before
+        stop_signals.deliver(1)
+    with stop_signals.held():  # nothing left pending from before
         pass
 
 
@@ -31,7 +31,7 @@ def test_a_background_thread_holds_nothing():
     inside, release, out = threading.Event(), threading.Event(), []
 
     def writer():
-        with signals.held():
+        with stop_signals.held():
             inside.set()
             release.wait(5)
         out.append("written")
@@ -40,7 +40,7 @@ def test_a_background_thread_holds_nothing():
     t.start()
     inside.wait(5)
     with pytest.raises(Interrupted):
-        signals.deliver(15)  # the main thread holds nothing: raised here
+        stop_signals.deliver(15)  # the main thread holds nothing: raised here
     release.set()
     t.join(5)
     assert out == ["written"]
@@ -51,12 +51,12 @@ def handlers():
     """The stop signals' handlers, put back after the test."""
     import signal
 
-    saved = {s: signal.getsignal(s) for s in signals.stop_signals()}
-    signals._state.update(pending=None, raised=None)
+    saved = {s: signal.getsignal(s) for s in stop_signals.stop_signals()}
+    stop_signals._state.update(pending=None, raised=None)
     yield
     for s, h in saved.items():
         signal.signal(s, h)
-    signals._state.update(pending=None, raised=None)
+    stop_signals._state.update(pending=None, raised=None)
 
 
 def test_signals_from_the_start_are_noted_then_raised_where_the_command_starts(handlers):
@@ -67,16 +67,16 @@ def test_signals_from_the_start_are_noted_then_raised_where_the_command_starts(h
     import os
     import signal
 
-    signals.note_from_start()
+    stop_signals.note_from_start()
     os.kill(os.getpid(), signal.SIGINT)  # handled now: noted, not raised
     os.kill(os.getpid(), signal.SIGTERM)  # the first one counts
-    assert signals.stop_raised() is None
+    assert stop_signals.stop_raised() is None
     with pytest.raises(Interrupted) as got:
-        signals.raise_noted()
-    assert got.value.exit_code == 130 and signals.stop_raised() == signal.SIGINT
-    signals.raise_noted()  # nothing left; a new command forgets the last one's stop
-    assert signals.stop_raised() is None
-    signals.ignore_after_end()  # the command has ended: Python's shutdown takes none
+        stop_signals.raise_noted()
+    assert got.value.exit_code == 130 and stop_signals.stop_raised() == signal.SIGINT
+    stop_signals.raise_noted()  # nothing left; a new command forgets the last one's stop
+    assert stop_signals.stop_raised() is None
+    stop_signals.ignore_after_end()  # the command has ended: Python's shutdown takes none
     os.kill(os.getpid(), signal.SIGHUP)
     assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
 
@@ -101,7 +101,7 @@ def test_a_signal_while_the_command_line_puts_its_handlers_back_is_ignored(handl
         restores = getattr(previous, "__name__", "") == "stop" and handler is not previous
         if restores and not restoring:  # the first handler put back
             restoring.append(signum)
-            other = next(s for s in signals.stop_signals() if s != signum)
+            other = next(s for s in stop_signals.stop_signals() if s != signum)
             os.kill(os.getpid(), other)  # its handler is still the command line's
         return previous
 

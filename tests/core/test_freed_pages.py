@@ -1,4 +1,4 @@
-"""A frame's freed arrays are kept for the next frame (core/scan/allocator.py): with the
+"""A frame's freed arrays are kept for the next frame (core/scan/freed_pages.py): with the
 thresholds set, a round of frame-like allocations faults almost no page in; without,
 every page again. Each case runs in a fresh interpreter, since glibc's thresholds are
 per process and move with its history."""
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from rls_addon.core.scan import allocator
+from rls_addon.core.scan import freed_pages
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -20,8 +20,8 @@ ROOT = Path(__file__).resolve().parents[2]
 ROUNDS = r"""
 import json, resource, sys
 import numpy as np
-from rls_addon.core.scan import allocator
-state = allocator.keep_freed_pages()
+from rls_addon.core.scan import freed_pages
+state = freed_pages.keep_freed_pages()
 def round_():
     arrays = [np.ones((2 + k % 3) * 2 ** 17) for k in range(12)]  # 2-4 MB each
     return sum(a.nbytes for a in arrays)
@@ -33,12 +33,12 @@ faults = resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
 print(json.dumps({"state": state, "faults": faults, "pages": touched}))
 """
 
-glibc = pytest.mark.skipif(allocator._glibc() is None, reason="glibc's allocator only")
+glibc = pytest.mark.skipif(freed_pages._glibc() is None, reason="glibc's allocator only")
 
 
 def _run(**env):
     base = {k: v for k, v in os.environ.items()
-            if k not in allocator.USER_SWITCHES and k != "RLS_KEEP_FREED_PAGES"}
+            if k not in freed_pages.USER_SWITCHES and k != "RLS_KEEP_FREED_PAGES"}
     proc = subprocess.run([sys.executable, "-c", ROUNDS], env={**base, **env}, cwd=ROOT,
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
@@ -69,14 +69,14 @@ def test_the_users_own_setting_is_left_alone():
 
 
 def test_answers_once_per_process(monkeypatch):
-    monkeypatch.setattr(allocator, "_state", None)
-    assert allocator.keep_freed_pages({"MALLOC_TOP_PAD_": "0"}) == \
+    monkeypatch.setattr(freed_pages, "_state", None)
+    assert freed_pages.keep_freed_pages({"MALLOC_TOP_PAD_": "0"}) == \
         "left as the environment sets it"
     # a later call, whatever its environment, gives the first answer
-    assert allocator.keep_freed_pages({}) == "left as the environment sets it"
+    assert freed_pages.keep_freed_pages({}) == "left as the environment sets it"
 
 
 def test_elsewhere_nothing_is_changed(monkeypatch):
-    monkeypatch.setattr(allocator, "_state", None)
-    monkeypatch.setattr(allocator, "_glibc", lambda: None)
-    assert allocator.keep_freed_pages({}) == "not glibc's allocator"
+    monkeypatch.setattr(freed_pages, "_state", None)
+    monkeypatch.setattr(freed_pages, "_glibc", lambda: None)
+    assert freed_pages.keep_freed_pages({}) == "not glibc's allocator"
