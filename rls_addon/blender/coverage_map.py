@@ -1,13 +1,17 @@
 """The coverage map in the viewport: a grid mesh over the InfraLOB, a quad per cell
 inside the region, its colour (``core.live.coverage.cells``: the density chart's
-colours, white where no point fell) in a corner colour attribute that Solid shading
-(Color: Attribute) and Material Preview show. Data, not drawing: tests read it as the
+colours, white where no point fell) in a corner colour attribute that Material Preview
+and Solid shading with Color: Attribute show. Solid shading's default (Color: Material)
+shows a material's viewport colour, so each cell also has the material of its band
+(``core.live.coverage.levels``: white for no return, then 16 bands of viridis): the map
+reads in the default viewport too, in bands. Data, not drawing: tests read it as the
 viewport shows it."""
 
 import bpy
 import numpy as np
+from mathutils import Color
 
-from ..core.live.coverage import cells
+from ..core.live.coverage import MAP_LEVELS, cells, level_colours, levels
 
 MAP_PROPERTY = "rls_coverage"
 COLOR_ATTRIBUTE = "coverage"
@@ -19,11 +23,22 @@ def map_name(lob_name):
     return f"RLS coverage {lob_name}"
 
 
-def _material():
-    mat = bpy.data.materials.get(MATERIAL)
-    if mat is not None:
-        return mat
-    mat = bpy.data.materials.new(MATERIAL)
+def _materials():
+    """The map's materials, one per band of ``levels`` (``RLS coverage 00`` for no
+    return, then 01..16): each shows the cell's own colour (its colour attribute,
+    emitted) in Material Preview and its band's colour in Solid shading."""
+    out = []
+    for i, rgba in enumerate(level_colours(MAP_LEVELS)):
+        name = f"{MATERIAL} {i:02d}"
+        mat = bpy.data.materials.get(name) or _material(name)
+        # (Blender's colour properties hold scene-linear values)
+        mat.diffuse_color = (*Color(rgba[:3]).from_srgb_to_scene_linear(), 1.0)
+        out.append(mat)
+    return out
+
+
+def _material(name):
+    mat = bpy.data.materials.new(name)
     nt = mat.node_tree
     nt.nodes.clear()
     col = nt.nodes.new("ShaderNodeVertexColor")
@@ -57,7 +72,8 @@ def _grid_mesh(name, corners, z):
     mesh.update()
     mesh.color_attributes.new(COLOR_ATTRIBUTE, "BYTE_COLOR", "CORNER")  # sRGB, as drawn
     mesh.color_attributes.active_color_name = COLOR_ATTRIBUTE
-    mesh.materials.append(_material())
+    for mat in _materials():
+        mesh.materials.append(mat)
     return mesh
 
 
@@ -68,7 +84,8 @@ def show_coverage(scene, lob, density):
     corners, rgba = cells(density)
     name = map_name(lob.name)
     obj = bpy.data.objects.get(name)
-    shape = f"{density.values.shape}{density.origin_xy}{density.cell_m}{len(corners)}"
+    shape = (f"{density.values.shape}{density.origin_xy}{density.cell_m}{len(corners)}"
+             f" {MAP_LEVELS} levels")
     if obj is None or not obj.get(MAP_PROPERTY) or obj.get("rls_cells") != shape:
         z = float(np.max([(lob.matrix_world @ v.co).z for v in lob.data.vertices])) + LIFT_M
         mesh = _grid_mesh(name, corners, z)
@@ -84,6 +101,7 @@ def show_coverage(scene, lob, density):
         obj["rls_cells"] = shape
     attr = obj.data.color_attributes[COLOR_ATTRIBUTE]
     attr.data.foreach_set("color_srgb", np.repeat(rgba, 4, axis=0).astype(np.float32).ravel())
+    obj.data.polygons.foreach_set("material_index", levels(density))
     obj.data.update()
     return obj
 
@@ -103,3 +121,13 @@ def map_colours(obj):
     out = np.empty(len(attr.data) * 4, np.float32)
     attr.data.foreach_get("color_srgb", out)
     return out.reshape(-1, 4, 4)[:, 0]
+
+
+def map_bands(obj):
+    """(cells,) band of each cell of a map object and (bands, 4) the sRGB colours of
+    its materials in Solid shading (what the default viewport shows)."""
+    idx = np.empty(len(obj.data.polygons), np.int32)
+    obj.data.polygons.foreach_get("material_index", idx)
+    srgb = [(*Color(m.diffuse_color[:3]).from_scene_linear_to_srgb(), m.diffuse_color[3])
+            for m in obj.data.materials]
+    return idx, np.array(srgb, np.float64)

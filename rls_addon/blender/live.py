@@ -8,6 +8,14 @@ read and the LiDAR scanned, as *Scan Frame* does), or show what was scanned
 map over the InfraLOB). RLS's own updates feed back into the handler: they are
 ignored while they are made (``busy``), and they change no LiDAR's signature anyway.
 
+A still LiDAR's rescan reuses the frame's sampled sweep of the other objects (``sweeps``:
+``core.scan.kept_sweeps``), so moving it does not sample the traffic's motion again.
+The samples are forgotten whenever they may be stale: another object is moved,
+re-animated or re-shaped (a depsgraph update of its transform or geometry:
+``changes_others``), the frame rate or time mapping changes, undo or redo, a scene with
+a rigid body world (its simulation is not kept), another file (live coverage ends).
+The frame and the preset's sweep time are part of their key.
+
 In the ``bpy`` module (no event loop) handlers run on ``view_layer.update()`` and
 ``frame_set``, and timers never fire: tests and the bench call ``tick()`` as the timer
 would, when it asks to be called."""
@@ -21,8 +29,10 @@ from ..core.casting import caster_factory
 from ..core.errors import RLSError
 from ..core.live.coverage import Coverage
 from ..core.live.schedule import LIVE, LiveScheduler, LiveSettings
+from ..core.scan.kept_sweeps import KeptSweeps
 from ..core.scan.session import ScanSession
 from .coverage_map import remove_coverage, show_coverage
+from .extract import GEOMETRY_TYPES, is_rls_helper
 from .preview import show_points
 from .region import lob_polygon_world
 from .sensor import lidar_objects, lidar_props, read_settings, sensor_job
@@ -53,6 +63,8 @@ class LiveSession:
         # scan's, to the bit; a grid of anchors, as for a driving LiDAR, saved about
         # 10 ms a move on the sample intersection but moved a few grazing hits)
         self.source = BlenderScene(scene)
+        self.sweeps = KeptSweeps()  # the other objects' sampled sweeps (module docstring)
+        self.timing = _timing(scene)
         self.signatures = {}     # LiDAR name -> what a rescan depends on, last seen
         self.scanned = {}        # LiDAR name -> its signature when it was last scanned
         self.shown = {}          # LiDAR name -> its signature in the scan shown
@@ -74,6 +86,9 @@ class LiveSession:
         scene = self.scene
         if scene is None:
             return
+        if _timing(scene) != self.timing:  # sub-frame times fall elsewhere
+            self.timing = _timing(scene)
+            self.scene_edited()
         seen = {}
         for obj in lidar_objects(scene):
             settings = read_settings(obj)
@@ -99,6 +114,14 @@ class LiveSession:
             self._new_coverage(scene)
             if not self.scheduler.busy:
                 self.publish({})
+
+    def scene_edited(self):
+        """Something other than the LiDARs changed (another object, the frame rate, an
+        undo): the kept sweeps are forgotten and every LiDAR is rescanned once the
+        scene is still (none is 'back where it was shown' any more)."""
+        self.sweeps.clear()
+        self.shown = {}
+        self.scheduler.changed(sorted(self.signatures))
 
     def _region_signature(self, scene):
         lob = scene.objects.get(self.lob_name)
@@ -133,6 +156,8 @@ class LiveSession:
         backend = settings.backend
         if backend not in self.sessions:
             self.sessions[backend] = ScanSession(caster_factory(backend)[0])
+        # (a simulation's states are not kept: its world's settings are the scene's)
+        self.sessions[backend].kept_sweeps = None if _simulated(scene) else self.sweeps
         result, _ = self.sessions[backend].scan(self._source(scene), key, job.preset,
                                                 settings.scan, scene.frame_current)
         return result.points
@@ -146,6 +171,7 @@ class LiveSession:
         except ReferenceError:
             pass
         self.source = BlenderScene(scene)
+        self.sweeps.clear()
         return self.source
 
     def publish(self, ready):
@@ -193,11 +219,14 @@ class LiveSession:
             props.work_ms = 1000 * last.work_s
         props.status = (sched.reason if sched.mode != LIVE else self.error
                         or f"live: {len(self.clouds)} LiDAR(s) over {self.lob_name}")
+        props.on_demand = sched.mode != LIVE
+        redraw_panels()
 
     # -- the timer ----------------------------------------------------------------------
 
     def tick(self):
         """One step of the scheduler; the seconds until the next call, or None."""
+        flush_edits()
         self.busy = True
         try:
             wait = self.scheduler.tick()
@@ -211,6 +240,62 @@ class LiveSession:
         if scene is not None:
             self.show_status(scene)  # (the scheduler judges an update after showing it)
         return wait
+
+
+def _timing(scene):
+    """What maps a sweep's seconds to Blender's sub-frames (``motion.SweepClock``) and
+    the scene's time."""
+    r = scene.render
+    return (r.fps, r.fps_base, r.frame_map_old, r.frame_map_new)
+
+
+def _simulated(scene):
+    world = scene.rigidbody_world
+    return world is not None and world.enabled
+
+
+def changes_others(updates):
+    """Whether a depsgraph's ``updates`` say the scene a LiDAR sees changed, other than
+    the LiDARs: an object with geometry (or one instancing a collection) that is not
+    RLS's own (previews, the map, outlines, regions) updated in its transform or
+    geometry (moved, re-animated, a constraint's target or a driver's input moved, its
+    mesh or modifiers edited, added, parented), or the scene's (an object deleted or
+    unlinked). Not: shading-only updates (Blender lists every object so when RLS
+    replaces a preview's mesh; a material or a visibility change is one too: *Update
+    Coverage* rescans then), the scene's bare update (its frame rate is compared apart:
+    ``_timing``), empties, lights and cameras (what they drive is listed itself)."""
+    for u in updates:
+        idb = u.id
+        if not (u.is_updated_transform or u.is_updated_geometry):
+            continue
+        if isinstance(idb, bpy.types.Scene):
+            return True
+        if isinstance(idb, bpy.types.Object):
+            obj = idb.original
+            if ((obj.type in GEOMETRY_TYPES or obj.instance_type != "NONE")
+                    and not is_rls_helper(obj)):
+                return True
+    return False
+
+
+def redraw_panels():
+    """Redraw the Properties editors and 3D viewports of every window: a timer's writes
+    to Python-defined properties send Blender no notifier, so the panel's numbers would
+    wait for the mouse (no window in the bpy module: nothing to do)."""
+    wm = getattr(bpy.context, "window_manager", None)
+    for window in (wm.windows if wm is not None else ()):
+        for area in window.screen.areas:
+            if area.type in {"PROPERTIES", "VIEW_3D"}:
+                area.tag_redraw()
+
+
+def flush_edits():
+    """Let Blender evaluate edits not evaluated yet (a script's), so that the change
+    handler sees them before a scan reads the scene (inside a scan RLS ignores it)."""
+    try:
+        bpy.context.evaluated_depsgraph_get()
+    except (AttributeError, RuntimeError):  # no view layer in this context
+        pass
 
 
 # -- switching on and off, handlers and the timer -----------------------------------------
@@ -232,12 +317,17 @@ def start(scene, lob, debounce_ms, budget_ms, clock=time.perf_counter):
     except BaseException:
         stop()
         raise
-    for handlers in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post):
-        if on_change not in handlers:
-            handlers.append(on_change)
-    if on_load not in bpy.app.handlers.load_pre:
-        bpy.app.handlers.load_pre.append(on_load)
+    for handlers, fn in _handlers():
+        if fn not in handlers:
+            handlers.append(fn)
     return live
+
+
+def _handlers():
+    """(handler list, function) of live coverage."""
+    h = bpy.app.handlers
+    return ((h.depsgraph_update_post, on_edit), (h.frame_change_post, on_change),
+            (h.undo_post, on_undo), (h.redo_post, on_undo), (h.load_pre, on_load))
 
 
 def stop():
@@ -245,11 +335,9 @@ def stop():
     stay: they are the LiDARs' last scans)."""
     live = _STATE["live"]
     _STATE["live"] = None
-    for handlers in (bpy.app.handlers.depsgraph_update_post, bpy.app.handlers.frame_change_post,
-                     bpy.app.handlers.load_pre):
-        for fn in (on_change, on_load):
-            while fn in handlers:
-                handlers.remove(fn)
+    for handlers, fn in _handlers():
+        while fn in handlers:
+            handlers.remove(fn)
     if bpy.app.timers.is_registered(tick):
         bpy.app.timers.unregister(tick)
     if live is not None:
@@ -257,11 +345,16 @@ def stop():
 
 
 def update_now():
-    """Rescan every changed LiDAR and show them now (on demand)."""
+    """Rescan every changed LiDAR and show them now (on demand); with none changed,
+    every LiDAR, the scene sampled anew (after an edit live coverage does not follow:
+    a material, a visibility)."""
     live = _STATE["live"]
     if live is None:
         return None
+    flush_edits()
     live.check()
+    if not live.scheduler.busy:
+        live.scene_edited()
     live.busy = True
     try:
         got = live.scheduler.update_now()
@@ -273,21 +366,53 @@ def update_now():
 
 
 @persistent
-def on_change(scene, depsgraph=None):
-    """depsgraph_update_post / frame_change_post: note changes, start the timer."""
+def on_edit(scene, depsgraph=None):
+    """depsgraph_update_post: as ``on_change``, and when another object changed the
+    kept sweeps are forgotten and every LiDAR is rescanned (``scene_edited``)."""
     live = _STATE["live"]
     if live is None or live.busy or scene.name != live.scene_name:
         return
     live.check()
+    if depsgraph is not None and changes_others(depsgraph.updates):
+        live.scene_edited()
+    _wake(live)
+
+
+@persistent
+def on_undo(scene, *args):
+    """undo_post / redo_post: the scene was replaced: sample its sweeps anew and
+    rescan every LiDAR."""
+    live = _STATE["live"]
+    if live is not None and not live.busy:
+        live.scene_edited()
+        _wake(live)
+
+
+@persistent
+def on_change(scene, depsgraph=None):
+    """frame_change_post (and ``on_edit``): note changes, start the timer."""
+    live = _STATE["live"]
+    if live is None or live.busy or scene.name != live.scene_name:
+        return
+    live.check()
+    _wake(live)
+
+
+def _wake(live):
+    """The timer started when there is something to rescan (and live, not on demand)."""
     if live.scheduler.busy and live.scheduler.mode == LIVE and not bpy.app.timers.is_registered(tick):
         bpy.app.timers.register(tick, first_interval=live.scheduler.settings.debounce_s)
 
 
 @persistent
 def on_load(*args):
-    """Another file: live coverage ends (its handlers stay, idle, until the next start:
-    a handler list is not changed while Blender runs it)."""
+    """Another file: live coverage ends, its handlers with it (but this one, idle until
+    the next start: a handler list is not changed while Blender runs it)."""
     _STATE["live"] = None
+    for handlers, fn in _handlers():
+        if fn is not on_load:
+            while fn in handlers:
+                handlers.remove(fn)
     if bpy.app.timers.is_registered(tick):
         bpy.app.timers.unregister(tick)
 

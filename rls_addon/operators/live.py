@@ -40,8 +40,10 @@ class RLS_OT_live_coverage(bpy.types.Operator):
 
 
 class RLS_OT_live_update(bpy.types.Operator):
-    """Rescan the LiDARs that changed and update the coverage now (a scene too heavy to
-    follow live is updated this way), and go back to following live"""
+    """Rescan the LiDARs that changed (with none changed: every LiDAR, after an edit
+    live coverage does not follow, such as a material or a visibility) and update the
+    coverage now (a scene too heavy to follow live is updated this way), and go back to
+    following live"""
 
     bl_idname = "rls.live_update"
     bl_label = "Update Coverage"

@@ -24,6 +24,9 @@ class RLS_LiveSettings(bpy.types.PropertyGroup):
                                          "scans and showing, ms); a scene over it twice in "
                                          "a row is updated on demand")
     status: StringProperty(name="Status", default="", description="What live coverage is doing")
+    on_demand: BoolProperty(name="On Demand", default=False,
+                            description="Updates took longer than the budget: coverage is "
+                                        "updated on demand (Update Coverage)")
     infra_d: FloatProperty(name="InfraD", default=0.0, precision=3,
                            description="Points per square metre in the InfraLOB, live")
     infra_nuc: FloatProperty(name="InfraNUC", default=float("nan"), precision=4,

@@ -12,8 +12,9 @@ def draw_live(layout, context):
     p = context.scene.rls_live
     row = layout.row(align=True)
     row.operator("rls.live_coverage", text="Live Coverage", icon="REC", depress=p.active)
-    if p.active:
-        row.operator("rls.live_update", text="", icon="FILE_REFRESH")
+    if p.active:  # on demand: the button the user now needs, with its name
+        row.operator("rls.live_update", text="Update Coverage" if p.on_demand else "",
+                     icon="FILE_REFRESH")
     col = layout.column(align=True)
     col.use_property_split = True
     col.use_property_decorate = False
@@ -22,7 +23,7 @@ def draw_live(layout, context):
     if not p.active:
         return
     box = layout.box()
-    box.label(text=p.status or "live", icon="INFO")
+    box.label(text=p.status or "live", icon="ERROR" if p.on_demand else "INFO")
     grid = box.grid_flow(columns=2, align=True)
     grid.label(text="InfraD")
     grid.label(text=f"{p.infra_d:.3f} pts/m²")

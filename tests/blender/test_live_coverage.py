@@ -41,13 +41,16 @@ def preview_xyz(obj):
 
 def check_follows(sc, lidars):
     """The previews, the panel's numbers and the map are a fresh scan's."""
-    from rls_addon.blender.coverage_map import map_colours
+    from rls_addon.blender.coverage_map import map_bands, map_colours
     from rls_addon.blender.region import lob_polygon_world
-    from rls_addon.core.live.coverage import cells
+    from rls_addon.core.live.coverage import cells, level_colours, levels
     from rls_addon.core.metrics.infra import infra_lob_metrics
+
+    from rls_addon.blender import live
 
     clouds = [fresh(o) for o in lidars]
     for obj, pts in zip(lidars, clouds):
+        assert live.session().clouds[obj.name].tobytes() == pts.tobytes()  # byte for byte
         got = preview_xyz(obj)
         want = np.stack([pts["x"], pts["y"], pts["z"]], 1).astype(np.float32)
         assert got.shape == want.shape
@@ -63,6 +66,10 @@ def check_follows(sc, lidars):
     shown = map_colours(bpy.data.objects["RLS coverage InfraLOB"])
     want = cells(ref.density)[1]
     np.testing.assert_allclose(shown, want, atol=1 / 255 + 1e-6)
+    # Solid shading's default (Color: Material): each cell's band, in its colour
+    band, colours = map_bands(bpy.data.objects["RLS coverage InfraLOB"])
+    np.testing.assert_array_equal(band, levels(ref.density))
+    np.testing.assert_allclose(colours, level_colours(), atol=1e-4)
     return ref
 
 
@@ -88,9 +95,12 @@ def live_scene(scene):
 
 def test_live_coverage_follows_each_step_of_a_lidar(live_scene):
     sc, live, a, b = live_scene
+    moving_car()  # (exact motion through it: every rescan below reuses its samples)
     bpy.context.view_layer.objects.active = bpy.data.objects["InfraLOB"]
     assert bpy.ops.rls.live_coverage() == {"FINISHED"}
     assert sc.rls_live.active and sc.rls_live.scans == 2  # both scanned once
+    kept = live.session().sweeps
+    misses = kept.misses
     check_follows(sc, [a, b])
     scans = sc.rls_live.scans
     target = bpy.data.objects.new("Target", None)
@@ -127,6 +137,8 @@ def test_live_coverage_follows_each_step_of_a_lidar(live_scene):
         bpy.context.view_layer.update()
         assert not live.session().scheduler.busy
     assert sc.rls_live.latency_ms > 0 and "live: 2 LiDAR(s) over InfraLOB" in sc.rls_live.status
+    # the car sampled by the first scans only (the VLP-16 sweeps in the same 0.1 s)
+    assert kept.misses == misses and kept.reused > 0
 
 
 def test_another_frame_rescans_an_animated_lidar(live_scene):
@@ -162,14 +174,26 @@ def test_a_scene_over_budget_falls_back_to_on_demand(live_scene):
         bpy.context.view_layer.update()
         drive(live)
     assert "over the 1 ms budget" in sc.rls_live.status
-    assert "updated on demand" in sc.rls_live.status
+    assert "updated on demand" in sc.rls_live.status and sc.rls_live.on_demand
+    from types import SimpleNamespace
+
+    from rls_addon import ui
+
+    from .test_ui_panels import _draw
+
+    lob = bpy.data.objects["InfraLOB"]
+    log = _draw(ui.OBJECT_PT_rls_live, SimpleNamespace(object=lob, active_object=lob, scene=sc))
+    assert [kw for n, a_, kw in log if n == "operator" and a_ == ("rls.live_update",)] == [
+        {"text": "Update Coverage", "icon": "FILE_REFRESH"}]  # said, and the button named
+    assert ("label", {"text": sc.rls_live.status, "icon": "ERROR"}) in [
+        (n, kw) for n, _, kw in log]
     scans = sc.rls_live.scans
     a.location.x = -6.0
     bpy.context.view_layer.update()
     time.sleep(0.03)
     assert live.tick() is None and sc.rls_live.scans == scans  # nothing by itself
     assert bpy.ops.rls.live_update() == {"FINISHED"}  # the panel's Update button
-    assert sc.rls_live.scans == scans + 1
+    assert sc.rls_live.scans == scans + 1 and not sc.rls_live.on_demand  # live again
     check_follows(sc, [a, b])
 
 
@@ -182,9 +206,32 @@ def test_live_off_removes_handlers_timer_and_map(live_scene):
     assert bpy.app.timers.is_registered(live.tick)
     assert bpy.ops.rls.live_coverage() == {"FINISHED"}  # the toggle: off
     assert not sc.rls_live.active and not bpy.app.timers.is_registered(live.tick)
-    assert live.on_change not in bpy.app.handlers.depsgraph_update_post
+    assert live.session() is None and not live_handlers(live)
     assert "RLS coverage InfraLOB" not in bpy.data.objects
     assert "LiDAR points" in bpy.data.objects  # the previews stay: the last scans
+
+
+def live_handlers(live):
+    """Live coverage's functions still in any of Blender's handler lists."""
+    fns = {live.on_edit, live.on_change, live.on_undo, live.on_load}
+    h = bpy.app.handlers
+    return [(name, fn.__name__) for name in ("depsgraph_update_post", "frame_change_post",
+                                             "undo_post", "redo_post", "load_pre")
+            for fn in getattr(h, name) if fn in fns]
+
+
+def test_another_file_ends_live_coverage(live_scene, tmp_path):
+    sc, live, a, b = live_scene
+    path = str(tmp_path / "other.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    a.location.x = -5.0
+    bpy.context.view_layer.update()  # a rescan waiting for the timer
+    assert bpy.app.timers.is_registered(live.tick)
+    bpy.ops.wm.open_mainfile(filepath=path)  # (RLS stays registered: load_pre ends it)
+    assert hasattr(bpy.types.Object, "rls_lidar")
+    assert live.session() is None and not bpy.app.timers.is_registered(live.tick)
+    assert live_handlers(live) in ([], [("load_pre", "on_load")])  # (idle till the next start)
 
 
 def test_live_needs_a_region_and_a_lidar(scene):
@@ -239,4 +286,139 @@ def test_undo_of_a_move_is_followed(live_scene):
     a, b = bpy.data.objects["LiDAR"], bpy.data.objects["LiDAR.001"]
     assert tuple(a.location) == pytest.approx((-9.0, -9.0, 4.0))
     assert (sc.rls_live.infra_d, sc.rls_live.points) == pytest.approx(first)
+    check_follows(sc, [a, b])
+
+
+def moving_car(frames=(1, 21)):
+    """A car driving across in front of both LiDARs (keyed at ``frames``), labelled a
+    vehicle: what a LiDAR's exact motion samples over each sweep."""
+    from rls_addon.blender.scenes.build import action_curves
+
+    car = mesh_object("Car", [(-2.2, -0.9, 0), (2.2, -0.9, 0), (2.2, 0.9, 0), (-2.2, 0.9, 0),
+                              (-2.2, -0.9, 1.5), (2.2, -0.9, 1.5), (2.2, 0.9, 1.5),
+                              (-2.2, 0.9, 1.5)],
+                      [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6),
+                       (3, 0, 4, 7)])
+    car["rls_label"] = "vehicle"
+    car.location = (-8.0, 0.0, 0.0)
+    car.keyframe_insert("location", frame=frames[0])
+    car.location = (8.0, 0.0, 0.0)
+    car.keyframe_insert("location", frame=frames[1])
+    for fc in action_curves(car.animation_data.action):
+        for kp in fc.keyframe_points:
+            kp.interpolation = "LINEAR"
+    bpy.context.scene.frame_set(frames[0] + 4)
+    return car
+
+
+def test_a_still_lidars_rescans_reuse_the_traffics_samples_until_another_object_changes(
+        live_scene):
+    from rls_addon.blender.scenes.build import action_curves
+
+    sc, live, a, b = live_scene
+    car = moving_car()
+    assert a.rls_lidar.motion == "exact"
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    kept = live.session().sweeps
+    assert kept.misses > 0 and len(kept) > 0  # the first scans sampled the car's sweep
+    misses = kept.misses
+    for x in (-7.0, -6.0):  # moved: the car is not sampled again, and a fresh scan's
+        a.location.x = x
+        bpy.context.view_layer.update()
+        drive(live)
+        assert kept.misses == misses and kept.reused > 0
+        check_follows(sc, [a, b])
+    # the car's animation edited (a key moved): the kept samples are forgotten, and
+    # both LiDARs are rescanned with the car sampled anew, as a fresh scan does
+    (fx,) = [fc for fc in action_curves(car.animation_data.action)
+             if fc.data_path == "location" and fc.array_index == 0]
+    fx.keyframe_points[1].co.y = 2.0
+    fx.update()
+    scans = sc.rls_live.scans
+    bpy.context.view_layer.update()
+    assert len(kept) == 0
+    drive(live)
+    assert kept.misses > misses and sc.rls_live.scans == scans + 2
+    check_follows(sc, [a, b])
+    # another object moved (not animated: the kiosk): the same
+    misses = kept.misses
+    bpy.data.objects["Kiosk"].location.x += 1.0
+    bpy.context.view_layer.update()
+    assert len(kept) == 0
+    a.location.x = -4.0  # (and a LiDAR moved meanwhile)
+    bpy.context.view_layer.update()
+    drive(live)
+    assert kept.misses > misses and sc.rls_live.scans == scans + 4
+    check_follows(sc, [a, b])
+
+
+def test_another_frame_or_frame_rate_samples_the_sweep_anew(live_scene):
+    sc, live, a, b = live_scene
+    moving_car()
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    kept = live.session().sweeps
+    misses = kept.misses
+    sc.frame_set(sc.frame_current + 1)  # both LiDARs rescanned at the new frame
+    drive(live)
+    assert kept.misses > misses
+    check_follows(sc, [a, b])
+    misses = kept.misses
+    sc.render.fps = 30  # the sweep's sub-frames fall elsewhere
+    bpy.context.view_layer.update()
+    assert len(kept) == 0
+    drive(live)
+    assert kept.misses > misses
+    check_follows(sc, [a, b])
+
+
+def test_a_newer_move_supersedes_a_rescan_not_shown_yet(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    scans = sc.rls_live.scans
+    a.location.x = -7.0
+    bpy.context.view_layer.update()
+    time.sleep(sc.rls_live.debounce_ms / 1000.0)
+    assert live.tick() == 0.0 and sc.rls_live.scans == scans + 1  # scanned, not shown
+    a.location.x = -6.0  # moved again before the timer shows it: that scan is dropped
+    bpy.context.view_layer.update()
+    drive(live)
+    assert sc.rls_live.scans == scans + 2 and sc.rls_live.superseded == 1
+    check_follows(sc, [a, b])  # the newer pose's
+
+
+def test_a_drag_of_20_steps_costs_one_scan(live_scene):
+    """A drag at 60 Hz with Blender's timer called in between (a clock of the test's
+    own: the machine's load cannot make a step late)."""
+    sc, live, a, b = live_scene
+    clock = [0.0]
+    session = live.start(sc, bpy.data.objects["InfraLOB"], 40.0, 150.0,
+                         clock=lambda: clock[0])
+    scans = session.scheduler.scans
+    for i in range(20):
+        a.location.y += 0.1
+        bpy.context.view_layer.update()
+        end = clock[0] + 1 / 60
+        while True:  # the timer between steps: asked to wait for the LiDAR to be still
+            wait = live.tick()
+            assert wait is not None and wait > 0
+            if clock[0] + wait >= end:
+                break
+            clock[0] += wait
+        clock[0] = end
+    assert session.scheduler.scans == scans  # nothing while it moves
+    while (wait := live.tick()) is not None:
+        clock[0] += wait
+    assert session.scheduler.scans == scans + 1 and session.scheduler.superseded == 0
+    check_follows(sc, [a, b])
+
+
+def test_update_coverage_rescans_every_lidar_after_an_edit_live_does_not_follow(live_scene):
+    sc, live, a, b = live_scene
+    assert bpy.ops.rls.live_coverage() == {"FINISHED"}
+    scans = sc.rls_live.scans
+    bpy.data.objects["Kiosk"].hide_render = True  # a visibility: not followed by itself
+    bpy.context.view_layer.update()
+    assert not live.session().scheduler.busy
+    assert bpy.ops.rls.live_update() == {"FINISHED"}  # the panel's Update button
+    assert sc.rls_live.scans == scans + 2
     check_follows(sc, [a, b])

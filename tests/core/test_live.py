@@ -2,13 +2,21 @@
 and budget driven with a fake clock and scanner, as Blender's timer would call it, and
 the per-LiDAR coverage against ``infra_lob_metrics`` on all clouds."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from rls_addon.core.live.coverage import Coverage, cells
+from rls_addon.core.casting import NumpyCaster
+from rls_addon.core.live.coverage import Coverage, cells, level_colours, levels
 from rls_addon.core.live.schedule import LIVE, ON_DEMAND, LiveScheduler, LiveSettings
 from rls_addon.core.metrics.infra import infra_lob_metrics
 from rls_addon.core.points import empty_points
+from rls_addon.core.scan.kept_sweeps import KeptSweeps
+from rls_addon.core.scan.session import ScanSession
+from rls_addon.core.scan.settings import ScanSettings
+
+from .fakes import small_preset, street, translation
 
 
 class Clock:
@@ -200,3 +208,117 @@ def test_map_cells_are_coloured_as_the_chart_with_empty_cells_white():
     assert first[(0.0, 0.0)][:3] == pytest.approx(np.array([253, 231, 37]) / 255)  # densest
     assert first[(0.0, 1.0)] == pytest.approx((1.0, 1.0, 1.0, 1.0))  # no return: white
     assert corners[0][1] - corners[0][0] == pytest.approx([1.0, 1.0])
+
+
+def test_map_levels_band_the_cells_as_the_chart_with_no_return_apart():
+    cov = Coverage([(0, 0), (4, 0), (4, 2), (2, 2), (2, 4), (0, 4)], disks=50, cell=1.0)
+    p = empty_points(10)
+    # 5 points in (0,0), 4 in (1,0), 1 in (2,0): densities 5, 4, 1 per m²
+    p["x"] = [0.5] * 5 + [1.5] * 4 + [2.5]
+    p["y"], p["label"] = 0.5, 1
+    cov.set_cloud("A", p)
+    dm = cov.state().density
+    corners, rgba = cells(dm)
+    band = levels(dm, n=4)
+    first = {tuple(c[0]): int(b) for c, b in zip(corners, band)}
+    assert first[(0.0, 0.0)] == 4 and first[(1.0, 0.0)] == 4  # 4/5 = 0.8: the top band
+    assert first[(2.0, 0.0)] == 1 and first[(0.0, 1.0)] == 0  # 0.2: the first; none: 0
+    colours = level_colours(4)
+    assert colours.shape == (5, 4) and colours[0] == pytest.approx([1, 1, 1, 1])
+    # a band's colour is viridis at its middle: matplotlib's viridis(0.5) is #21918c
+    assert level_colours(1)[1, :3] * 255 == pytest.approx([33, 145, 140], abs=1.0)
+    assert (np.diff(colours[1:, 1]) > 0).all()  # green rises from purple to yellow
+    cov.set_cloud("A", empty_points(0))  # no points: every cell is 'no return'
+
+    assert (levels(cov.state().density, n=4) == 0).all()
+
+
+# -- a still LiDAR's sampled sweep kept between live rescans (core/scan/kept_sweeps) -----
+
+def turning(speed, yaw_rate):
+    """A car driving along +y, turning and swaying: its motion needs more samples than
+    the first nine."""
+    def at(s):
+        m = translation((4.0 + 0.2 * np.sin(60.0 * s), -8.0 + speed * s, 0.0))
+        c, n = np.cos(yaw_rate * s), np.sin(yaw_rate * s)
+        m[:2, :2] = [[c, -n], [n, c]]
+        return m
+    return at
+
+
+def scan_bytes(session, scene, sensor="pole", preset=None, frame=1):
+    scene.frame = frame
+    result, info = session.scan(scene, sensor, preset or small_preset(), ScanSettings(), frame)
+    return result.points.tobytes(), repr(info)
+
+
+def moved_pole(scene, dx):
+    scene.sensors["pole"] = lambda s: translation((dx, 0.0, 0.5))
+
+
+def test_a_moved_still_lidar_reuses_the_frames_samples_and_equals_a_fresh_scan():
+    scene = street(car_speed=12.0)
+    scene.motion["car"] = turning(12.0, 2.0)
+    kept = KeptSweeps()
+    live = ScanSession(NumpyCaster, kept_sweeps=kept)
+    first = scan_bytes(live, scene)
+    assert first == scan_bytes(ScanSession(NumpyCaster), scene)
+    read = scene.calls["state"]
+    assert kept.misses == read // 2 and read >= 2 * 17 and kept.hits == 0  # (and the fresh)
+    for dx in (0.3, 0.6, -0.2):  # the LiDAR moved: its rescans sample nothing anew
+        moved_pole(scene, dx)
+        got = scan_bytes(live, scene)
+        assert scene.calls["state"] == read and kept.reused > 0
+        want = scan_bytes(ScanSession(NumpyCaster), scene)  # a fresh scan, same state
+        read = scene.calls["state"]
+        assert got == want  # byte for byte: points and sidecar
+    assert got != first
+    # a still box added ahead of the car (its index in the read moves, its motion not):
+    # the classification is given back with the car's new index
+    reused = kept.reused
+    scene.boxes["bench"] = ((-6.0, 3.0, -1.0), (-4.0, 4.0, 0.0), 4)
+    got = scan_bytes(live, scene)
+    assert kept.reused == reused + 1 and scene.calls["state"] == read
+    assert got == scan_bytes(ScanSession(NumpyCaster), scene)
+    # the car's bounds changed (another mesh; the fake keeps its mesh id, so a new
+    # session, which has not built it): classified again, from the kept states
+    scene.boxes["car"] = ((-2.0, -0.9, -1.0), (2.0, 0.9, 0.5), 11)
+    read = scene.calls["state"]
+    hits = kept.hits
+    got = scan_bytes(ScanSession(NumpyCaster, kept_sweeps=kept), scene)
+    assert kept.reused == reused + 1 and kept.hits > hits and scene.calls["state"] == read
+    assert got == scan_bytes(ScanSession(NumpyCaster), scene)
+
+
+def test_kept_samples_are_keyed_by_frame_and_sweep_time_and_cleared_on_an_edit():
+    scene = street(car_speed=12.0)
+    scene.motion["car"] = turning(12.0, 2.0)
+    kept = KeptSweeps()
+    live = ScanSession(NumpyCaster, kept_sweeps=kept)
+    scan_bytes(live, scene)
+    misses = kept.misses
+    # another frame, and a preset with another sweep time: sampled anew, a fresh scan's
+    fast = dataclasses.replace(small_preset(pid="fast"), frequency_hz=20.0)
+    for frame, preset in ((2, None), (2, fast)):
+        got = scan_bytes(live, scene, preset=preset, frame=frame)
+        assert kept.misses > misses
+        misses = kept.misses
+        assert got == scan_bytes(ScanSession(NumpyCaster), scene, preset=preset, frame=frame)
+    # another object's motion edited: the kept samples are stale until cleared (the
+    # caller's contract: live coverage clears them on any edit of another object)
+    scene.motion["car"] = turning(6.0, -1.0)
+    fresh = scan_bytes(ScanSession(NumpyCaster), scene, frame=2)
+    assert scan_bytes(live, scene, frame=2) != fresh
+    kept.clear()
+    assert len(kept) == 0 and scan_bytes(live, scene, frame=2) == fresh
+
+
+def test_a_moving_lidar_samples_its_sweep_anew():
+    scene = street(car_speed=12.0)
+    scene.moving_sensors = {"pole"}
+    scene.sensors["pole"] = lambda s: translation((5.0 * s, 0.0, 0.5))
+    kept = KeptSweeps()
+    live = ScanSession(NumpyCaster, kept_sweeps=kept)
+    for _ in range(2):
+        assert scan_bytes(live, scene) == scan_bytes(ScanSession(NumpyCaster), scene)
+    assert kept.hits == kept.misses == kept.reused == 0 and len(kept) == 0

@@ -69,3 +69,32 @@ def cells(dm, vmax=None):
     corners = np.stack([lo, lo + dm.cell_m], axis=1)
     rgba = dm.colours(vmax)[inside].astype(np.float64) / 255.0
     return corners, rgba
+
+
+MAP_LEVELS = 16  # colour bands of the map in Solid shading (one material each)
+
+
+def levels(dm, n=MAP_LEVELS, vmax=None):
+    """The band of each of ``cells``' cells, in the same order: 0 for no return, else
+    1..``n`` (density from 0 to ``vmax``, default the densest cell, in ``n`` equal
+    bands; the densest in band ``n``). What a viewport shows through one material per
+    band where it cannot show the cells' own colours (Solid shading)."""
+    inside = np.isfinite(dm.values)
+    v = dm.values[inside]
+    if vmax is None:
+        vmax = float(v.max()) if v.size else 0.0
+    band = np.ones(v.shape, np.int32) if vmax <= 0 else \
+        1 + np.minimum(np.floor(v / vmax * n), n - 1).astype(np.int32)
+    band[v == 0] = 0
+    return band
+
+
+def level_colours(n=MAP_LEVELS):
+    """(n + 1, 4) RGBA in 0..1 (sRGB) of ``levels``' bands: white for no return, then
+    the density chart's viridis at each band's middle."""
+    from ..output.png import colormap
+
+    mids = (np.arange(n) + 0.5) / n
+    out = np.ones((n + 1, 4))
+    out[1:] = colormap(mids, vmin=0.0, vmax=1.0).astype(np.float64) / 255.0
+    return out

@@ -40,8 +40,11 @@ class ScanSession:
     """Scans frames of sensors from scene sources with one ray-casting backend
     (``caster_factory``, see ``casting``)."""
 
-    def __init__(self, caster_factory):
+    def __init__(self, caster_factory, kept_sweeps=None):
         self.caster_factory = caster_factory
+        # a KeptSweeps (kept_sweeps.py): a still sensor's sampled sweeps kept between
+        # scans; whoever hands it in clears it when the scene changes (live coverage)
+        self.kept_sweeps = kept_sweeps
         self._prepared = {}
         self._bodies = {}
         self.builds = 0
@@ -111,9 +114,9 @@ class ScanSession:
         materials = read.materials
         motion = SweepMotion()
         if settings.motion != "snapshot":
-            with source.sweep(frame, preset.period) as sweep:
-                motion = classify(sweep, preset.period, instances,
-                                  source.mobility(instances, sensor), sensor)
+            mobility = source.mobility(instances, sensor)
+            with self._sweep(source, frame, preset.period, mobility) as sweep:
+                motion = self._classify(sweep, preset.period, instances, mobility, sensor)
                 n_used, substeps = self._substep_counts(values.motion_tolerance_m, settings,
                                                         instances, motion)
                 moving = self._bodies_of(sweep, preset.period, instances, objects, materials,
@@ -181,6 +184,23 @@ class ScanSession:
         got = static_key(instances, objects, materials, select)
         self._last_static_key = (key, got)
         return got
+
+    def _sweep(self, source, frame, period, mobility):
+        """The sweep to sample: the source's, or for a sensor that cannot move the
+        states kept since the last scan of this frame (``kept_sweeps``)."""
+        if self.kept_sweeps is None or mobility.sensor_moves:
+            return source.sweep(frame, period)
+        return self.kept_sweeps.sweep(source, frame, period)
+
+    @staticmethod
+    def _classify(sweep, period, instances, mobility, sensor):
+        """``sweep.classify``; a kept sweep gives back its last classification of the
+        same objects (``kept_sweeps``)."""
+        def fresh():
+            return classify(sweep, period, instances, mobility, sensor)
+
+        kept = getattr(sweep, "motion", None)
+        return fresh() if kept is None else kept(instances, mobility, fresh)
 
     @staticmethod
     def _substep_counts(tol, settings, instances, motion):
