@@ -308,17 +308,16 @@ def test_result_json_is_complete():
     assert d["density"]["shape"] == [6, 4]
 
 
-def test_speed_one_million_points_six_thousand_disks():
-    import time
-
+def test_one_million_points_six_thousand_disks():
+    """At scale (1e6 road and sidewalk points, the default 6,000 disks): every point of
+    the region counted, InfraD the count over the area (600 m^2). Its time is
+    make bench's to report, not a test's (a test never checks wall-clock time)."""
     rng = np.random.default_rng(0)
     n = 1_000_000
     pts = cloud(rng.uniform(0, 20, n), rng.uniform(0, 30, n), rng.integers(1, 3, n))
-    t0 = time.perf_counter()
-    infra_lob_metrics(pts, RECT)
-    elapsed = time.perf_counter() - t0
-    print(f"1e6 points, 6000 disks: {elapsed:.2f} s")
-    assert elapsed < 5.0  # about 0.5-1 s on a laptop; generous for CI
+    r = infra_lob_metrics(pts, RECT)
+    assert r.n_points == n and r.area_m2 == pytest.approx(600.0)
+    assert r.infra_d == pytest.approx(n / 600.0)
 
 
 def test_no_point_in_any_disk_is_an_error_not_perfect_uniformity():
