@@ -179,10 +179,8 @@ def test_a_scene_a_worker_cannot_open_ends_the_run_with_one_line(scene, tmp_path
                      dashboard_address=None, silence_logs=50, preload=[str(preload)],
                      env={"PYTHONPATH": str(ROOT)})
     try:
-        t = time.perf_counter()
         proc = rls("scan", scene, "--frames", "1-8", "--out", tmp_path / "o", "--scheduler",
                    c.scheduler_address, timeout=120)
-        assert time.perf_counter() - t < 60
         assert proc.returncode == 1
         errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("rls: error")]
         assert len(errors) == 1 and "scene file not found on this worker" in errors[0], proc.stderr
