@@ -229,3 +229,64 @@ def test_every_boxs_record_made_together_is_its_own(monkeypatch):
                         small_preset(channels=16, steps=900))
         ScanRun(traffic(sensor), [job], [1, 2], factory=numpy_factory).run()
     assert len(seen) == 2 * 2 * 7 and all(b.start_matrix is not None for b in seen)
+
+
+@pytest.mark.parametrize("moving,turning", [(False, False), (True, False), (True, True)])
+def test_every_centres_facing_ray_at_once_is_its_own(moving, turning):
+    """``facing_rays`` (every centre's cones together, widening round by round) gives
+    each centre ``facing_ray``'s ray, -1 where that gives None: centres near and far,
+    above and below the pattern (cones that widen), over the sensor, on the seam."""
+    from rls_addon.core.output.box_counts import facing_ray, facing_rays
+
+    rng = np.random.default_rng(13)
+    rays = spinning_rays(rng, moving=moving, turning=turning)
+    cells = RayCells(rays)
+    centres = np.r_[rng.uniform([-40, -40, -3], [40, 40, 12], (150, 3)),
+                    [[0.0, 0.0, 40.0], [5.0, 0.0, 30.0], [0.1, 0.0, 2.0], [-20.0, 0.0, -8.0],
+                     [-30.0, 1e-3, 2.0], [-30.0, -1e-3, 2.0], [10.0, 10.0, 2.0]]]
+    got = facing_rays(cells, centres)
+    want = [facing_ray(cells, c) for c in centres]
+    assert got.tolist() == [-1 if w is None else w for w in want]
+    assert sum(w is None for w in want) >= 1 and sum(w is not None for w in want) > 140
+
+
+def test_every_boxs_time_from_its_points_at_once_is_split_at_seams():
+    """``_own_points`` (the groups' times sorted once, every median and seam test read
+    off them) against ``split_at_seam`` of each box's own points: odd and even counts,
+    one point, none, ghosts, boxes on the seam with more early or more late points,
+    points out of time order, two boxes of one id; and a time that is not finite."""
+    from rls_addon.core.output.ground_truth import _own_points, split_at_seam
+
+    rng = np.random.default_rng(17)
+    period = 0.1
+    ids = np.array([7, 3, 9, 11, 3, 20, 21, 22], np.int64)
+    n = 4000
+    inst = rng.choice([3, 7, 9, 11, 20, 21, 22, 99], n).astype(np.uint32)
+    times = rng.uniform(0, period, n)
+    on_seam = inst == 20  # mostly early, a few late
+    times[on_seam] = np.where(rng.random(on_seam.sum()) < 0.7, rng.uniform(0, 0.01, on_seam.sum()),
+                              rng.uniform(0.095, 0.1, on_seam.sum()))
+    late = inst == 21     # mostly late
+    times[late] = np.where(rng.random(late.sum()) < 0.3, rng.uniform(0, 0.01, late.sum()),
+                           rng.uniform(0.095, 0.1, late.sum()))
+    inst[inst == 22] = 99
+    inst[np.nonzero(inst == 99)[0][:1]] = 22  # one point
+    ghost = (rng.random(n) < 0.1).astype(np.uint8)
+    ghost[inst == 11] = 1  # only ghosts: no point
+    for label, ordered in (("shuffled", False), ("in firing order", True)):
+        t = np.sort(times) if ordered else times
+        pts = np.zeros(n, [("instance", "<u4"), ("time", "<f8"), ("ghost", "u1")])
+        pts["instance"], pts["time"], pts["ghost"] = inst, t, ghost
+        count, got_t, got_seam = _own_points(pts, ids, period)
+        for j, i in enumerate(ids):
+            mine = t[(inst == i) & (ghost == 0)]
+            assert count[j] == len(mine), label
+            want = split_at_seam(mine, period) if len(mine) else (None, False)
+            assert (got_t[j], got_seam[j]) == want, (label, i)
+        assert got_seam[5] and got_seam[6] and count[7] == 1 and count[3] == 0
+        assert count[1] == count[4] > 0 and {int(c) % 2 for c in count[count > 1]} == {0, 1}
+    first7 = np.nonzero(inst == 7)[0][0]
+    pts["time"][first7], pts["ghost"][first7] = np.nan, 0
+    count, got_t, _ = _own_points(pts, ids, period)
+    want = split_at_seam(pts["time"][(inst == 7) & (ghost == 0)], period)
+    assert math.isnan(got_t[0]) == math.isnan(want[0])

@@ -175,6 +175,48 @@ def facing_ray(cells, centre):
     return None
 
 
+def facing_rays(cells, centres):
+    """``facing_ray`` of many centres ((N, 3)) at once: per centre, the index of the
+    ray pointing most nearly at it (the first of equals), or -1 where no cone settles
+    it. Each round of widening looks at every unsettled centre's cone together (the
+    same cones, the same cosines, row by row, as ``facing``)."""
+    rays = cells.rays
+    centres = np.asarray(centres, np.float64).reshape(-1, 3)
+    best = np.full(len(centres), -1, np.int64)
+    v = centres - cells.o0
+    dist = np.array([float(np.linalg.norm(x)) for x in v])
+    open_ = [q for q in range(len(centres)) if dist[q] > cells.travel + 1e-9]
+    drift = {q: math.asin(min(1.0, cells.travel / dist[q])) for q in open_}
+    angle = 0.02
+    while open_:
+        open_ = [q for q in open_ if angle + drift[q] < math.pi / 4]
+        if not open_:
+            break
+        owner, ray = cells.within_many(v[open_], [angle + drift[q] for q in open_])
+        to = centres[open_][owner] - (rays.origins if rays.origins.shape[0] == 1
+                                      else rays.origins[ray])
+        to /= np.maximum(np.linalg.norm(to, axis=1, keepdims=True), 1e-12)
+        dots = np.einsum("ij,ij->i", to, rays.dirs[ray])
+        k, top = _first_best(owner, ray, dots, len(open_))
+        settled = top >= math.cos(angle)
+        for i in np.nonzero(settled)[0]:
+            best[open_[i]] = k[i]
+        open_ = [q for q, s in zip(open_, settled) if not s]
+        angle *= 4.0
+    return best
+
+
+def _first_best(owner, ray, dots, n):
+    """Per owner 0..n-1: (the least ray of those with its greatest dot, that dot);
+    (-1, -inf) for an owner with none."""
+    top = np.full(n, -np.inf)
+    np.maximum.at(top, owner, dots)
+    k = np.full(n, np.iinfo(np.int64).max)
+    mine = dots == top[owner]
+    np.minimum.at(k, owner[mine], ray[mine])
+    return np.where(np.isfinite(top), k, -1), top
+
+
 def facing(rays, centre, idx):
     """Index (into all rays) of the ray among ``idx`` (sorted indices, or a slice)
     that points most nearly at ``centre`` from its own origin, and the cosine of its

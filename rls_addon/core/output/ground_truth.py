@@ -264,10 +264,11 @@ def split_at_seam(times, period):
 def _own_points(pts, ids, period):
     """Per box (instance ids ``ids``): how many real (not ghost) points carry its id,
     and its reference time and seam flag from their times (``split_at_seam``; None
-    for a box with no point). The points are grouped by box once: those whose id is
-    a box's, in their order."""
+    for a box with no point). The points are grouped by box once (those whose id is a
+    box's, in their order) and every group's median and seam test are read off the
+    groups' times sorted once (``_medians``)."""
     n = len(ids)
-    count, times, seams = np.zeros(n, np.int64), [None] * n, [False] * n
+    times, seams = [None] * n, [False] * n
     unique, box_of = np.unique(ids, return_inverse=True)
     inst = np.asarray(pts["instance"], np.int64)
     pos = np.minimum(np.searchsorted(unique, inst), len(unique) - 1)
@@ -276,14 +277,53 @@ def _own_points(pts, ids, period):
     order = np.argsort(group.astype(np.int32), kind="stable")
     rows = rows[order]
     first = np.searchsorted(group[order], np.arange(len(unique) + 1))
-    t = pts["time"]
+    count = (first[1:] - first[:-1])[box_of]
+    t = np.asarray(pts["time"], np.float64)[rows]
+    got = _medians(t, first, period)
+    if got is None:  # not finite: box by box
+        got = [split_at_seam(t[first[u]:first[u + 1]], period) if first[u + 1] > first[u]
+               else (None, False) for u in range(len(unique))]
     for j in range(n):
-        u = box_of[j]
-        mine = rows[first[u]:first[u + 1]]
-        count[j] = len(mine)
-        if len(mine):
-            times[j], seams[j] = split_at_seam(t[mine], period)
+        if count[j]:
+            times[j], seams[j] = got[box_of[j]]
     return count, times, seams
+
+
+def _medians(t, first, period):
+    """``split_at_seam`` of every group of times ``t[first[u]:first[u + 1]]`` at once:
+    [(median, seam)] per group (None, False for an empty one), the same numbers
+    (numpy's median: the middle time, or half the sum of the middle two). The times
+    are sorted within their groups once (already so when the points come in firing
+    order, as a scan gives them); None when a time is not finite (then box by box)."""
+    if not np.all(np.isfinite(t)):
+        return None
+    sizes = first[1:] - first[:-1]
+    groups = np.repeat(np.arange(len(sizes)), sizes)
+    if len(t) > 1 and not np.all((t[1:] >= t[:-1]) | (groups[1:] != groups[:-1])):
+        t = t[np.lexsort((t, groups))]
+    lo, hi = first[:-1].copy(), first[1:].copy()
+    seam = np.zeros(len(sizes), bool)
+    if period:
+        span = np.where(sizes > 1, t[np.maximum(hi - 1, 0)] - t[np.minimum(lo, len(t) - 1)],
+                        0.0) if len(t) else np.zeros(len(sizes))
+        seam = (sizes > 1) & (span > period / 2)
+        # the early times (t < period / 2) open each group: the larger part is kept
+        cut = np.array([lo[u] + int(np.searchsorted(t[lo[u]:hi[u]], period / 2, "left"))
+                        for u in np.nonzero(seam)[0]], np.int64)
+        s = np.nonzero(seam)[0]
+        early = (cut - lo[s]) * 2 >= sizes[s]
+        hi[s] = np.where(early, cut, hi[s])
+        lo[s] = np.where(early, lo[s], cut)
+    out = []
+    for u in range(len(sizes)):
+        m = int(hi[u] - lo[u])
+        if not sizes[u]:
+            out.append((None, False))
+            continue
+        mid = int(lo[u]) + m // 2
+        median = t[mid] if m % 2 else (t[mid - 1] + t[mid]) / 2
+        out.append((float(median), bool(seam[u])))
+    return out
 
 
 def _times_facing(cells, tset, boxes, centres_local, rounds=2):
@@ -300,12 +340,11 @@ def _times_facing(cells, tset, boxes, centres_local, rounds=2):
         at = tset.at(boxes, t)
         if not len(rays.dirs):
             break
-        for q, c in enumerate(local):
-            centre = (at[q] @ c)[:3]
-            best = box_counts.facing_ray(cells, centre)
-            if best is None:
-                best = box_counts.facing(rays, centre, slice(None))[0]
-            t[q] = float(rays.times[best])
+        centres = np.array([(at[q] @ c)[:3] for q, c in enumerate(local)])
+        best = box_counts.facing_rays(cells, centres)
+        for q in np.nonzero(best < 0)[0]:
+            best[q] = box_counts.facing(rays, centres[q], slice(None))[0]
+        t = np.asarray(rays.times, np.float64)[best]
     return t
 
 

@@ -188,6 +188,27 @@ class RayCells:
             parts.append(_ranges(starts[sec + b0], starts[sec + b1 + 1])[1])
         return np.sort(self.cells.order[np.concatenate(parts)])
 
+    def within_many(self, vs, angles):
+        """(owner, ray) pairs: for every direction ``vs[j]``, a superset of the rays
+        within ``angles[j]`` of it (``within``'s, each ray once, in no set order),
+        all directions in one go."""
+        starts, los, his, owners = self.cells.starts, [], [], []
+        for j, (v, angle) in enumerate(zip(vs, angles)):
+            spans = self._cone_spans(np.asarray(v, np.float64), float(angle))
+            if spans is None:
+                spans = [(0, AZ_CELLS - 1, 0, EL_CELLS - 1)]
+            for s0, s1, b0, b1 in spans:
+                sec = np.arange(s0, s1 + 1) * EL_CELLS
+                los.append(starts[sec + b0])
+                his.append(starts[sec + b1 + 1])
+                owners.append(np.full(len(sec), j))
+        if not los:
+            z = np.zeros(0, np.int64)
+            return z, z
+        owner, lo, hi = (np.concatenate(x).astype(np.int64) for x in (owners, los, his))
+        seg, pos = _ranges(lo, hi)
+        return owner[seg], self.cells.order[pos]
+
     def points_of(self, box, ray):
         """(box, point) pairs of the points on the rays of (box, ray) pairs."""
         owner, pos = _ranges(self.pstart[ray], self.pstart[ray + 1])
