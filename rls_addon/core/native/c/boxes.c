@@ -74,7 +74,7 @@ static void run_share(void *arg) {
             const int64_t ray = a->order[p];
             const double *o = a->one_origin ? a->origins : a->origins + 3 * ray;
             const double *d = a->dirs + 3 * ray;
-            double rel[3] = {o[0] - c[0], o[1] - c[1], o[2] - c[2]}, ol[3], dl[3];
+            double rel[3] = {o[0] - c[0], o[1] - c[1], o[2] - c[2]};
             /* A ray whose line passes farther than the reach from the centre, or that
              * leaves it behind, crosses neither box and has no point in them: no test
              * below can count it (the reach holds both with a margin far above the
@@ -84,18 +84,27 @@ static void run_share(void *arg) {
             if (along + rr < 0) continue;
             double perp2 = rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2] - along * along;
             if (perp2 > rr * rr) continue;
-            in_axes(rel, r, ol);
-            in_axes(d, r, dl);
+            /* The slab test, axis by axis, each axis' offset and direction turned into
+             * the box's axes as in_axes does: t_in only grows and t_out only shrinks
+             * (exact maxima and minima, in any order of the axes), so once the ray
+             * cannot be on the box (t_in > t_out, t_out <= 0 or t_in > rmax) the axes
+             * left cannot change that and are skipped; z first, the axis that turns
+             * most rays away from a box beside or below the sensor. */
             double t_in = -INFINITY, t_out = INFINITY;
-            for (int k = 0; k < 3; k++) {
-                double inv = 1.0 / dl[k];
-                double t1 = (-half[k] - ol[k]) * inv, t2 = (half[k] - ol[k]) * inv;
+            int on = 1;
+            for (int i = 0; i < 3 && on; i++) {
+                const int k = (i + 2) % 3;  /* z first: height cuts most rays */
+                const double olk = rel[0] * r[k] + rel[1] * r[3 + k] + rel[2] * r[6 + k];
+                const double dlk = d[0] * r[k] + d[1] * r[3 + k] + d[2] * r[6 + k];
+                double inv = 1.0 / dlk;
+                double t1 = (-half[k] - olk) * inv, t2 = (half[k] - olk) * inv;
                 if (t1 != t1) t1 = -INFINITY;
                 if (t2 != t2) t2 = INFINITY;
                 t_in = max2(t_in, min2(t1, t2));
                 t_out = min2(t_out, max2(t1, t2));
+                on = t_in <= t_out && t_out > 0 && t_in <= a->rmax;
             }
-            if (t_in <= t_out && t_out > 0 && t_in <= a->rmax) {
+            if (on) {
                 const int32_t h = a->hit[ray];
                 if (h == a->object[b]) s->seen[b]++;
                 else if (h >= 0 && a->dist[ray] < max2(t_in, 0.0) + 1e-6) s->blocked[b]++;
@@ -104,6 +113,9 @@ static void run_share(void *arg) {
                 const int64_t pt = a->point_order[q];
                 if (!a->real[pt]) continue;
                 const double range = a->range[pt];
+                /* a point farther along its ray from the centre's foot than the reach
+                 * is farther than the reach from the centre: not in the grown box */
+                if (range - along > rr || along - range > rr) continue;
                 double w[3], l[3];
                 for (int k = 0; k < 3; k++) w[k] = (o[k] + d[k] * range) - c[k];
                 in_axes(w, r, l);
