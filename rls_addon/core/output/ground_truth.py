@@ -270,11 +270,16 @@ def _own_points(pts, ids, period):
     n = len(ids)
     times, seams = [None] * n, [False] * n
     unique, box_of = np.unique(ids, return_inverse=True)
-    inst = np.asarray(pts["instance"], np.int64)
-    pos = np.minimum(np.searchsorted(unique, inst), len(unique) - 1)
-    rows = np.nonzero((unique[pos] == inst) & (pts["ghost"] == 0))[0]
+    inst = np.ascontiguousarray(pts["instance"])
+    if inst.dtype != np.uint32 or unique[0] < 0 or unique[-1] > np.iinfo(np.uint32).max:
+        inst = inst.astype(np.int64)
+    keys = unique.astype(inst.dtype)  # the points' own type: no search converts them
+    pos = np.minimum(np.searchsorted(keys, inst), len(unique) - 1)
+    rows = np.nonzero((keys[pos] == inst) & (pts["ghost"] == 0))[0]
     group = pos[rows]
-    order = np.argsort(group.astype(np.int32), kind="stable")
+    # a radix sort of small keys
+    order = np.argsort(group.astype(np.int16 if len(unique) < 2 ** 15 else np.int64),
+                       kind="stable")
     rows = rows[order]
     first = np.searchsorted(group[order], np.arange(len(unique) + 1))
     count = (first[1:] - first[:-1])[box_of]
