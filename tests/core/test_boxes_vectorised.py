@@ -168,12 +168,22 @@ def test_the_compiled_counts_equal_numpys_and_each_boxs_own(moving, turning):
                            [0, 0, 2.0]]  # holding the sensor, over and under it
     poses[15:20, :3, :3] = np.eye(3)  # axis-aligned: rays parallel to the slabs
     sizes = rng.uniform([0.5, 0.5, 1.0], [10.0, 3.0, 4.0], (n, 3))
+    # the sensor's own car just under it, and boxes just over it: spheres that hold
+    # the sensor, narrowed to the elevations that reach the box (RayCells._bands)
+    # (long ones that the pattern's rays nearest the bounding elevation still reach)
+    poses[20:24, :3, 3] = [[0.5, 0.0, 1.2], [0.5, 0.0, 0.95], [0.5, 0.0, 2.9], [0.5, 0.0, 3.05]]
+    sizes[20:24] = [[4.5, 1.8, 1.4], [11.0, 2.0, 1.4], [3.0, 2.0, 1.4], [11.0, 2.0, 1.4]]
+    poses[21:24, :3, :3] = np.eye(3)  # (no turn widening their world bounds)
     objects = rng.integers(-2, 4, n)
+    objects[20:24] = [1, 2, 3, 0]  # objects the rays hit
     margin, rmax = 0.05, 120.0
     cells = RayCells(rays)
     radii = np.maximum(np.linalg.norm(sizes / 2 + margin, axis=1),
                        np.linalg.norm(sizes, axis=1) / 2 + 1e-6)
-    segments = cells.segments(poses[:, :3, 3], radii)
+    extents = np.einsum("bij,bj->bi", np.abs(poses[:, :3, :3]), sizes / 2 + margin)
+    segments = cells.segments(poses[:, :3, 3], radii, extents)
+    narrowed = np.bincount(segments[0], segments[2] - segments[1], n)[20:24]
+    assert np.all(narrowed < 0.9 * len(rays.dirs))  # fewer rays than all for each
     got = box_counts.box_counts(cells, objects, poses, sizes, margin, rmax, ranges, real,
                                 segments)
     assert box_counts.BOX_COUNTS.get() is not None  # the library is built here
@@ -189,6 +199,7 @@ def test_the_compiled_counts_equal_numpys_and_each_boxs_own(moving, turning):
         assert (on, int(got[2][j])) == (int(got[1][j]), inside)
         assert (math.isnan(share) and math.isnan(got[0][j])) or share == got[0][j]
     assert got[1].sum() > 5000 and got[2].sum() > 500  # the boxes saw a lot
+    assert got[1][20:24].sum() > 1000 and got[2][20:24].sum() > 100
 
 
 @pytest.mark.parametrize("moving", [False, True])

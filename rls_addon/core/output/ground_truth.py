@@ -229,7 +229,8 @@ def object_boxes(instances, objects, tracks, classes, result, sensor_pose_at, rm
     names = {o.name: j for j, o in enumerate(rays.objects)}
     share, on_box, inside = box_counts.box_counts(
         cells, [names.get(instances[k].key, -2) for k in chosen], poses, sizes, margin, rmax,
-        pts["range"], pts["ghost"] == 0, cells.segments(poses[:, :3, 3], radii))
+        pts["range"], pts["ghost"] == 0, cells.segments(poses[:, :3, 3], radii, np.einsum(
+            "bij,bj->bi", np.abs(poses[:, :3, :3]), sizes / 2 + max(margin, 0.0)) * (1 + 1e-9)))
     sensor = sensor_pose_at(t_ref)
     out = []
     for j, k in enumerate(chosen):

@@ -90,11 +90,15 @@ class RayCells:
         # lie from it (half its diagonal: at least the farthest origin's distance; the
         # cones widen by it). One origin: itself.
         self.o0, self.travel = (o[0] if len(o) else np.zeros(3)), 0.0
+        self.o_lo = self.o_hi = self.o0
+        self.sideways = 0.0  # how far the origins may lie from o0 across (x, y)
         if len(o) > 1:
             lo, hi = column_bounds(rays.origins)
             self.o0 = (lo + hi) / 2
             half = (hi - lo) / 2
             self.travel = math.sqrt(float(half @ half)) * (1 + 1e-12) + 1e-12
+            self.o_lo, self.o_hi = lo, hi
+            self.sideways = math.hypot(float(half[0]), float(half[1])) * (1 + 1e-12) + 1e-12
         self.cells = _Cells.of(rays.dirs)
         pr = np.asarray(rays.point_ray, np.int64)
         # the points grouped by ray: ray r's points are point_order[pstart[r]:pstart[r + 1]]
@@ -138,15 +142,49 @@ class RayCells:
         return [(_cell1(p, -math.pi, scale, AZ_CELLS), _cell1(q, -math.pi, scale, AZ_CELLS),
                  b0, b1) for p, q in parts]
 
-    def segments(self, centres, radii):
+    def _bands(self, centre, extent):
+        """For a box whose cone takes every ray (the origins near or in it): the span
+        of elevation bands (``(lo, hi)``) that hold every ray that can reach its
+        axis-aligned bounds ``centre`` +- ``extent`` when those lie wholly below or
+        above every origin, else None. From origins below the box's top by at least
+        g, no farther than H across from any of its points, a ray reaches it only at
+        an elevation of at most atan2(-g, H) (the steepest, g the least drop and H the
+        longest way across), and from above it at least atan2(g, H)."""
+        pad = 1e-9 * (1.0 + float(np.abs(centre).max()) + float(np.abs(extent).max()))
+        top = float(centre[2] + extent[2]) + pad
+        bottom = float(centre[2] - extent[2]) - pad
+        far = max(math.hypot(float(centre[0] + sx * extent[0] - self.o0[0]),
+                             float(centre[1] + sy * extent[1] - self.o0[1]))
+                  for sx in (-1, 1) for sy in (-1, 1)) + self.sideways + pad
+        scale = EL_CELLS / math.pi
+        if top < float(self.o_lo[2]):
+            el = math.atan2(top - float(self.o_lo[2]), far)
+            return 0, _cell1(el + PAD, -math.pi / 2, scale, EL_CELLS)
+        if bottom > float(self.o_hi[2]):
+            el = math.atan2(bottom - float(self.o_hi[2]), far)
+            return _cell1(el - PAD, -math.pi / 2, scale, EL_CELLS), EL_CELLS - 1
+        return None
+
+    def segments(self, centres, radii, extents=None):
         """(box, lo, hi) arrays: for every box j (a sphere of ``radii[j]`` around
         ``centres[j]``), runs [lo, hi) of ``cells.order`` that hold a superset of the
         rays passing within that sphere, each ray once; runs no longer than
-        ``SEGMENT`` (shares of work for the compiled counts)."""
+        ``SEGMENT`` (shares of work for the compiled counts). ``extents``: per box, the
+        half sizes along the world axes of a box within the sphere (the ground-truth
+        box grown by its margin), which narrows a sphere that holds the origins to the
+        elevations that reach the box (``_bands``: a sensor on a car's roof)."""
         boxes, los, his = [], [], []
         starts = self.cells.starts
         for j, (c, r) in enumerate(zip(centres, radii)):
             spans = self._spans(c, float(r) + self.travel)
+            bands = None if spans is not None or extents is None \
+                else self._bands(np.asarray(c, np.float64), np.asarray(extents[j], np.float64))
+            if bands is not None:
+                sec = np.arange(AZ_CELLS) * EL_CELLS
+                los.append(starts[sec + bands[0]])
+                his.append(starts[sec + bands[1] + 1])
+                boxes.append(np.full(AZ_CELLS, j))
+                continue
             if spans is None:
                 los.append(np.array([0]))
                 his.append(np.array([self.cells.n]))
