@@ -79,6 +79,15 @@ def _ranges(lo, hi):
     return owner, np.arange(total, dtype=np.int64) - np.repeat(first - lo, n)
 
 
+def _runs(starts, spans, owner):
+    """(lo, hi, owner) arrays of the runs of ``cells.order`` that cell spans [(sector
+    lo, sector hi, band lo, band hi)] cover: one run per sector, each of ``owner``."""
+    sec = np.concatenate([np.arange(s0, s1 + 1) for s0, s1, _, _ in spans]) * EL_CELLS
+    b0 = np.concatenate([np.full(s1 + 1 - s0, b) for s0, s1, b, _ in spans])
+    b1 = np.concatenate([np.full(s1 + 1 - s0, b) for s0, s1, _, b in spans])
+    return starts[sec + b0], starts[sec + b1 + 1], np.full(len(sec), owner)
+
+
 class RayCells:
     """The rays of a ``RayRecord`` (and its points) by direction (see the module
     docstring)."""
@@ -179,22 +188,16 @@ class RayCells:
             spans = self._spans(c, float(r) + self.travel)
             bands = None if spans is not None or extents is None \
                 else self._bands(np.asarray(c, np.float64), np.asarray(extents[j], np.float64))
-            if bands is not None:
-                sec = np.arange(AZ_CELLS) * EL_CELLS
-                los.append(starts[sec + bands[0]])
-                his.append(starts[sec + bands[1] + 1])
-                boxes.append(np.full(AZ_CELLS, j))
-                continue
-            if spans is None:
+            if spans is None and bands is None:
                 los.append(np.array([0]))
                 his.append(np.array([self.cells.n]))
                 boxes.append(np.array([j]))
                 continue
-            for s0, s1, b0, b1 in spans:
-                sec = np.arange(s0, s1 + 1) * EL_CELLS
-                los.append(starts[sec + b0])
-                his.append(starts[sec + b1 + 1])
-                boxes.append(np.full(len(sec), j))
+            lo, hi, owner = _runs(starts, [(0, AZ_CELLS - 1, *bands)] if spans is None
+                                  else spans, j)
+            los.append(lo)
+            his.append(hi)
+            boxes.append(owner)
         if not boxes:
             z = np.zeros(0, np.int64)
             return z, z, z
@@ -220,11 +223,8 @@ class RayCells:
         spans = self._cone_spans(np.asarray(v, np.float64), angle)
         if spans is None:
             return np.arange(self.cells.n)
-        starts, parts = self.cells.starts, []
-        for s0, s1, b0, b1 in spans:
-            sec = np.arange(s0, s1 + 1) * EL_CELLS
-            parts.append(_ranges(starts[sec + b0], starts[sec + b1 + 1])[1])
-        return np.sort(self.cells.order[np.concatenate(parts)])
+        lo, hi, _ = _runs(self.cells.starts, spans, 0)
+        return np.sort(self.cells.order[_ranges(lo, hi)[1]])
 
     def within_many(self, vs, angles):
         """(owner, ray) pairs: for every direction ``vs[j]``, a superset of the rays
@@ -233,13 +233,10 @@ class RayCells:
         starts, los, his, owners = self.cells.starts, [], [], []
         for j, (v, angle) in enumerate(zip(vs, angles)):
             spans = self._cone_spans(np.asarray(v, np.float64), float(angle))
-            if spans is None:
-                spans = [(0, AZ_CELLS - 1, 0, EL_CELLS - 1)]
-            for s0, s1, b0, b1 in spans:
-                sec = np.arange(s0, s1 + 1) * EL_CELLS
-                los.append(starts[sec + b0])
-                his.append(starts[sec + b1 + 1])
-                owners.append(np.full(len(sec), j))
+            lo, hi, owner = _runs(starts, spans or [(0, AZ_CELLS - 1, 0, EL_CELLS - 1)], j)
+            los.append(lo)
+            his.append(hi)
+            owners.append(owner)
         if not los:
             z = np.zeros(0, np.int64)
             return z, z
