@@ -11,8 +11,10 @@ within that radius of its centre: such a direction lies within the cone's angle 
 axis, so within that angle of its elevation and within asin(sin a / cos e) of its
 azimuth (the span of a spherical cap that holds no pole). The cells those spans touch
 are a superset; where a cone would hold a pole, or ``o0`` lies inside the reach, every
-ray is taken. A point lies on its ray (``RayRecord.point_world``), so the points near a
-box are the points of the rays near it.
+ray is taken, or for a box wholly below or above every origin (a sensor on its own
+car's roof) the elevation bands that can reach it (``RayCells._bands``). A point lies
+on its ray (``RayRecord.point_world``), so the points near a box are the points of the
+rays near it.
 """
 
 import math
