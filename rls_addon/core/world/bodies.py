@@ -53,6 +53,7 @@ class PreparedScene:
                 self.caster = self.primary = caster_factory(self.vertices, self.triangles)
         self.backend = "none" if self.caster is None else self.caster.name
         self.instanced_cache = {}  # instancing.InstancedWorld.build's, per with_static
+        self._joined_table = None  # world.World._joined_table's, for the last bodies
         self.planes = triangle_planes(self.vertices, self.triangles)
         # Caster triangle -> geometry triangle, with a trailing -1 that misses (-1) pick.
         self._to_geometry = np.append(self.kept, -1).astype(np.int64)
