@@ -78,8 +78,10 @@ def test_a_shifted_array_is_numpys_difference_and_keeps_its_bounds(monkeypatch, 
     assert got.tobytes() == (a - c).tobytes() and not got.flags.writeable
     kept = [k for k, _ in vectors._BOUNDS]
     assert kept[0] is got
+    again = vectors.shifted(a.reshape(-1, 3), c)  # a whole view of it: its bounds found
+    assert vectors._BOUNDS[0][0] is again and again.tobytes() == got.tobytes()
     lo, hi = column_bounds(got.reshape(-1, 3))
-    assert len(vectors._BOUNDS) == 2 and vectors._BOUNDS[0][0] is got  # found, not recomputed
+    assert len(vectors._BOUNDS) == 2 and vectors._BOUNDS[1][0] is got  # found, not recomputed
     want = (a - c)
     assert np.array_equal(lo, want.min(axis=0)) and np.array_equal(hi, want.max(axis=0))
 

@@ -56,7 +56,7 @@ def shifted(a, c):
     np.subtract(m[n:], c, out=out[n:])
     out.flags.writeable = False
     for kept, (lo, hi) in _BOUNDS:
-        if kept is a:
+        if kept is a or _whole_view(a, kept):
             keep_bounds(out, lo - c, hi - c)
             break
     return out
