@@ -46,11 +46,12 @@ NATIVE = ROOT / "rls_addon" / "core" / "native" / "c"
 # (probes.c), the weather's false returns (weather.c), a study candidate's disk counts
 # (disks.c), the ghost bounces' set-up and landing (ghosts.c), a static cast's returns
 # (returns.c), a footprint's echoes (echoes.c), the ground-truth boxes' counts
-# (boxes.c) and a moving sensor's ray origins (tracks.c).
+# (boxes.c), a moving sensor's ray origins (tracks.c) and the instances of a sweep's
+# moving objects attached to their Embree scene (instances.c).
 SOURCES = [NATIVE / "embree_loop.c", NATIVE / "points.c", NATIVE / "edges.c",
            NATIVE / "weather.c", NATIVE / "probes.c", NATIVE / "disks.c",
            NATIVE / "ghosts.c", NATIVE / "returns.c", NATIVE / "echoes.c",
-           NATIVE / "boxes.c", NATIVE / "tracks.c"]
+           NATIVE / "boxes.c", NATIVE / "tracks.c", NATIVE / "instances.c"]
 HEADERS = [NATIVE / "rls_threads.h", NATIVE / "rls_shares.h", NATIVE / "rls_sectors.h"]
 BUILD = ROOT / "build" / "native"
 # The newest glibc a Linux loop may need: Blender 4.2's (its minimum, and the Zig target's).
@@ -78,7 +79,8 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_static_returns", "rls_returns_abi",
            "rls_echo_group", "rls_echo_choose", "rls_echoes_abi",
            "rls_box_counts", "rls_boxes_abi",
-           "rls_track_positions", "rls_tracks_abi")
+           "rls_track_positions", "rls_tracks_abi",
+           "rls_attach_instances", "rls_instances_abi")
 
 
 def _cstr(data, off):

@@ -60,3 +60,38 @@ def test_the_cover_of_many_origins_is_every_origins(seed):
         want = bool(np.sqrt(((origins - scene.centre) ** 2).sum(axis=1)).max() + max_range
                     <= scene.reach * (1 + 1e-12))
         assert scene.covers(origins, max_range) == want
+
+
+@pytest.mark.parametrize("n", [1, 31, 32, 33, 115137])
+def test_a_shifted_array_is_numpys_difference_and_keeps_its_bounds(monkeypatch, n):
+    """``shifted(a, c)`` (rows folded for numpy) is ``a - c`` byte for byte, read-only;
+    when ``a``'s bounds are kept its bounds are kept too, and equal numpy's least and
+    greatest of the difference (rounding keeps order); a whole view of it (what
+    ``reshape(-1, 3)`` gives) finds them."""
+    monkeypatch.setattr(vectors, "_BOUNDS", [])
+    rng = np.random.default_rng(n)
+    a = rng.normal(size=(n, 3)) * [1e3, 1.0, 1e-3] + [3e5, -2.0, 7.0]
+    c = np.array([3e5 + 0.1, 1e-7, -1e4])
+    a.flags.writeable = False
+    column_bounds(a)
+    got = vectors.shifted(a, c)
+    assert got.tobytes() == (a - c).tobytes() and not got.flags.writeable
+    kept = [k for k, _ in vectors._BOUNDS]
+    assert kept[0] is got
+    again = vectors.shifted(a.reshape(-1, 3), c)  # a whole view of it: its bounds found
+    assert vectors._BOUNDS[0][0] is again and again.tobytes() == got.tobytes()
+    lo, hi = column_bounds(got.reshape(-1, 3))
+    assert len(vectors._BOUNDS) == 2 and vectors._BOUNDS[1][0] is got  # found, not recomputed
+    want = (a - c)
+    assert np.array_equal(lo, want.min(axis=0)) and np.array_equal(hi, want.max(axis=0))
+
+
+def test_a_view_of_part_of_a_kept_array_is_not_taken_for_it(monkeypatch):
+    monkeypatch.setattr(vectors, "_BOUNDS", [])
+    a = np.arange(300.0).reshape(100, 3)
+    a.flags.writeable = False
+    column_bounds(a)
+    lo, hi = column_bounds(a[:50])
+    assert hi.tolist() == [147.0, 148.0, 149.0]
+    lo, hi = column_bounds(a[::-1])
+    assert lo.tolist() == [0.0, 1.0, 2.0] and hi.tolist() == [297.0, 298.0, 299.0]

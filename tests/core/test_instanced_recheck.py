@@ -133,3 +133,43 @@ def test_origins_whose_bounds_meet_a_hull_box_count_as_inside():
     inside[-1] = (caster.box_lo[0] + caster.box_hi[0]) / 2
     assert caster._starts_inside(inside)
     assert caster._starts_inside(inside[-1:]) and not caster._starts_inside(origins[:1])
+
+
+def test_instances_attached_in_c_cast_as_those_attached_call_by_call(monkeypatch):
+    """The instances of a sweep's moving objects attached to the top-level Embree scene
+    in C (native/c/instances.c) and one ctypes call at a time (``_attach_each``, the
+    reference) give the same casts to the bit: a car crossing the rays at 120 m/s (two
+    steps), one turning at 40 degrees a second (65 steps) and a parked one, in front
+    of a street;
+    rays spread over the sweep, so which of them meet a car depends on every step."""
+    from rls_addon.core.casting import embree_api
+
+    from .test_instancing import bodies, street
+
+    assert embree_api.ATTACH_INSTANCES.get() is not None  # the library is built here
+    fast = Embree.configured(robust=False)
+    g, rb = bodies(street(), fast)
+    rb.tracks = [Track([0.0, T], [pose(10, -6, -0.8), pose(10, 6, -0.8)]), realistic_turn(),
+                 rb.tracks[2]]
+    static = PreparedScene(g, np.zeros(3), 100.0, fast)
+    rng = np.random.default_rng(8)
+    n = 40000
+    az, el = rng.uniform(-np.pi, np.pi, n), rng.uniform(-0.3, 0.1, n)
+    d = np.c_[np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    times = np.sort(rng.uniform(0.0, T, n))
+    origins = np.array([[0.0, 0.0, 0.5]])
+    got = []
+    for compiled in (True, False):
+        monkeypatch.setattr(embree_api, "compiled", compiled)
+        static.instanced_cache.clear()
+        world = World(static, [rb])
+        # traced as instances (a library whose instances do not move as their steps
+        # say fails the process's instancing probe: every body is cast the portable way)
+        assert world.instanced is not None and not world.instanced.portable
+        got.append(world.cast(origins, d, times, 100.0))
+    for x, y in zip(*got):
+        assert x.tobytes() == y.tobytes()
+    body, tri = got[0][1], got[0][2]
+    car_of = np.searchsorted(rb.tri_start, np.maximum(tri, 0), side="right") - 1
+    for k in range(3):  # every car is hit
+        assert np.count_nonzero((body == 1) & (car_of == k)) > 20

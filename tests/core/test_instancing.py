@@ -342,3 +342,17 @@ def test_the_steps_check_a_box_at_its_eight_corners_in_meshgrids_order():
     lo, hi = v.min(0), v.max(0)
     grid = np.stack(np.meshgrid(*zip(lo, hi), indexing="ij"), -1).reshape(-1, 3)
     assert np.array_equal(np.where(instancing._CORNER_BITS, hi, lo), grid)
+
+
+def test_a_driving_sensors_static_scene_is_traced_with_its_instances(static_cast):
+    """A driving sensor's ray origins are new every frame (read-only, with their bounds
+    kept: track_set.positions_at), so its static scene is never cast apart to be kept
+    (PreparedScene.cast's reuse is for a sensor that does not move): one traversal of
+    the static scene and the cars, one instanced world built."""
+    g, rb = bodies(street(), Embree)
+    static = PreparedScene(g, np.zeros(3), 110.0, Embree)
+    drive = Track([0.0, T], [pose(0, 0, 0), pose(1, 0, 0)])
+    res = scan_frame(static, pattern(), pose(0, 0, 0), PRESET, EXACT, sensor_track=drive,
+                     moving=[rb])
+    assert len(res.points) > 1000 and not res.stats["static_cast_reused"]
+    assert list(static.instanced_cache) == [True]

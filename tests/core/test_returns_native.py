@@ -64,3 +64,45 @@ def test_every_share_writes_its_own_rays_and_reports_a_bad_row(native, monkeypat
     tri[-1] = rows  # in the last share
     with pytest.raises(IndexError):
         returns.static_returns(dist, tri, table, 1.0, 40.0)
+
+
+def _geometry(rng, triangles, objects, materials):
+    from rls_addon.core.scene.geometry import MaterialInfo, ObjectInfo, SceneGeometry
+
+    v = rng.normal(size=(3 * triangles, 3))
+    return SceneGeometry(v, np.arange(3 * triangles).reshape(-1, 3),
+                         rng.integers(0, len(objects), triangles),
+                         rng.integers(0, len(materials), triangles),
+                         [ObjectInfo(o) for o in objects], [MaterialInfo(m) for m in materials])
+
+
+@pytest.mark.parametrize("static_triangles", [0, 1, 700])
+def test_a_moving_worlds_returns_are_its_bodies_own(monkeypatch, static_triangles):
+    """A world with moving bodies finds every ray's returns in one pass over all the
+    bodies' rows (``World.returns``): what the range test and ``World.surface_ids``
+    (body by body, the reference) give, misses included (the static scene's first
+    row), frame after frame with the same bodies, with the kernel and without."""
+    from types import SimpleNamespace
+
+    from rls_addon.core.world.world import World
+
+    rng = np.random.default_rng(11)
+    objects, materials = ["road", "car", "bus", "bike"], ["asphalt", "paint", "glass"]
+    static = SimpleNamespace(geometry=_geometry(rng, static_triangles, objects, materials))
+    bodies = [SimpleNamespace(geometry=_geometry(rng, k, objects, materials))
+              for k in (40, 1, 300)]
+    for frame in range(2):
+        world = World(static, bodies)
+        n = 50_000
+        body = rng.integers(-1, 4, n)
+        body[(body == 0)] = -1 if static_triangles == 0 else 0
+        counts = np.array([static_triangles, 40, 1, 300])
+        tri = np.where(body >= 0, (rng.random(n) * counts[body]).astype(np.int64), -1)
+        dist = np.where(body >= 0, rng.uniform(0.0, 120.0, n), np.inf)
+        want = (returns.in_range(dist, tri, 0.5, 100.0), world.surface_ids(body, tri))
+        for compiled in (True, False):
+            monkeypatch.setattr(returns, "compiled", compiled)
+            valid, surface = world.returns(dist, body, tri, 0.5, 100.0)
+            assert np.array_equal(valid, want[0]) and valid.dtype == np.bool_
+            assert np.array_equal(surface, want[1]) and surface.dtype == np.int32
+        assert want[0].any() and (body == -1).any() and (body == 3).any()

@@ -121,3 +121,27 @@ def test_tracks_made_together_are_each_tracks_own():
     points = [rng.normal(size=(2, 3)) for _ in mats]
     assert _interp_errors(times, mats, probe_t, probe, points) == \
         [_interp_error(times, m, probe_t, p, q) for m, p, q in zip(mats, probe, points)]
+
+
+def test_a_frames_ray_origins_in_c_come_with_their_bounds(monkeypatch):
+    """The C origins are read-only and their column bounds, found in the same pass, are
+    kept: numpy's least and greatest of them (driving, accelerating, turning,
+    mirrored tracks; times out of order and beyond the sweep). A NaN time keeps none
+    (numpy's bounds are NaN there)."""
+    from rls_addon.core.native import vectors
+    from rls_addon.core.scene import track_set
+
+    rng = np.random.default_rng(7)
+    for track in tracks(rng, 12):
+        if len(track.times) < 2 or track.is_static:
+            continue  # answered by Track.positions_at
+        monkeypatch.setattr(vectors, "_BOUNDS", [])
+        t = rng.uniform(-0.02, 0.12, 70000)  # two shares on two threads
+        got = track_set.positions_at(track, t)
+        assert not got.flags.writeable and vectors._BOUNDS[0][0] is got
+        lo, hi = vectors._BOUNDS[0][1]
+        assert np.array_equal(lo, got.min(axis=0)) and np.array_equal(hi, got.max(axis=0))
+        t[17] = np.nan
+        monkeypatch.setattr(vectors, "_BOUNDS", [])
+        got = track_set.positions_at(track, t)
+        assert vectors._BOUNDS == [] and np.isnan(vectors.column_bounds(got)[0]).all()

@@ -13,6 +13,7 @@ import threading
 import numpy as np
 
 from ..errors import CastingError
+from ..native.kernels import Kernel
 
 _LOCK = threading.RLock()
 
@@ -283,7 +284,10 @@ class _Scene(_SceneBase):
 class _MotionScene(_SceneBase):
     """A top-level Embree scene of instances: each an Embree scene placed by one
     transform, or by transforms at evenly spaced time steps over ray times [0, 1]
-    (Embree interpolates the matrices linearly between steps and bounds the motion)."""
+    (Embree interpolates the matrices linearly between steps and bounds the motion).
+    The instances are attached in C where the library is built
+    (``native/c/instances.c``: the same Embree calls in the same order), else one
+    ctypes call at a time (``_attach_each``, the reference)."""
 
     def __init__(self, lib, instances):
         self._open(lib)
@@ -296,6 +300,23 @@ class _MotionScene(_SceneBase):
         # numpy ctypes object per step cost more than the top level's build.
         rows = np.ascontiguousarray(np.concatenate([m[:, :3, :] for m in mats]) if mats
                                     else np.zeros((0, 3, 4)), dtype=np.float32)
+        fn = ATTACH_INSTANCES.get() if compiled and instances else None
+        if fn is None:
+            self._attach_each(instances, mats, rows)
+        else:
+            scenes = (ctypes.c_void_p * len(instances))(*[sc.handle for sc, _ in instances])
+            steps = np.array([len(m) for m in mats], np.int64)
+            args = _InstancesArgs(ctypes.addressof(_calls(lib)), self.device, self.handle,
+                                  len(instances), ctypes.addressof(scenes),
+                                  steps.ctypes.data, rows.ctypes.data)
+            if fn(ctypes.byref(args)) != len(instances):
+                self.release()
+                raise MemoryError("Embree could not make an instance")
+        self._commit("the instance scene")
+
+    def _attach_each(self, instances, mats, rows):
+        """The instances attached one Embree call at a time (what instances.c does)."""
+        lib = self.lib
         address, size = rows.ctypes.data, rows[0].nbytes if len(rows) else 0
         set_transform = lib.rtcSetGeometryTransform
         first = 0
@@ -307,7 +328,6 @@ class _MotionScene(_SceneBase):
                 set_transform(geom, k, _FORMAT_FLOAT3X4_ROW_MAJOR, address + size * (first + k))
             first += len(m)
             self._attach(geom)
-        self._commit("the instance scene")
 
     def __del__(self):
         try:
@@ -319,3 +339,45 @@ class _MotionScene(_SceneBase):
 def packet_mode_error():
     """Why packet mode is not used ('' when it is, or has not been tried yet)."""
     return _LIB_ERROR
+
+
+# The Embree entry points instances.c calls, in the order of its embree_calls_t.
+_CALLS = ("rtcNewGeometry", "rtcSetGeometryInstancedScene", "rtcSetGeometryTimeStepCount",
+          "rtcSetGeometryTransform", "rtcCommitGeometry", "rtcAttachGeometry",
+          "rtcReleaseGeometry")
+
+
+class _EmbreeCalls(ctypes.Structure):
+    """``embree_calls_t`` of native/c/instances.c."""
+
+    _fields_ = [(name, ctypes.c_void_p) for name in _CALLS]
+
+
+class _InstancesArgs(ctypes.Structure):
+    """``instances_t`` of native/c/instances.c."""
+
+    _fields_ = [("calls", ctypes.c_void_p), ("device", ctypes.c_void_p),
+                ("scene", ctypes.c_void_p), ("count", ctypes.c_int64),
+                ("scenes", ctypes.c_void_p), ("steps", ctypes.c_void_p),
+                ("rows", ctypes.c_void_p)]
+
+
+_CALL_TABLES = {}
+
+
+def _calls(lib):
+    """The entry points of ``lib`` that instances.c calls (kept for the process)."""
+    with _LOCK:
+        got = _CALL_TABLES.get(id(lib))
+        if got is None:
+            got = _CALL_TABLES[id(lib)] = _EmbreeCalls(
+                *[ctypes.cast(getattr(lib, name), ctypes.c_void_p).value for name in _CALLS])
+        return got
+
+
+NATIVE_INSTANCES_ABI = 1
+ATTACH_INSTANCES = Kernel("rls_attach_instances", "rls_instances_abi", NATIVE_INSTANCES_ABI,
+                          [ctypes.POINTER(_InstancesArgs)], ctypes.c_int64)
+# Off: instances are attached one ctypes call at a time (the reference instances.c
+# follows).
+compiled = True

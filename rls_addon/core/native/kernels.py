@@ -3,7 +3,8 @@ per-hit stage (``points.c``), the footprint's edges and probes (``edges.c``, ``p
 the weather's false returns (``weather.c``), a study's disk counts (``disks.c``), the
 ghost bounces' set-up and landing (``ghosts.c``), a static cast's returns
 (``returns.c``), a footprint's echoes (``echoes.c``), the ground-truth boxes' counts
-(``boxes.c``) and a moving sensor's ray origins (``tracks.c``).
+(``boxes.c``), a moving sensor's ray origins (``tracks.c``) and a sweep's moving
+instances attached to their Embree scene (``instances.c``).
 Each entry point is bound once, on first use, after checking its interface version;
 None where the library is not built or is stale (the caller then runs its numpy
 reference, which gives the same bytes)."""

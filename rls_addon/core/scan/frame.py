@@ -234,10 +234,13 @@ def _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory, f
     warnings = list(scene.warnings) + _empty_scene_warnings(scene, moving, rmax)
 
     # A sensor that does not move casts the same rays into the same static scene every
-    # frame: the static part is cast once and reused (see PreparedScene.cast).
+    # frame: the static part is cast once and reused (see PreparedScene.cast). A
+    # driving one's origins are new every frame (read-only too, see
+    # track_set.positions_at): nothing to keep.
     reused = scene.reused
+    still = sensor_track is None or sensor_track.is_static
     pending = world.start(aim.origins, aim.dirs, aim.times, rmax, order=aim.order,
-                          reuse=pick.rows is None)
+                          reuse=pick.rows is None and still)
     rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
     draws, glossy, glossy_u = _draws(rng, ghost_rng, n, pick, s, dv, world)
 

@@ -15,13 +15,16 @@ import numpy as np
 
 from ..native import kernels
 from ..native.kernels import Kernel
+from ..native.vectors import keep_bounds
 from .motion import Track, hermite, matrix_from_quat, slerp
 
 
 def positions_at(track, t):
     """(N, 3) ``track.positions_at(t)`` (its reference), in C where it is built
     (``native/c/tracks.c``: the same bits) for the many times of a frame's rays, each
-    firing at its own time."""
+    firing at its own time. From C the array is read-only and its column bounds,
+    found in the same pass, are kept (``vectors.keep_bounds``): a frame asks for them
+    four times (its prepared scene's cover, the re-check's octant table and limit)."""
     t = np.asarray(t, np.float64).reshape(-1)
     fn = TRACK_POSITIONS.get() if compiled and len(t) >= 256 else None
     if fn is None or len(track.times) < 2 or track.is_static:
@@ -29,9 +32,13 @@ def positions_at(track, t):
     knots = [np.ascontiguousarray(track.times), np.ascontiguousarray(track.matrices[:, :3, 3]),
              np.ascontiguousarray(track.velocities, np.float64), np.ascontiguousarray(t)]
     out = np.empty((len(t), 3))
+    bounds = np.empty(6)
     args = _PositionsArgs(len(knots[0]), *(a.ctypes.data for a in knots[:3]), len(t),
-                          knots[3].ctypes.data, out.ctypes.data)
+                          knots[3].ctypes.data, out.ctypes.data, bounds.ctypes.data, 0)
     fn(ctypes.byref(args), kernels.threads())
+    out.flags.writeable = False
+    if not args.nan:
+        keep_bounds(out, bounds[:3], bounds[3:])
     return out
 
 
@@ -40,10 +47,11 @@ class _PositionsArgs(ctypes.Structure):
 
     _fields_ = [("knots", ctypes.c_int64), ("times", ctypes.c_void_p),
                 ("position", ctypes.c_void_p), ("velocity", ctypes.c_void_p),
-                ("n", ctypes.c_int64), ("t", ctypes.c_void_p), ("out", ctypes.c_void_p)]
+                ("n", ctypes.c_int64), ("t", ctypes.c_void_p), ("out", ctypes.c_void_p),
+                ("bounds", ctypes.c_void_p), ("nan", ctypes.c_int32)]
 
 
-NATIVE_TRACKS_ABI = 1
+NATIVE_TRACKS_ABI = 2
 TRACK_POSITIONS = Kernel("rls_track_positions", "rls_tracks_abi", NATIVE_TRACKS_ABI,
                          [ctypes.POINTER(_PositionsArgs), ctypes.c_int])
 # Off: a frame's ray origins come from Track.positions_at (the reference the C code is

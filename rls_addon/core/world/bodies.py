@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from ..casting import WatertightCaster, cast_exact, triangle_planes
-from ..native.vectors import column_bounds
+from ..native.vectors import column_bounds, shifted
 from ..scene.geometry import clean_for_casting, concatenate
 
 
@@ -53,6 +53,7 @@ class PreparedScene:
                 self.caster = self.primary = caster_factory(self.vertices, self.triangles)
         self.backend = "none" if self.caster is None else self.caster.name
         self.instanced_cache = {}  # instancing.InstancedWorld.build's, per with_static
+        self._joined_table = None  # world.World._joined_table's, for the last bodies
         self.planes = triangle_planes(self.vertices, self.triangles)
         # Caster triangle -> geometry triangle, with a trailing -1 that misses (-1) pick.
         self._to_geometry = np.append(self.kept, -1).astype(np.int64)
@@ -135,8 +136,7 @@ class PreparedScene:
         if self.caster is None or n == 0:
             got = np.full(n, np.inf), np.full(n, -1, np.int64), np.zeros((n, 3))
             return lambda: got
-        o = np.asarray(origins, np.float64).reshape(-1, 3) - self.centre
-        o.flags.writeable = False  # its bounds are kept (vectors.column_bounds)
+        o = shifted(origins, self.centre)  # read-only: its bounds are kept (column_bounds)
         caster = self.caster if watertight else self.primary
         pending = caster.start_refined(o, directions, max_range, self.planes, order)
         if pending is None:  # a backend that casts from Python: here, refined after

@@ -23,6 +23,7 @@ object alone, exact at every ray's time) and its hits merged in (``portable``).
 
 import numpy as np
 
+from ..native.vectors import shifted
 from ..scene.geometry import hit_body
 from ..scene.track_set import TrackSet
 
@@ -215,8 +216,7 @@ class InstancedWorld:
         d = np.asarray(directions, np.float64)
         t = np.asarray(times, np.float64)
         tau = np.clip((t - self.t0) / (self.t1 - self.t0), 0.0, 1.0) if self.moving else None
-        oc = o - self.centre
-        oc.flags.writeable = False  # its bounds are kept (vectors.column_bounds)
+        oc = shifted(o, self.centre)  # read-only: its bounds are kept (column_bounds)
         recheck = None
         if self.first and watertight and self.static.watertight:
             # the static scene's re-check in the loop's threads, where it is compiled

@@ -118,7 +118,29 @@ class World:
         built)."""
         if not self.moving:
             return static_returns(dist, tri, self.static.geometry.surface_ids(), rmin, rmax)
+        if self._offsets is None:
+            # Every body's rows in one table: the same pass, each hit's row found from
+            # its body's first row (a miss: -1, the table's last row, the static
+            # scene's first as surface_ids gives a miss).
+            table, starts = self._joined_table()
+            return static_returns(dist, tri + starts[body], table, rmin, rmax)
         return in_range(dist, tri, rmin, rmax), self.surface_ids(body, tri)
+
+    def _joined_table(self):
+        """(every body's ``surface_ids`` rows one after the other, then the static
+        scene's first row (or zeros); per body its first row, then 0 for body -1).
+        Kept on the static scene for the same bodies' geometries (a sweep's frames)."""
+        geos = [b.geometry for b in self.bodies]
+        kept = getattr(self.static, "_joined_table", None)
+        if kept is not None and len(kept[0]) == len(geos) \
+                and all(a is b for a, b in zip(kept[0], geos)):
+            return kept[1], kept[2]
+        tables = [g.surface_ids() for g in geos]
+        last = tables[0][:1] if len(tables[0]) else np.zeros((1, 2), np.int32)
+        table = np.ascontiguousarray(np.concatenate(tables + [last]), np.int32)
+        starts = np.append(np.cumsum([0] + [len(t) for t in tables[:-1]]), 0).astype(np.int64)
+        self.static._joined_table = (geos, table, starts)
+        return table, starts
 
     def surface_ids(self, body, tri):
         """(N, 2) int32 (object index, material index) of the surface each ray hit, into

@@ -8,12 +8,18 @@
  * the fraction along it (clamped to [0, 1]; an interval of no length divides by 1), and
  * cubic Hermite with the knots' velocities, its four terms summed left to right as
  * numpy sums them; the library is built without fused multiply-add, so both give the
- * same bits. Times are split into shares on a few threads. */
+ * same bits. Times are split into shares on a few threads.
+ *
+ * With `bounds` the least and greatest of each column of the output come back too
+ * (lo x y z, hi x y z: what native/vectors.py's column_bounds gives for it), found in
+ * the same pass; `nan` is set when a position is not a number (the caller then asks
+ * numpy, whose min and max a NaN wins). */
+#include <math.h>
 #include <stdint.h>
 
 #include "rls_shares.h"
 
-#define RLS_TRACKS_ABI 1
+#define RLS_TRACKS_ABI 2
 
 typedef struct {
     int64_t knots;          /* K >= 2 */
@@ -23,11 +29,15 @@ typedef struct {
     int64_t n;
     const double *t;        /* n query times */
     double *out;            /* n x 3 */
+    double *bounds;         /* 6 (lo xyz, hi xyz) or NULL */
+    int32_t nan;            /* out: 1 when a position is NaN (bounds not given) */
 } positions_t;
 
 typedef struct {
     const positions_t *a;
     int64_t lo, hi;
+    double bounds[6];
+    int nan;
 } share_t;
 
 /* numpy's searchsorted(times, t, side="right") - 1, clipped to [0, K - 2]. */
@@ -49,6 +59,8 @@ static void run_share(void *arg) {
     int64_t i = 0;
     double last = 0.0;
     int have = 0;
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    int nan = 0;
     for (int64_t r = s->lo; r < s->hi; r++) {
         double t = a->t[r];
         if (!have || t != last) {  /* a firing's channels share their time */
@@ -64,22 +76,47 @@ static void run_share(void *arg) {
         double h01 = 3 * f2 - 2 * f3, h11 = (f3 - f2) * span;
         const double *p0 = a->position + 3 * i, *p1 = p0 + 3;
         const double *v0 = a->velocity + 3 * i, *v1 = v0 + 3;
-        for (int k = 0; k < 3; k++)
-            a->out[3 * r + k] = h00 * p0[k] + h10 * v0[k] + h01 * p1[k] + h11 * v1[k];
+        for (int k = 0; k < 3; k++) {
+            double x = h00 * p0[k] + h10 * v0[k] + h01 * p1[k] + h11 * v1[k];
+            a->out[3 * r + k] = x;
+            lo[k] = x < lo[k] ? x : lo[k];
+            hi[k] = x > hi[k] ? x : hi[k];
+            nan |= x != x;
+        }
     }
+    for (int k = 0; k < 3; k++) {
+        s->bounds[k] = lo[k];
+        s->bounds[3 + k] = hi[k];
+    }
+    s->nan = nan;
 }
 
 /* Below this many times per share a thread costs more than it saves. */
 #define MIN_SHARE 32768
 
-RLS_EXPORT void rls_track_positions(const positions_t *a, int threads) {
+RLS_EXPORT void rls_track_positions(positions_t *a, int threads) {
     int shares = rls_share_count(a->n, threads, MIN_SHARE);
     share_t s[RLS_MAX_SHARES];
     for (int k = 0; k < shares; k++) {
-        s[k] = (share_t){a, 0, 0};
+        s[k] = (share_t){a, 0, 0, {0}, 0};
         rls_share_bounds(a->n, shares, k, &s[k].lo, &s[k].hi);
     }
     rls_run_shares(run_share, s, sizeof(share_t), shares);
+    if (a->bounds == NULL) return;
+    double *b = a->bounds;
+    int nan = 0;
+    for (int k = 0; k < 3; k++) {
+        b[k] = INFINITY;
+        b[3 + k] = -INFINITY;
+    }
+    for (int j = 0; j < shares; j++) {
+        nan |= s[j].nan;
+        for (int k = 0; k < 3; k++) {
+            b[k] = s[j].bounds[k] < b[k] ? s[j].bounds[k] : b[k];
+            b[3 + k] = s[j].bounds[3 + k] > b[3 + k] ? s[j].bounds[3 + k] : b[3 + k];
+        }
+    }
+    a->nan = nan;
 }
 
 /* The interface version of rls_track_positions (RLS_TRACKS_ABI). */
