@@ -87,19 +87,68 @@ def may_deform(obj):
 
 
 class SweepClock:
-    """Maps seconds since the sweep start to Blender frames and sets the scene there."""
+    """Maps seconds since the sweep start to Blender frames and sets the scene there.
 
-    def __init__(self, scene, frame, period):
+    ``at``: a ``SceneTime`` that knows where its source last set the scene, or None.
+    With one, a time the scene is already at is not set again (the sweep's start, at
+    the frame the run has just set: one frame change of ten a frame saved); without
+    one every time is set."""
+
+    def __init__(self, scene, frame, period, at=None):
         self.scene, self.frame, self.period = scene, int(frame), float(period)
         self.fps = scene.render.fps / scene.render.fps_base
+        self.at = at
 
     def set(self, t):
         x = self.frame + float(t) * self.fps
         whole = math.floor(x)
-        self.scene.frame_set(whole, subframe=x - whole)
+        self._set(whole, x - whole)
 
     def restore(self):
-        self.scene.frame_set(self.frame)
+        self._set(self.frame, 0.0)
+
+    def _set(self, whole, subframe):
+        if self.at is not None and self.at.is_at(whole, subframe):
+            return
+        self.scene.frame_set(whole, subframe=subframe)
+        if self.at is not None:
+            self.at.now(whole, subframe)
+
+
+class SceneTime:
+    """Where a source last set its scene (frame, subframe), for a file nobody edits and
+    whose scene evaluates the same at a time however it got there (``history_free``):
+    then setting the scene to where it is changes nothing, and is skipped. Checked
+    against the scene's own frame and subframe too, so a frame set by anyone else is
+    never taken for ours."""
+
+    def __init__(self, scene):
+        self.scene, self.last = scene, None
+
+    def now(self, frame, subframe=0.0):
+        self.last = (int(frame), float(subframe))
+
+    def is_at(self, frame, subframe):
+        return (self.last == (int(frame), float(subframe))
+                and self.scene.frame_current == self.last[0]
+                and self.scene.frame_subframe == self.last[1])
+
+
+# What makes a scene's state at a frame depend on the frames evaluated before it
+# (caches filled as frames go by): simulations, particles and geometry nodes (whose
+# simulation zones step from frame to frame).
+_STEPPED = {"CLOTH", "SOFT_BODY", "FLUID", "DYNAMIC_PAINT", "PARTICLE_SYSTEM", "EXPLODE",
+            "NODES", "COLLISION"}
+
+
+def history_free(data):
+    """True when no scene in ``data`` (``bpy.data``) has a rigid-body world and no
+    object a rigid body or a modifier that steps from frame to frame (``_STEPPED``):
+    then a scene evaluated at a time reads the same whichever times came before."""
+    if any(getattr(sc, "rigidbody_world", None) is not None for sc in data.scenes):
+        return False
+    return not any(getattr(o, "rigid_body", None) is not None
+                   or any(m.type in _STEPPED for m in o.modifiers) for o in data.objects)
 
 
 def read_state(depsgraph, keys, deform_keys, sensor_name):
@@ -110,11 +159,13 @@ def read_state(depsgraph, keys, deform_keys, sensor_name):
         obj = depsgraph.objects.get(sensor_name) if sensor_name else None
         return mats, verts, None if obj is None else np.array(obj.matrix_world, np.float64)
     for inst in depsgraph.object_instances:
-        orig = inst.object.original
-        if orig.name == sensor_name and not inst.is_instance:
-            sensor = np.array(inst.matrix_world, dtype=np.float64)
-            continue
-        key = instance_key(inst)
+        if inst.is_instance:
+            key = instance_key(inst)
+        else:  # an object itself: its key is its name (instance_key), or the sensor's
+            key = inst.object.original.name
+            if key == sensor_name:
+                sensor = np.array(inst.matrix_world, dtype=np.float64)
+                continue
         if key in keys:
             mats[key] = np.array(inst.matrix_world, dtype=np.float64)
             if key in deform_keys and inst.object.type in GEOMETRY_TYPES:

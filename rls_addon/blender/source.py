@@ -7,7 +7,8 @@ import numpy as np
 
 from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh
-from .motion import SweepClock, may_deform, may_move, mesh_is_fixed, read_state, timeless
+from .motion import (SceneTime, SweepClock, history_free, may_deform, may_move, mesh_is_fixed,
+                     read_state, timeless)
 
 
 def traffic_span(scene):
@@ -71,6 +72,7 @@ class BlenderScene:
         self._kept_read = None  # (key, SceneRead) of the last read, when it may be kept
         self._timeless = {}     # exclude -> motion.timeless, for an unedited file
         self._mobility = {}     # what was read -> its Mobility, for an unedited file
+        self._time = None       # SceneTime, for an unedited file without history (time())
 
     def depsgraph(self):
         return self.context.evaluated_depsgraph_get()
@@ -80,6 +82,20 @@ class BlenderScene:
 
     def set_frame(self, frame):
         self.scene.frame_set(int(frame))
+        if self.time() is not None:
+            self._time.now(frame)
+
+    def time(self):
+        """Where this source last set the scene (``motion.SceneTime``), kept for a file
+        nobody edits whose scenes evaluate alike however a time is reached
+        (``motion.history_free``); None otherwise: then every time is set."""
+        if self.edited:
+            return None
+        if self._time is None:
+            import bpy
+
+            self._time = SceneTime(self.scene) if history_free(bpy.data) else False
+        return self._time or None
 
     def sensor_pose(self, sensor):
         from ..core.errors import SceneError
@@ -160,7 +176,7 @@ class BlenderSweep:
 
     def __init__(self, source, frame, period):
         self.source = source
-        self.clock = SweepClock(source.scene, frame, period)
+        self.clock = SweepClock(source.scene, frame, period, at=source.time())
 
     def __enter__(self):
         return self

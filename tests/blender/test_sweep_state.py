@@ -28,3 +28,81 @@ def test_the_sensor_alone_is_read_as_the_walk_reads_it(scene):
         assert alone[0, 3] > 0.0
     clock.restore()
     assert read_state(bpy.context.evaluated_depsgraph_get(), set(), set(), "Gone")[2] is None
+
+
+class _Counting:
+    """A scene that counts its frame changes (everything else is the scene's)."""
+
+    def __init__(self, scene):
+        self.__dict__["_scene"], self.__dict__["sets"] = scene, []
+
+    def frame_set(self, frame, subframe=0.0):
+        self.sets.append((frame, subframe))
+        self._scene.frame_set(frame, subframe=subframe)
+
+    def __getattr__(self, name):
+        return getattr(self._scene, name)
+
+
+def _animated_street(scene):
+    scene.render.fps, scene.render.fps_base = 10, 1.0  # a sweep of 0.1 s: one frame
+    car = mesh_object("Car", [(0, 0, 0), (4, 0, 0), (0, 2, 0), (0, 0, 1.5)],
+                      [(0, 1, 2), (0, 1, 3)])
+    lidar = add_lidar(location=(0, 0, 2))
+    for frame, x, yaw in ((1, 0.0, 0.0), (6, 3.0, 0.4), (11, 12.0, 1.1)):  # eased: accelerating
+        for obj, dx in ((car, 5.0), (lidar, 0.0)):
+            obj.location.x, obj.rotation_euler.z = x + dx, yaw
+            obj.keyframe_insert("location", frame=frame)
+            obj.keyframe_insert("rotation_euler", frame=frame)
+    return car, lidar
+
+
+def _states(source, frame, times, keys, sensor):
+    source.set_frame(frame)
+    with source.sweep(frame, 0.1) as sweep:
+        counting = sweep.clock.scene = _Counting(sweep.clock.scene)
+        got = [sweep.state(t, keys, set(), sensor) for t in times]
+    return got, counting.sets
+
+
+def test_an_unedited_sweep_reads_what_setting_every_time_reads(scene):
+    """An unedited source (a background run) does not set the scene again at the
+    sweep's start, where the run has just set it (``motion.SceneTime``); every state
+    it reads, over frames of an accelerating, turning car and LiDAR, is the one a
+    source that sets every time reads, byte for byte."""
+    from rls_addon.blender.source import BlenderScene
+
+    _, lidar = _animated_street(scene)
+    times = [0.0, 0.05, 0.1, 0.025, 0.075]
+    unedited, edited = BlenderScene(scene, edited=False), BlenderScene(scene)
+    assert unedited.time() is not None and edited.time() is None
+    for frame in (3, 4, 7):
+        fast, fast_sets = _states(unedited, frame, times, {"Car"}, lidar.name)
+        slow, slow_sets = _states(edited, frame, times, {"Car"}, lidar.name)
+        # every time set but the start; then back at the frame (restore)
+        assert fast_sets == [(frame, 0.5), (frame + 1, 0.0), (frame, 0.25), (frame, 0.75),
+                             (frame, 0.0)]
+        assert slow_sets == [(frame, 0.0)] + fast_sets
+        for (m1, _, s1), (m2, _, s2) in zip(fast, slow):
+            assert m1["Car"].tobytes() == m2["Car"].tobytes()
+            assert s1.tobytes() == s2.tobytes()
+        assert len({m["Car"].tobytes() for m, _, _ in fast}) == len(times)  # it moves
+
+
+def test_a_scene_stepped_from_frame_to_frame_is_set_at_every_time(scene):
+    """A geometry-nodes modifier (a simulation zone steps from frame to frame) or a
+    rigid body anywhere: the source keeps no ``SceneTime`` and sets every time."""
+    from rls_addon.blender.source import BlenderScene
+
+    car, lidar = _animated_street(scene)
+    assert BlenderScene(scene, edited=False).time() is not None
+    mod = car.modifiers.new("nodes", "NODES")
+    source = BlenderScene(scene, edited=False)
+    assert source.time() is None
+    _, sets = _states(source, 3, [0.0, 0.05], {"Car"}, lidar.name)
+    assert sets[0] == (3, 0.0)
+    car.modifiers.remove(mod)
+    bpy.context.view_layer.objects.active = car
+    car.select_set(True)
+    bpy.ops.rigidbody.object_add()
+    assert BlenderScene(scene, edited=False).time() is None
