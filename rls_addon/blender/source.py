@@ -73,6 +73,7 @@ class BlenderScene:
         self._timeless = {}     # exclude -> motion.timeless, for an unedited file
         self._mobility = {}     # what was read -> its Mobility, for an unedited file
         self._time = None       # SceneTime, for an unedited file without history (time())
+        self._labels = None if edited else {}  # objects' labels, for an unedited file
 
     def depsgraph(self):
         return self.context.evaluated_depsgraph_get()
@@ -117,7 +118,7 @@ class BlenderScene:
             return self._kept_read[1]
         instances, materials, stats = read_instances(
             self.depsgraph(), centre=centre, max_range=max_range, exclude=set(exclude),
-            reader=self.meshes)
+            reader=self.meshes, labels=self._labels)
         got = SceneRead(instances, materials, stats)
         self._kept_read = (key, got) if self._keeps_reads(key[2]) else None
         return got
