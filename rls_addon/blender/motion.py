@@ -5,6 +5,12 @@ animation, physics or geometry nodes on them or their parents) are never sampled
 others are read at times across the sweep with ``scene.frame_set(frame,
 subframe=...)``. How many samples, and what moves how, is the core's decision
 (``core.sweep``).
+
+In a file nobody edits whose scenes evaluate the same at a time however it is reached
+(``history_free``: no simulation, rigid body, particles or geometry nodes), a
+``SceneTime`` saves what would be read twice: the scene is not set again where it
+already is (a sweep's start, at the frame the run has just set), and a state read at a
+whole frame (a sweep's end) is given back at the next sweep's start.
 """
 
 import math
@@ -99,10 +105,14 @@ class SweepClock:
         self.fps = scene.render.fps / scene.render.fps_base
         self.at = at
 
-    def set(self, t):
+    def when(self, t):
+        """(frame, subframe) of ``t`` seconds since the sweep start."""
         x = self.frame + float(t) * self.fps
         whole = math.floor(x)
-        self._set(whole, x - whole)
+        return whole, x - whole
+
+    def set(self, t):
+        self._set(*self.when(t))
 
     def restore(self):
         self._set(self.frame, 0.0)
@@ -122,11 +132,41 @@ class SceneTime:
     against the scene's own frame and subframe too, so a frame set by anyone else is
     never taken for ours."""
 
+    KEEP_STATES = 8  # states kept at whole frames (a sweep's end is the next one's start), per sensor
+
     def __init__(self, scene):
         self.scene, self.last = scene, None
+        self._states = {}  # ((frame, 0.0), sensor) -> (keys, state read there)
 
     def now(self, frame, subframe=0.0):
         self.last = (int(frame), float(subframe))
+
+    def kept(self, when, keys, deform_keys, sensor):
+        """The state read at ``when`` (a whole frame) of these ``keys`` and ``sensor``,
+        or None: what a sweep's end read, given back at the next frame's start (never
+        a deforming object's vertices: those are always read)."""
+        got = self._states.get((when, sensor)) if not deform_keys else None
+        if got is None or not got[0].issuperset(keys):
+            return None
+        mats, _, sensor_m = got[1]
+        return {k: mats[k] for k in keys if k in mats}, {}, sensor_m
+
+    def keep(self, when, keys, deform_keys, sensor, state):
+        """Keep ``state`` (read at ``when``) when ``when`` is a whole frame."""
+        if deform_keys or when[1] != 0.0:
+            return
+        mats, _, sensor_m = state
+        frozen = {}
+        for k, m in list(mats.items()) + [(None, sensor_m)]:
+            if m is not None:
+                m = m.copy()
+                m.setflags(write=False)
+            frozen[k] = m
+        sensor_m = frozen.pop(None)
+        self._states.pop((when, sensor), None)
+        while len(self._states) >= self.KEEP_STATES:
+            self._states.pop(next(iter(self._states)))
+        self._states[(when, sensor)] = (frozenset(keys), (frozen, {}, sensor_m))
 
     def is_at(self, frame, subframe):
         return (self.last == (int(frame), float(subframe))

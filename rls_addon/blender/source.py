@@ -186,8 +186,19 @@ class BlenderSweep:
         self.clock.restore()
 
     def state(self, t, keys, deform_keys, sensor):
-        self.clock.set(t)
-        return read_state(self.source.depsgraph(), keys, deform_keys, sensor)
+        at = self.clock.at
+        if at is None:
+            self.clock.set(t)
+            return read_state(self.source.depsgraph(), keys, deform_keys, sensor)
+        # an unedited, history-free file: a state at a whole frame is kept for the
+        # next sweep (this sweep's end is the next frame's start)
+        when = self.clock.when(t)
+        got = at.kept(when, keys, deform_keys, sensor)
+        if got is None:
+            self.clock.set(t)
+            got = read_state(self.source.depsgraph(), keys, deform_keys, sensor)
+            at.keep(when, keys, deform_keys, sensor, got)
+        return got
 
     def instance_at(self, t, instance):
         self.clock.set(t)

@@ -67,9 +67,10 @@ def _states(source, frame, times, keys, sensor):
 
 def test_an_unedited_sweep_reads_what_setting_every_time_reads(scene):
     """An unedited source (a background run) does not set the scene again at the
-    sweep's start, where the run has just set it (``motion.SceneTime``); every state
-    it reads, over frames of an accelerating, turning car and LiDAR, is the one a
-    source that sets every time reads, byte for byte."""
+    sweep's start, where the run has just set it, and gives the state a sweep read at
+    its end back at the next frame's start (``motion.SceneTime``); every state it
+    reads, over frames of an accelerating, turning car and LiDAR, is the one a source
+    that sets and reads every time reads, byte for byte."""
     from rls_addon.blender.source import BlenderScene
 
     _, lidar = _animated_street(scene)
@@ -87,6 +88,10 @@ def test_an_unedited_sweep_reads_what_setting_every_time_reads(scene):
             assert m1["Car"].tobytes() == m2["Car"].tobytes()
             assert s1.tobytes() == s2.tobytes()
         assert len({m["Car"].tobytes() for m, _, _ in fast}) == len(times)  # it moves
+        # frame 4 starts where frame 3's sweep ended: that state is given back (kept
+        # read-only), not read again; frame 7 follows no sweep that ended there
+        assert fast[0][0]["Car"].flags.writeable == (frame != 4)
+        assert fast[0][2].flags.writeable == (frame != 4)
 
 
 def test_a_scene_stepped_from_frame_to_frame_is_set_at_every_time(scene):
