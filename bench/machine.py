@@ -8,6 +8,21 @@ import platform
 import numpy as np
 
 
+def require_compiled_loop():
+    """Exit when Embree's compiled loop is not what the run would time: a stale or
+    missing build makes every scan fall back to packets cast from Python (slower, and
+    moving objects cast the portable way), so the figures would describe the fallback
+    and not the product. ``make bench`` builds it first (``make native``)."""
+    import sys
+
+    from rls_addon.core.casting import embree, embree_loop
+
+    if embree.available() and embree_loop._native_loop() is None:
+        sys.exit("bench: the compiled ray loop is not in use ("
+                 + embree_loop.native_loop_error() + "); build it with make native "
+                 "(or .venv/bin/python tools/build_native.py) and run the bench again")
+
+
 def machine_info():
     cpu = platform.processor() or platform.machine()
     try:

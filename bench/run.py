@@ -79,6 +79,9 @@ def measure(quick):
 
     if not embree_caster.available():
         sys.exit("bench: embreex is missing (" + embree_caster.unavailable_reason() + ")")
+    from bench.machine import require_compiled_loop
+
+    require_compiled_loop()
     import bpy  # noqa: F401
 
     from bench import blender_scan, devices, engine_costs, memory, scaling, tessellation

@@ -12,8 +12,10 @@ import math
 import bpy
 
 from ..core.study.answer import (
+    band_colours,
     best_sets,
     candidate_scores,
+    score_bands,
     score_colours,
     score_range_text,
     table_rows,
@@ -44,13 +46,14 @@ def _marker_mesh():
     return mesh
 
 
-def _marker_material():
+def _marker_material(name=MARKER_MATERIAL):
     """Emission of the object's colour (Object Info), so each marker shows its own in
-    Material Preview; Solid shading shows it with Color: Object."""
-    mat = bpy.data.materials.get(MARKER_MATERIAL)
+    Material Preview; the band materials (``_band_materials``) are the same with their
+    band's viewport colour, which Solid shading shows."""
+    mat = bpy.data.materials.get(name)
     if mat is not None:
         return mat
-    mat = bpy.data.materials.new(MARKER_MATERIAL)
+    mat = bpy.data.materials.new(name)
     nt = mat.node_tree
     nt.nodes.clear()
     info = nt.nodes.new("ShaderNodeObjectInfo")
@@ -61,6 +64,20 @@ def _marker_material():
     for i, node in enumerate((info, emit, out)):
         node.location = (i * 250 - 400, 0)
     return mat
+
+
+def _band_materials():
+    """One marker material per band of ``score_bands`` (``RLS Study marker 00`` for no
+    value, then 01..16), each with its band's colour as its viewport colour."""
+    from mathutils import Color
+
+    out = []
+    for i, rgba in enumerate(band_colours()):
+        mat = _marker_material(f"{MARKER_MATERIAL} {i:02d}")
+        # (Blender's colour properties hold scene-linear values)
+        mat.diffuse_color = (*Color(rgba[:3]).from_srgb_to_scene_linear(), 1.0)
+        out.append(mat)
+    return out
 
 
 def clear_answer(scene):
@@ -181,6 +198,11 @@ def color_markers(scene, score):
     span in ``Scene.rls_study.color_range``."""
     objs = markers(scene)
     values = [o.get(f"rls_{score}", math.nan) for o in objs]
-    for obj, rgba in zip(objs, score_colours(values, score)):
+    bands = _band_materials() if objs else []
+    for obj, rgba, band in zip(objs, score_colours(values, score), score_bands(values, score)):
         obj.color = tuple(float(v) for v in rgba)
+        # its own material (slot linked to the object, the mesh is shared): its band's
+        slot = obj.material_slots[0]
+        slot.link = "OBJECT"
+        slot.material = bands[band]
     scene.rls_study.color_range = score_range_text(values, score) if objs else ""

@@ -77,6 +77,18 @@ def test_study_operator_equals_rls_study_and_leaves_its_answer(scene, tmp_path):
     densest = max(range(8), key=lambda i: float(candidates[i]["infra_d"]))
     assert tuple(marks[densest].color)[:3] == pytest.approx((253 / 255, 231 / 255, 37 / 255))
     assert p.color_range.startswith("InfraD ")
+    # Solid shading shows each marker's own material: its band's colour (dense yellow)
+    import mathutils
+
+    from rls_addon.core.study.answer import band_colours, score_bands
+
+    bands = score_bands([m["rls_infra_d"] for m in marks], "infra_d")
+    for m, band in zip(marks, bands):
+        slot = m.material_slots[0]
+        assert slot.link == "OBJECT" and slot.material.name == f"RLS Study marker {band:02d}"
+        srgb = mathutils.Color(slot.material.diffuse_color[:3]).from_scene_linear_to_srgb()
+        assert tuple(srgb) == pytest.approx(tuple(band_colours()[band][:3]), abs=1e-3)
+    assert bands[densest] == 16 and min(bands) == 1
     p.color_by = "ap"  # recoloured at once
     assert p.color_range.startswith("AP ")
 

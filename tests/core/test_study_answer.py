@@ -107,6 +107,23 @@ def test_candidate_scores_and_their_colours(result):
         answer.score_colours(d, "colour")
 
 
+def test_score_bands_follow_the_colours():
+    # worst in band 1, best in band 16, no value in band 0; lower is better for InfraNUC
+    assert answer.score_bands([0.0, 1.0, 0.5, float("nan")], "infra_d").tolist() == \
+        [1, 16, 9, 0]
+    assert answer.score_bands([0.5, 1.5], "infra_nuc").tolist() == [16, 1]
+    assert answer.score_bands([3.0, 3.0], "ap").tolist() == [16, 16]  # colours: all yellow
+    assert answer.score_bands([float("nan")], "ap").tolist() == [0]
+    # each band's colour is the markers' viridis at its middle, and no value grey
+    colours = answer.band_colours()
+    assert colours.shape == (17, 4)
+    assert colours[0] == pytest.approx(answer.NO_VALUE_RGBA)
+    v = np.linspace(0.0, 1.0, 41)
+    for value, band, rgba in zip(v, answer.score_bands(v, "infra_d"),
+                                 answer.score_colours(v, "infra_d")):
+        assert np.abs(colours[band][:3] - rgba[:3]).max() <= 0.12  # within its band
+
+
 def test_table_order_puts_the_best_first_and_missing_values_last():
     nan = float("nan")
     rows = [SimpleNamespace(k=1, sensors="b", infra_d=5.0, infra_nuc=0.9, visibility=nan, ap=0.2),

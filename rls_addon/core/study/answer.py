@@ -93,6 +93,36 @@ def score_colours(values, score):
     return rgba
 
 
+MARKER_BANDS = 16  # Solid shading shows a material's colour: the markers' in bands
+
+
+def score_bands(values, score, n=MARKER_BANDS):
+    """(n_values,) int: each value's band for Solid shading, which cannot show an
+    object's own colour but its material's: 0 for no value, then 1..``n`` from the
+    worst value to the best in ``n`` equal steps (the best in band ``n``; all in band
+    ``n`` when every value is the same, as ``score_colours`` colours them alike)."""
+    STUDY_SCORES.check(score)
+    v = np.asarray(values, dtype=np.float64)
+    if score in LOWER_IS_BETTER:
+        v = -v
+    finite = np.isfinite(v)
+    band = np.zeros(v.shape, np.int32)
+    if finite.any():
+        lo, hi = float(v[finite].min()), float(v[finite].max())
+        t = (v[finite] - lo) / (hi - lo) if hi > lo else np.ones(int(finite.sum()))
+        band[finite] = 1 + np.minimum(np.floor(t * n), n - 1).astype(np.int32)
+    return band
+
+
+def band_colours(n=MARKER_BANDS):
+    """(n + 1, 4) RGBA in 0..1 (sRGB) of ``score_bands``' bands: no value grey, then
+    the markers' viridis at each band's middle."""
+    out = np.empty((n + 1, 4))
+    out[0] = NO_VALUE_RGBA
+    out[1:] = colormap((np.arange(n) + 0.5) / n, vmin=0.0, vmax=1.0).astype(np.float64) / 255.0
+    return out
+
+
 def score_range_text(values, score):
     """'InfraD 6.2 (dark) to 19.2 (yellow)': what the markers' colours span."""
     v = np.asarray(values, dtype=np.float64)
