@@ -115,11 +115,19 @@ class SweepClock:
         self._set(*self.when(t))
 
     def restore(self):
-        self._set(self.frame, 0.0)
+        """Back at the frame: at once, or (with a ``SceneTime``) owed until the scene
+        is next read (``SceneTime.settle``); a run that goes on to the next frame, which
+        the sweep's end has just set, never pays it."""
+        if self.at is not None:
+            self.at.owe(self.frame)
+        else:
+            self.scene.frame_set(self.frame)
 
     def _set(self, whole, subframe):
-        if self.at is not None and self.at.is_at(whole, subframe):
-            return
+        if self.at is not None:
+            self.at.owed = None  # set now: whatever was owed is superseded
+            if self.at.is_at(whole, subframe):
+                return
         self.scene.frame_set(whole, subframe=subframe)
         if self.at is not None:
             self.at.now(whole, subframe)
@@ -130,16 +138,31 @@ class SceneTime:
     whose scene evaluates the same at a time however it got there (``history_free``):
     then setting the scene to where it is changes nothing, and is skipped. Checked
     against the scene's own frame and subframe too, so a frame set by anyone else is
-    never taken for ours."""
+    never taken for ours. A sweep's way back to its frame is owed (``owe``) until the
+    source is next read (``settle``) or set to another frame, which drops it."""
 
     KEEP_STATES = 8  # states kept at whole frames (a sweep's end is the next one's start), per sensor
 
     def __init__(self, scene):
         self.scene, self.last = scene, None
+        self.owed = None   # the frame a sweep left the scene to be put back at
         self._states = {}  # ((frame, 0.0), sensor) -> (keys, state read there)
 
     def now(self, frame, subframe=0.0):
         self.last = (int(frame), float(subframe))
+
+    def owe(self, frame):
+        self.owed = int(frame)
+
+    def settle(self):
+        """Put the scene back at the frame a sweep left it owing (if any), as the
+        sweep's end would have; not when anyone else has set the scene since (it is
+        no longer where this source left it)."""
+        if self.owed is not None:
+            frame, self.owed = self.owed, None
+            if self.last is not None and self.is_at(*self.last) and not self.is_at(frame, 0.0):
+                self.scene.frame_set(frame)
+                self.now(frame)
 
     def kept(self, when, keys, deform_keys, sensor):
         """The state read at ``when`` (a whole frame) of these ``keys`` and ``sensor``,

@@ -76,15 +76,27 @@ class BlenderScene:
         self._labels = None if edited else {}  # objects' labels, for an unedited file
 
     def depsgraph(self):
+        self._settle()
         return self.context.evaluated_depsgraph_get()
 
     def current_frame(self):
+        self._settle()
         return self.scene.frame_current
 
     def set_frame(self, frame):
+        at = self.time()
+        if at is not None:
+            at.owed = None  # (a sweep's way back to its frame: not needed now)
+            if at.is_at(frame, 0.0):  # the last sweep's end is this frame's start
+                return
         self.scene.frame_set(int(frame))
-        if self.time() is not None:
-            self._time.now(frame)
+        if at is not None:
+            at.now(frame)
+
+    def _settle(self):
+        """Put the scene back where the last sweep left it owing (``SceneTime``)."""
+        if self._time:
+            self._time.settle()
 
     def time(self):
         """Where this source last set the scene (``motion.SceneTime``), kept for a file

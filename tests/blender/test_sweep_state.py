@@ -79,11 +79,11 @@ def test_an_unedited_sweep_reads_what_setting_every_time_reads(scene):
     assert unedited.time() is not None and edited.time() is None
     for frame in (3, 4, 7):
         fast, fast_sets = _states(unedited, frame, times, {"Car"}, lidar.name)
+        assert unedited.time().owed == frame and scene.frame_subframe == 0.75
         slow, slow_sets = _states(edited, frame, times, {"Car"}, lidar.name)
-        # every time set but the start; then back at the frame (restore)
-        assert fast_sets == [(frame, 0.5), (frame + 1, 0.0), (frame, 0.25), (frame, 0.75),
-                             (frame, 0.0)]
-        assert slow_sets == [(frame, 0.0)] + fast_sets
+        # every time set but the start; the way back to the frame owed (not yet set)
+        assert fast_sets == [(frame, 0.5), (frame + 1, 0.0), (frame, 0.25), (frame, 0.75)]
+        assert slow_sets == [(frame, 0.0)] + fast_sets + [(frame, 0.0)]
         for (m1, _, s1), (m2, _, s2) in zip(fast, slow):
             assert m1["Car"].tobytes() == m2["Car"].tobytes()
             assert s1.tobytes() == s2.tobytes()
@@ -111,3 +111,31 @@ def test_a_scene_stepped_from_frame_to_frame_is_set_at_every_time(scene):
     car.select_set(True)
     bpy.ops.rigidbody.object_add()
     assert BlenderScene(scene, edited=False).time() is None
+
+
+def test_a_sweep_owes_its_way_back_until_the_scene_is_read(scene):
+    """An unedited source's sweep that ends at the next frame's start (its last state
+    read there, as ``sweep.sample_sweep`` reads) leaves the scene there: going on to
+    that frame sets nothing, and reading the scene first puts it back at the sweep's
+    frame (``SceneTime.settle``), as Blender's interface always has it."""
+    from rls_addon.blender.source import BlenderScene
+
+    _, lidar = _animated_street(scene)
+    source = BlenderScene(scene, edited=False)
+    # the sweep's end last: the scene is at frame 4 when the sweep is left
+    _, sets = _states(source, 3, [0.0, 0.05, 0.025, 0.1], {"Car"}, lidar.name)
+    assert sets == [(3, 0.5), (3, 0.25), (4, 0.0)]
+    assert scene.frame_current == 4 and source.time().owed == 3
+    source.set_frame(4)  # where the run goes next: already there, nothing to set
+    assert source.time().owed is None and scene.frame_current == 4
+    _, sets = _states(source, 4, [0.0, 0.05], {"Car"}, lidar.name)
+    assert sets == [(4, 0.5)] and scene.frame_subframe == 0.5
+    assert source.current_frame() == 4 and scene.frame_subframe == 0.0  # settled
+    want = np.array(bpy.data.objects["Car"].matrix_world)  # the frame's own matrix
+    scene.frame_set(4)
+    assert np.array_equal(want, np.array(bpy.data.objects["Car"].matrix_world))
+    _states(source, 4, [0.0, 0.05], {"Car"}, lidar.name)
+    pose = source.sensor_pose(lidar.name)  # a read settles too
+    assert scene.frame_subframe == 0.0
+    scene.frame_set(4)
+    assert np.array_equal(pose, source.sensor_pose(lidar.name))

@@ -100,11 +100,17 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
 
     n = 5
     times = np.linspace(0.0, period, n)
-    states = [state_at(t) for t in times]
-    every = stacked(states)
+    # The sweep's end is read last, after the first midpoints: a source stepping
+    # through its scene (Blender) is left at the next frame's start, where a run goes
+    # next. Every state is read once whatever the order.
+    states = [state_at(t) for t in times[:-1]]
+    every = None
     while n < MAX_SAMPLES:
         mids = (times[:-1] + times[1:]) / 2
         mid_states = [state_at(t) for t in mids]
+        if every is None:
+            states.append(state_at(times[-1]))
+            every = stacked(states)
         at_mids = stacked(mid_states)
         # every body at once: the same errors as one body at a time (_interp_error)
         worst = max(_interp_errors(times, every, mids, at_mids, corners), default=0.0)
@@ -117,6 +123,9 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
         times, states, every, n = merged_t, merged, both, 2 * n - 1
         if worst <= INTERP_TOLERANCE_M:
             break
+    if every is None:  # (no midpoints at all)
+        states.append(state_at(times[-1]))
+        every = stacked(states)
     matrices = {k: every[j] for j, (_, k) in enumerate(order)}
     vertices = {k: [s[1].get(instances[k].key) for s in states] for k in candidates
                 if instances[k].key in deform_keys}
