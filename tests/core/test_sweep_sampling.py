@@ -163,3 +163,23 @@ def test_errors_of_many_bodies_are_each_bodys_own():
     # one body alone (a sensor over a still scene) is its own track's answer too
     assert sw._interp_errors(times, mats[2:3], mids, probe[2:3], points[2:3]) == \
         [sw._interp_error(times, mats[2], mids, probe[2], points[2])]
+
+
+def test_the_sweeps_end_is_read_after_its_first_midpoints():
+    """Every sample is read once, and the sweep's end (the next frame's start) after
+    the first midpoints: a Blender source is left where a run goes next."""
+    asked = []
+
+    class Recording(_Sweep):
+        def state(self, t, keys, deform_keys, sensor):
+            asked.append(float(t))
+            return super().state(t, keys, deform_keys, sensor)
+
+    instances = [_Instance("driving", box_vertices((-2.0, -1.0, 0.0), (2.0, 1.0, 1.5)),
+                           MOTIONS["driving"](0))]
+    got = sw.classify(Recording(0.0, MOTIONS["turning"]), 0.1, instances,
+                      Mobility([0], set(), True), "lidar")
+    assert sorted(asked) == got.times.tolist() and len(set(asked)) == len(asked)
+    first = np.linspace(0.0, 0.1, 5)
+    assert asked[:8] == first[:-1].tolist() + ((first[1:] + first[:-1]) / 2).tolist()
+    assert asked[8] == 0.1
