@@ -36,22 +36,40 @@ def is_rls_helper(obj):
     return bool(is_lidar(obj) or any(obj.get(p) for p in HELPER_PROPERTIES))
 
 
+def _corners(bound_box):
+    """(8, 3) float64 corners of an object's local bounds (Blender's floats in one call
+    where it has ``foreach_get``)."""
+    if hasattr(bound_box, "foreach_get"):
+        flat = np.empty(24, np.float32)
+        bound_box.foreach_get(flat)
+        return flat.reshape(8, 3).astype(np.float64)
+    return np.array([tuple(c) for c in bound_box], dtype=np.float64)
+
+
 def _bounds_distance(matrix, bound_box, centre):
     """Distance from ``centre`` to an object's bounds in the world; 0 when they are not
     finite (a NaN or infinite vertex or matrix): the object is read, and the core skips
-    its broken triangles with a warning naming it."""
-    if hasattr(bound_box, "foreach_get"):  # Blender's (8, 3) floats in one call
-        flat = np.empty(24, np.float32)
-        bound_box.foreach_get(flat)
-        corners = flat.reshape(8, 3).astype(np.float64)
-    else:
-        corners = np.array([tuple(c) for c in bound_box], dtype=np.float64)
+    its broken triangles with a warning naming it. One object's: the reference of
+    ``_bounds_distances``."""
+    corners = _corners(bound_box)
     m = np.array(matrix, dtype=np.float64)
     if not (np.isfinite(corners).all() and np.isfinite(m).all()):
         return 0.0
     w = corners @ m[:3, :3].T + m[:3, 3]
     gap = np.maximum(np.maximum(w.min(0) - centre, centre - w.max(0)), 0.0)
     return float(np.sqrt(gap @ gap))
+
+
+def _bounds_distances(matrices, corners, centre):
+    """``_bounds_distance`` of N objects at once ((N, 4, 4) matrices, (N, 8, 3) local
+    corners): the same products and sums, element for element (tested)."""
+    out = np.zeros(len(matrices))
+    ok = np.isfinite(corners).all(axis=(1, 2)) & np.isfinite(matrices).all(axis=(1, 2))
+    m = matrices[ok]
+    w = corners[ok] @ np.swapaxes(m[:, :3, :3], 1, 2) + m[:, None, :3, 3]
+    gap = np.maximum(np.maximum(w.min(axis=1) - centre, centre - w.max(axis=1)), 0.0)
+    out[ok] = np.sqrt(np.einsum("ij,ij->i", gap, gap))
+    return out
 
 
 def read_mesh(obj_eval):
@@ -187,16 +205,24 @@ def instance_key(inst):
     return orig.name
 
 
-def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=None):
+def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=None,
+                   labels=None):
     """Instances visible to render (see module doc). Returns (instances, material
     table, stats). ``reader``: a scan session's ``MeshReader`` (meshes unchanged since
-    its last frame are not read again, and instances carry its mesh ids)."""
+    its last frame are not read again, and instances carry its mesh ids). ``labels``: a
+    dict kept by a source whose file nobody edits, {(object, instancer): label id}, so
+    each object's label is looked up once (its collections are walked for it).
+
+    Two walks over the instances: the first finds those to read and their bounds (every
+    one's distance from ``centre`` in one product, ``_bounds_distances``), the second
+    reads them (an instance is valid only while the walk is at it)."""
     centre = None if centre is None else np.asarray(centre, dtype=np.float64)
     materials, mat_index = [MaterialInfo("default")], {}
     cache, out = {}, []
     stats = {"objects": 0, "culled_by_range": 0, "hidden": 0}
     realized = {i.object.original.name for i in depsgraph.object_instances if _realizes_itself(i)}
-    for inst in depsgraph.object_instances:
+    wanted, matrices, corners = [], [], []
+    for n, inst in enumerate(depsgraph.object_instances):
         ob = inst.object
         orig = ob.original
         if ob.type not in GEOMETRY_TYPES or orig.name in exclude or is_rls_helper(orig):
@@ -206,11 +232,22 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         if orig.hide_render:
             stats["hidden"] += 1
             continue
-        mw = np.array(inst.matrix_world, dtype=np.float64)
+        wanted.append(n)
+        matrices.append(np.array(inst.matrix_world, dtype=np.float64))
         if centre is not None and max_range is not None:
-            if _bounds_distance(mw, ob.bound_box, centre) > max_range:
-                stats["culled_by_range"] += 1
-                continue
+            corners.append(_corners(ob.bound_box))
+    if corners:
+        near = _bounds_distances(np.array(matrices), np.array(corners), centre) <= max_range
+        stats["culled_by_range"] = int(len(near) - np.count_nonzero(near))
+        keep = {n: mw for n, mw, ok in zip(wanted, matrices, near) if ok}
+    else:
+        keep = dict(zip(wanted, matrices))
+    for n, inst in enumerate(depsgraph.object_instances):
+        mw = keep.get(n)
+        if mw is None:
+            continue
+        ob = inst.object
+        orig = ob.original
         key = (orig.name, ob.type)
         if key not in cache:
             cache[key] = reader.read(ob, key) if reader is not None else read_mesh(ob) + (0,)
@@ -229,15 +266,27 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         parent = inst.parent.original if inst.is_instance and inst.parent else None
         if _realizes_itself(inst):
             parent = None
+        label = _label(orig, parent, labels)
         item = Instance(instance_key(inst), orig.name, parent.name if parent else "",
-                        object_label(orig, parent), co, tri, None, mw, local_to_global,
-                        mesh_id)
+                        label, co, tri, None, mw, local_to_global, mesh_id)
         item.materials = item.material_indices(mat)
         out.append(item)
         stats["objects"] += 1
     if reader is not None:
         reader.scan_done()
     return out, materials, stats
+
+
+def _label(orig, parent, labels):
+    """``object_label(orig, parent)``, looked up once per pair in ``labels`` (a dict, or
+    None: every time)."""
+    if labels is None:
+        return object_label(orig, parent)
+    key = (orig.name, parent.name if parent is not None else None)
+    got = labels.get(key)
+    if got is None:
+        got = labels[key] = object_label(orig, parent)
+    return got
 
 
 def extract_geometry(depsgraph, centre=None, max_range=None, exclude=()):

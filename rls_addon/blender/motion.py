@@ -5,6 +5,12 @@ animation, physics or geometry nodes on them or their parents) are never sampled
 others are read at times across the sweep with ``scene.frame_set(frame,
 subframe=...)``. How many samples, and what moves how, is the core's decision
 (``core.sweep``).
+
+In a file nobody edits whose scenes evaluate the same at a time however it is reached
+(``history_free``: no simulation, rigid body, particles or geometry nodes), a
+``SceneTime`` saves what would be read twice: the scene is not set again where it
+already is (a sweep's start, at the frame the run has just set), and a state read at a
+whole frame (a sweep's end) is given back at the next sweep's start.
 """
 
 import math
@@ -87,19 +93,125 @@ def may_deform(obj):
 
 
 class SweepClock:
-    """Maps seconds since the sweep start to Blender frames and sets the scene there."""
+    """Maps seconds since the sweep start to Blender frames and sets the scene there.
 
-    def __init__(self, scene, frame, period):
+    ``at``: a ``SceneTime`` that knows where its source last set the scene, or None.
+    With one, a time the scene is already at is not set again (the sweep's start, at
+    the frame the run has just set: one frame change of ten a frame saved); without
+    one every time is set."""
+
+    def __init__(self, scene, frame, period, at=None):
         self.scene, self.frame, self.period = scene, int(frame), float(period)
         self.fps = scene.render.fps / scene.render.fps_base
+        self.at = at
 
-    def set(self, t):
+    def when(self, t):
+        """(frame, subframe) of ``t`` seconds since the sweep start."""
         x = self.frame + float(t) * self.fps
         whole = math.floor(x)
-        self.scene.frame_set(whole, subframe=x - whole)
+        return whole, x - whole
+
+    def set(self, t):
+        self._set(*self.when(t))
 
     def restore(self):
-        self.scene.frame_set(self.frame)
+        """Back at the frame: at once, or (with a ``SceneTime``) owed until the scene
+        is next read (``SceneTime.settle``); a run that goes on to the next frame, which
+        the sweep's end has just set, never pays it."""
+        if self.at is not None:
+            self.at.owe(self.frame)
+        else:
+            self.scene.frame_set(self.frame)
+
+    def _set(self, whole, subframe):
+        if self.at is not None:
+            self.at.owed = None  # set now: whatever was owed is superseded
+            if self.at.is_at(whole, subframe):
+                return
+        self.scene.frame_set(whole, subframe=subframe)
+        if self.at is not None:
+            self.at.now(whole, subframe)
+
+
+class SceneTime:
+    """Where a source last set its scene (frame, subframe), for a file nobody edits and
+    whose scene evaluates the same at a time however it got there (``history_free``):
+    then setting the scene to where it is changes nothing, and is skipped. Checked
+    against the scene's own frame and subframe too, so a frame set by anyone else is
+    never taken for ours. A sweep's way back to its frame is owed (``owe``) until the
+    source is next read (``settle``) or set to another frame, which drops it."""
+
+    KEEP_STATES = 8  # states kept at whole frames (a sweep's end is the next one's start), per sensor
+
+    def __init__(self, scene):
+        self.scene, self.last = scene, None
+        self.owed = None   # the frame a sweep left the scene to be put back at
+        self._states = {}  # ((frame, 0.0), sensor) -> (keys, state read there)
+
+    def now(self, frame, subframe=0.0):
+        self.last = (int(frame), float(subframe))
+
+    def owe(self, frame):
+        self.owed = int(frame)
+
+    def settle(self):
+        """Put the scene back at the frame a sweep left it owing (if any), as the
+        sweep's end would have; not when anyone else has set the scene since (it is
+        no longer where this source left it)."""
+        if self.owed is not None:
+            frame, self.owed = self.owed, None
+            if self.last is not None and self.is_at(*self.last) and not self.is_at(frame, 0.0):
+                self.scene.frame_set(frame)
+                self.now(frame)
+
+    def kept(self, when, keys, deform_keys, sensor):
+        """The state read at ``when`` (a whole frame) of these ``keys`` and ``sensor``,
+        or None: what a sweep's end read, given back at the next frame's start (never
+        a deforming object's vertices: those are always read)."""
+        got = self._states.get((when, sensor)) if not deform_keys else None
+        if got is None or not got[0].issuperset(keys):
+            return None
+        mats, _, sensor_m = got[1]
+        return {k: mats[k] for k in keys if k in mats}, {}, sensor_m
+
+    def keep(self, when, keys, deform_keys, sensor, state):
+        """Keep ``state`` (read at ``when``) when ``when`` is a whole frame."""
+        if deform_keys or when[1] != 0.0:
+            return
+        mats, _, sensor_m = state
+        frozen = {}
+        for k, m in list(mats.items()) + [(None, sensor_m)]:
+            if m is not None:
+                m = m.copy()
+                m.setflags(write=False)
+            frozen[k] = m
+        sensor_m = frozen.pop(None)
+        self._states.pop((when, sensor), None)
+        while len(self._states) >= self.KEEP_STATES:
+            self._states.pop(next(iter(self._states)))
+        self._states[(when, sensor)] = (frozenset(keys), (frozen, {}, sensor_m))
+
+    def is_at(self, frame, subframe):
+        return (self.last == (int(frame), float(subframe))
+                and self.scene.frame_current == self.last[0]
+                and self.scene.frame_subframe == self.last[1])
+
+
+# What makes a scene's state at a frame depend on the frames evaluated before it
+# (caches filled as frames go by): simulations, particles and geometry nodes (whose
+# simulation zones step from frame to frame).
+_STEPPED = {"CLOTH", "SOFT_BODY", "FLUID", "DYNAMIC_PAINT", "PARTICLE_SYSTEM", "EXPLODE",
+            "NODES", "COLLISION"}
+
+
+def history_free(data):
+    """True when no scene in ``data`` (``bpy.data``) has a rigid-body world and no
+    object a rigid body or a modifier that steps from frame to frame (``_STEPPED``):
+    then a scene evaluated at a time reads the same whichever times came before."""
+    if any(getattr(sc, "rigidbody_world", None) is not None for sc in data.scenes):
+        return False
+    return not any(getattr(o, "rigid_body", None) is not None
+                   or any(m.type in _STEPPED for m in o.modifiers) for o in data.objects)
 
 
 def read_state(depsgraph, keys, deform_keys, sensor_name):
@@ -110,11 +222,13 @@ def read_state(depsgraph, keys, deform_keys, sensor_name):
         obj = depsgraph.objects.get(sensor_name) if sensor_name else None
         return mats, verts, None if obj is None else np.array(obj.matrix_world, np.float64)
     for inst in depsgraph.object_instances:
-        orig = inst.object.original
-        if orig.name == sensor_name and not inst.is_instance:
-            sensor = np.array(inst.matrix_world, dtype=np.float64)
-            continue
-        key = instance_key(inst)
+        if inst.is_instance:
+            key = instance_key(inst)
+        else:  # an object itself: its key is its name (instance_key), or the sensor's
+            key = inst.object.original.name
+            if key == sensor_name:
+                sensor = np.array(inst.matrix_world, dtype=np.float64)
+                continue
         if key in keys:
             mats[key] = np.array(inst.matrix_world, dtype=np.float64)
             if key in deform_keys and inst.object.type in GEOMETRY_TYPES:

@@ -7,7 +7,8 @@ import numpy as np
 
 from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh
-from .motion import SweepClock, may_deform, may_move, mesh_is_fixed, read_state, timeless
+from .motion import (SceneTime, SweepClock, history_free, may_deform, may_move, mesh_is_fixed,
+                     read_state, timeless)
 
 
 def traffic_span(scene):
@@ -71,15 +72,43 @@ class BlenderScene:
         self._kept_read = None  # (key, SceneRead) of the last read, when it may be kept
         self._timeless = {}     # exclude -> motion.timeless, for an unedited file
         self._mobility = {}     # what was read -> its Mobility, for an unedited file
+        self._time = None       # SceneTime, for an unedited file without history (time())
+        self._labels = None if edited else {}  # objects' labels, for an unedited file
 
     def depsgraph(self):
+        self._settle()
         return self.context.evaluated_depsgraph_get()
 
     def current_frame(self):
+        self._settle()
         return self.scene.frame_current
 
     def set_frame(self, frame):
+        at = self.time()
+        if at is not None:
+            at.owed = None  # (a sweep's way back to its frame: not needed now)
+            if at.is_at(frame, 0.0):  # the last sweep's end is this frame's start
+                return
         self.scene.frame_set(int(frame))
+        if at is not None:
+            at.now(frame)
+
+    def _settle(self):
+        """Put the scene back where the last sweep left it owing (``SceneTime``)."""
+        if self._time:
+            self._time.settle()
+
+    def time(self):
+        """Where this source last set the scene (``motion.SceneTime``), kept for a file
+        nobody edits whose scenes evaluate alike however a time is reached
+        (``motion.history_free``); None otherwise: then every time is set."""
+        if self.edited:
+            return None
+        if self._time is None:
+            import bpy
+
+            self._time = SceneTime(self.scene) if history_free(bpy.data) else False
+        return self._time or None
 
     def sensor_pose(self, sensor):
         from ..core.errors import SceneError
@@ -101,7 +130,7 @@ class BlenderScene:
             return self._kept_read[1]
         instances, materials, stats = read_instances(
             self.depsgraph(), centre=centre, max_range=max_range, exclude=set(exclude),
-            reader=self.meshes)
+            reader=self.meshes, labels=self._labels)
         got = SceneRead(instances, materials, stats)
         self._kept_read = (key, got) if self._keeps_reads(key[2]) else None
         return got
@@ -160,7 +189,7 @@ class BlenderSweep:
 
     def __init__(self, source, frame, period):
         self.source = source
-        self.clock = SweepClock(source.scene, frame, period)
+        self.clock = SweepClock(source.scene, frame, period, at=source.time())
 
     def __enter__(self):
         return self
@@ -169,8 +198,19 @@ class BlenderSweep:
         self.clock.restore()
 
     def state(self, t, keys, deform_keys, sensor):
-        self.clock.set(t)
-        return read_state(self.source.depsgraph(), keys, deform_keys, sensor)
+        at = self.clock.at
+        if at is None:
+            self.clock.set(t)
+            return read_state(self.source.depsgraph(), keys, deform_keys, sensor)
+        # an unedited, history-free file: a state at a whole frame is kept for the
+        # next sweep (this sweep's end is the next frame's start)
+        when = self.clock.when(t)
+        got = at.kept(when, keys, deform_keys, sensor)
+        if got is None:
+            self.clock.set(t)
+            got = read_state(self.source.depsgraph(), keys, deform_keys, sensor)
+            at.keep(when, keys, deform_keys, sensor, got)
+        return got
 
     def instance_at(self, t, instance):
         self.clock.set(t)

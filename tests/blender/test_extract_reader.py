@@ -283,3 +283,64 @@ def test_an_unedited_files_fixed_meshes_are_not_evaluated_again(scene, monkeypat
     # after the first frame only the meshes that may change were evaluated again
     assert {n for f, n in evaluated if f > 1} == {"Keyed", "Waved", "Bent"}
     assert ("Mover", 1) in {(n, f) for f, n in evaluated}
+
+
+def test_every_objects_distance_at_once_is_each_objects_own():
+    """``_bounds_distances`` (every object's bounds against the sensor in one product)
+    gives each object's ``_bounds_distance`` exactly; a bound or matrix with a NaN or
+    an infinity is 0 (read), as one by one."""
+    from rls_addon.blender.extract import _bounds_distance, _bounds_distances
+
+    rng = np.random.default_rng(3)
+    n = 500
+    corners = rng.normal(0, 4, (n, 8, 3)).astype(np.float32).astype(np.float64)
+    mats = np.tile(np.eye(4), (n, 1, 1))
+    mats[:, :3, :] = rng.normal(0, 1, (n, 3, 4)) * [1.0, 1.0, 1.0, 120.0]
+    corners[7, 3, 1], mats[11, 0, 3], corners[13, 0, 0] = np.nan, np.inf, -np.inf
+    centre = np.array([4.0, -3.0, 1.5])
+    got = _bounds_distances(mats, corners, centre)
+    want = [_bounds_distance(m, [tuple(c) for c in cs], centre) for m, cs in zip(mats, corners)]
+    assert got.tolist() == want
+    assert got[7] == got[11] == got[13] == 0.0 and np.count_nonzero(got) > n // 2
+
+
+def test_an_unedited_read_culls_and_labels_as_a_plain_read(scene):
+    """The source of a file nobody edits looks each object's label up once (``labels``)
+    and culls every object by its bounds at once: its reads, over frames of a car
+    driving out of range, are what a plain read gives (keys, labels, matrices, the
+    counts of culled and hidden objects), an object instanced by two labelled
+    instancers keeping each one's label."""
+    from rls_addon.blender.extract import read_instances
+
+    vehicles = bpy.data.collections.new("Vehicles")
+    scene.collection.children.link(vehicles)
+    car = mesh_object("Car", [(0, 0, 0), (4, 0, 0), (0, 2, 0)], [(0, 1, 2)],
+                      collection=vehicles)
+    for frame, x in ((1, 0.0), (5, 80.0)):
+        car.location.x = x
+        car.keyframe_insert("location", frame=frame)
+    mesh_object("Wall", [(5, -5, 0), (5, 5, 0), (5, 5, 4)], [(0, 1, 2)])
+    mesh_object("Far", [(90, 0, 0), (91, 0, 0), (90, 1, 0)], [(0, 1, 2)])
+    mesh_object("Hidden", [(1, 1, 0), (2, 1, 0), (1, 2, 0)], [(0, 1, 2)]).hide_render = True
+    props = bpy.data.collections.new("Props")  # instanced twice, by differently labelled empties
+    mesh_object("Cone", [(0, 0, 0), (0.3, 0, 0), (0, 0.3, 0.5)], [(0, 1, 2)], collection=props)
+    for name, label, x in (("Walker", "pedestrian", 3.0), ("Rider", "cyclist", -3.0)):
+        empty = bpy.data.objects.new(name, None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", props
+        empty.location.x, empty["rls_label"] = x, label
+        scene.collection.objects.link(empty)
+    labels = {}
+    seen = set()
+    for frame in (1, 3, 5):
+        scene.frame_set(frame)
+        dg = bpy.context.evaluated_depsgraph_get()
+        kept = read_instances(dg, np.zeros(3), 50.0, labels=labels)
+        plain = read_instances(dg, np.zeros(3), 50.0)
+        assert kept[2] == plain[2]
+        assert [(i.key, i.label, i.matrix.tobytes()) for i in kept[0]] == \
+            [(i.key, i.label, i.matrix.tobytes()) for i in plain[0]]
+        seen |= {(i.source, i.label) for i in kept[0]}
+        assert kept[2]["hidden"] == 1 and kept[2]["culled_by_range"] == (2 if frame == 5 else 1)
+    from rls_addon.core.labels import label_id
+    assert {("Cone", label_id("pedestrian")), ("Cone", label_id("cyclist")),
+            ("Car", label_id("vehicle"))} <= seen

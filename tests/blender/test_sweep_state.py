@@ -28,3 +28,114 @@ def test_the_sensor_alone_is_read_as_the_walk_reads_it(scene):
         assert alone[0, 3] > 0.0
     clock.restore()
     assert read_state(bpy.context.evaluated_depsgraph_get(), set(), set(), "Gone")[2] is None
+
+
+class _Counting:
+    """A scene that counts its frame changes (everything else is the scene's)."""
+
+    def __init__(self, scene):
+        self.__dict__["_scene"], self.__dict__["sets"] = scene, []
+
+    def frame_set(self, frame, subframe=0.0):
+        self.sets.append((frame, subframe))
+        self._scene.frame_set(frame, subframe=subframe)
+
+    def __getattr__(self, name):
+        return getattr(self._scene, name)
+
+
+def _animated_street(scene):
+    scene.render.fps, scene.render.fps_base = 10, 1.0  # a sweep of 0.1 s: one frame
+    car = mesh_object("Car", [(0, 0, 0), (4, 0, 0), (0, 2, 0), (0, 0, 1.5)],
+                      [(0, 1, 2), (0, 1, 3)])
+    lidar = add_lidar(location=(0, 0, 2))
+    for frame, x, yaw in ((1, 0.0, 0.0), (6, 3.0, 0.4), (11, 12.0, 1.1)):  # eased: accelerating
+        for obj, dx in ((car, 5.0), (lidar, 0.0)):
+            obj.location.x, obj.rotation_euler.z = x + dx, yaw
+            obj.keyframe_insert("location", frame=frame)
+            obj.keyframe_insert("rotation_euler", frame=frame)
+    return car, lidar
+
+
+def _states(source, frame, times, keys, sensor):
+    source.set_frame(frame)
+    with source.sweep(frame, 0.1) as sweep:
+        counting = sweep.clock.scene = _Counting(sweep.clock.scene)
+        got = [sweep.state(t, keys, set(), sensor) for t in times]
+    return got, counting.sets
+
+
+def test_an_unedited_sweep_reads_what_setting_every_time_reads(scene):
+    """An unedited source (a background run) does not set the scene again at the
+    sweep's start, where the run has just set it, and gives the state a sweep read at
+    its end back at the next frame's start (``motion.SceneTime``); every state it
+    reads, over frames of an accelerating, turning car and LiDAR, is the one a source
+    that sets and reads every time reads, byte for byte."""
+    from rls_addon.blender.source import BlenderScene
+
+    _, lidar = _animated_street(scene)
+    times = [0.0, 0.05, 0.1, 0.025, 0.075]
+    unedited, edited = BlenderScene(scene, edited=False), BlenderScene(scene)
+    assert unedited.time() is not None and edited.time() is None
+    for frame in (3, 4, 7):
+        fast, fast_sets = _states(unedited, frame, times, {"Car"}, lidar.name)
+        assert unedited.time().owed == frame and scene.frame_subframe == 0.75
+        slow, slow_sets = _states(edited, frame, times, {"Car"}, lidar.name)
+        # every time set but the start; the way back to the frame owed (not yet set)
+        assert fast_sets == [(frame, 0.5), (frame + 1, 0.0), (frame, 0.25), (frame, 0.75)]
+        assert slow_sets == [(frame, 0.0)] + fast_sets + [(frame, 0.0)]
+        for (m1, _, s1), (m2, _, s2) in zip(fast, slow):
+            assert m1["Car"].tobytes() == m2["Car"].tobytes()
+            assert s1.tobytes() == s2.tobytes()
+        assert len({m["Car"].tobytes() for m, _, _ in fast}) == len(times)  # it moves
+        # frame 4 starts where frame 3's sweep ended: that state is given back (kept
+        # read-only), not read again; frame 7 follows no sweep that ended there
+        assert fast[0][0]["Car"].flags.writeable == (frame != 4)
+        assert fast[0][2].flags.writeable == (frame != 4)
+
+
+def test_a_scene_stepped_from_frame_to_frame_is_set_at_every_time(scene):
+    """A geometry-nodes modifier (a simulation zone steps from frame to frame) or a
+    rigid body anywhere: the source keeps no ``SceneTime`` and sets every time."""
+    from rls_addon.blender.source import BlenderScene
+
+    car, lidar = _animated_street(scene)
+    assert BlenderScene(scene, edited=False).time() is not None
+    mod = car.modifiers.new("nodes", "NODES")
+    source = BlenderScene(scene, edited=False)
+    assert source.time() is None
+    _, sets = _states(source, 3, [0.0, 0.05], {"Car"}, lidar.name)
+    assert sets[0] == (3, 0.0)
+    car.modifiers.remove(mod)
+    bpy.context.view_layer.objects.active = car
+    car.select_set(True)
+    bpy.ops.rigidbody.object_add()
+    assert BlenderScene(scene, edited=False).time() is None
+
+
+def test_a_sweep_owes_its_way_back_until_the_scene_is_read(scene):
+    """An unedited source's sweep that ends at the next frame's start (its last state
+    read there, as ``sweep.sample_sweep`` reads) leaves the scene there: going on to
+    that frame sets nothing, and reading the scene first puts it back at the sweep's
+    frame (``SceneTime.settle``), as Blender's interface always has it."""
+    from rls_addon.blender.source import BlenderScene
+
+    _, lidar = _animated_street(scene)
+    source = BlenderScene(scene, edited=False)
+    # the sweep's end last: the scene is at frame 4 when the sweep is left
+    _, sets = _states(source, 3, [0.0, 0.05, 0.025, 0.1], {"Car"}, lidar.name)
+    assert sets == [(3, 0.5), (3, 0.25), (4, 0.0)]
+    assert scene.frame_current == 4 and source.time().owed == 3
+    source.set_frame(4)  # where the run goes next: already there, nothing to set
+    assert source.time().owed is None and scene.frame_current == 4
+    _, sets = _states(source, 4, [0.0, 0.05], {"Car"}, lidar.name)
+    assert sets == [(4, 0.5)] and scene.frame_subframe == 0.5
+    assert source.current_frame() == 4 and scene.frame_subframe == 0.0  # settled
+    want = np.array(bpy.data.objects["Car"].matrix_world)  # the frame's own matrix
+    scene.frame_set(4)
+    assert np.array_equal(want, np.array(bpy.data.objects["Car"].matrix_world))
+    _states(source, 4, [0.0, 0.05], {"Car"}, lidar.name)
+    pose = source.sensor_pose(lidar.name)  # a read settles too
+    assert scene.frame_subframe == 0.0
+    scene.frame_set(4)
+    assert np.array_equal(pose, source.sensor_pose(lidar.name))

@@ -41,16 +41,34 @@ def _error(got, probe_m, points):
 
 def _interp_errors(times, mats, probe_t, probe_m, points):
     """``_interp_error`` of M bodies sampled at the same times ((M, K, 4, 4) ``mats``,
-    (M, P, 4, 4) ``probe_m``, a list of M point arrays), their tracks made and
-    evaluated together (``Track.many``, ``TrackSet``): the same numbers."""
+    (M, P, 4, 4) ``probe_m``, a list of M point arrays): their tracks made and
+    evaluated together (``Track.many``, ``TrackSet``) and every body's distances in one
+    product (``_errors``): the same numbers, body for body."""
     if not len(mats):
         return []
-    tracks = Track.many(times, mats)
     p = len(probe_t)
-    got = TrackSet(tracks).at(np.repeat(np.arange(len(tracks)), p),
-                              np.tile(np.asarray(probe_t, np.float64), len(tracks)))
-    got = got.reshape(len(tracks), p, 4, 4)
-    return [_error(got[j], probe_m[j], points[j]) for j in range(len(tracks))]
+    if len(mats) == 1:  # a sensor driving through a still scene: one track, Track's own
+        got = Track(times, mats[0]).at(probe_t)
+    else:
+        tracks = Track.many(times, mats)
+        got = TrackSet(tracks).at(np.repeat(np.arange(len(tracks)), p),
+                                  np.tile(np.asarray(probe_t, np.float64), len(tracks)))
+    return _errors(got.reshape(len(mats), p, 4, 4), probe_m, points)
+
+
+def _errors(got, probe_m, points):
+    """``_error`` of M bodies at once ((M, P, 4, 4) ``got`` and ``probe_m``, a list of M
+    point arrays): each body's points padded to the most any has with its own last
+    point (which changes no maximum), then one einsum of the same terms in the same
+    order as ``_error``'s, so each body's largest distance is the same float."""
+    n = max(len(q) for q in points)
+    p = np.ones((len(points), n, 4))
+    for j, q in enumerate(points):
+        p[j, :len(q), :3] = q
+        p[j, len(q):, :3] = q[-1]
+    a = np.einsum("mkij,mnj->mkni", got[:, :, :3, :], p)
+    b = np.einsum("mkij,mnj->mkni", probe_m[:, :, :3, :], p)
+    return [float(e) for e in np.linalg.norm(a - b, axis=3).max(axis=(1, 2))]
 
 
 def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, track_sensor):
@@ -65,33 +83,49 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
     if track_sensor:
         corners.append(np.zeros((1, 3)))
 
+    defaults = [instances[k].matrix for _, k in order]
+
     def state_at(t):
-        return sweep.state(t, keys, deform_keys, sensor)
+        """(the state's (M, 4, 4) matrices of every sampled body, the sensor's last; the
+        state's deforming vertices)."""
+        mats, verts, sensor_m = sweep.state(t, keys, deform_keys, sensor)
+        rows = [mats.get(key, d) for (key, _), d in zip(order, defaults)]
+        if track_sensor:
+            rows.append(sensor_m)
+        return np.array(rows, np.float64).reshape(len(rows), 4, 4), verts
 
     def stacked(states):
         """(M, S, 4, 4): every sampled body's matrices (the sensor's last)."""
-        rows = [[s[0].get(key, instances[k].matrix) for s in states] for key, k in order]
-        if track_sensor:
-            rows.append([s[2] for s in states])
-        return np.array(rows, np.float64).reshape(len(rows), len(states), 4, 4)
+        return np.stack([s[0] for s in states], axis=1)
 
     n = 5
     times = np.linspace(0.0, period, n)
-    states = [state_at(t) for t in times]
+    # The sweep's end is read last, after the first midpoints: a source stepping
+    # through its scene (Blender) is left at the next frame's start, where a run goes
+    # next. Every state is read once whatever the order.
+    states = [state_at(t) for t in times[:-1]]
+    every = None
     while n < MAX_SAMPLES:
         mids = (times[:-1] + times[1:]) / 2
         mid_states = [state_at(t) for t in mids]
+        if every is None:
+            states.append(state_at(times[-1]))
+            every = stacked(states)
+        at_mids = stacked(mid_states)
         # every body at once: the same errors as one body at a time (_interp_error)
-        worst = max(_interp_errors(times, stacked(states), mids, stacked(mid_states),
-                                   corners), default=0.0)
+        worst = max(_interp_errors(times, every, mids, at_mids, corners), default=0.0)
         merged_t = np.empty(2 * n - 1)
         merged_t[0::2], merged_t[1::2] = times, mids
         merged = [None] * (2 * n - 1)
         merged[0::2], merged[1::2] = states, mid_states
-        times, states, n = merged_t, merged, 2 * n - 1
+        both = np.empty((len(every), 2 * n - 1, 4, 4))
+        both[:, 0::2], both[:, 1::2] = every, at_mids
+        times, states, every, n = merged_t, merged, both, 2 * n - 1
         if worst <= INTERP_TOLERANCE_M:
             break
-    every = stacked(states)
+    if every is None:  # (no midpoints at all)
+        states.append(state_at(times[-1]))
+        every = stacked(states)
     matrices = {k: every[j] for j, (_, k) in enumerate(order)}
     vertices = {k: [s[1].get(instances[k].key) for s in states] for k in candidates
                 if instances[k].key in deform_keys}
@@ -184,13 +218,16 @@ def classify(sweep, period, instances, mobility, sensor):
                                                    mobility.deformable, sensor,
                                                    mobility.sensor_moves)
     out = SweepMotion(times=times, samples=len(times))
+    # which bodies moved: every candidate's samples against its first, at once
+    stack = np.array([mats[k] for k in cand], np.float64).reshape(len(cand), len(times), 4, 4)
+    moved = np.abs(stack - stack[:, :1]).max(axis=(1, 2, 3), initial=0.0) > 1e-12
     kinds = {}
-    for k in cand:
-        m = mats[k]
-        moved = bool(np.abs(m - m[0]).max() > 1e-12)
+    for k, m in zip(cand, moved):
         deform = deformation(verts[k]) if k in verts else 0.0
-        if deform > 1e-9 or moved:
+        if deform > 1e-9 or m:
             kinds[k] = deform
+    sensor_moved = (sensor_mats is not None
+                    and np.abs(sensor_mats - sensor_mats[0]).max() > 1e-12)
     # the tracks of every body that moved, made together (Track.many: Track's own)
     for (k, deform), track in zip(kinds.items(),
                                   Track.many(times, [mats[k] for k in kinds])):
@@ -200,6 +237,6 @@ def classify(sweep, period, instances, mobility, sensor):
             out.deforming.append((k, deform + track.max_displacement(box_corners(inst.vertices))))
         else:
             out.rigid.append((k, track))
-    if sensor_mats is not None and np.abs(sensor_mats - sensor_mats[0]).max() > 1e-12:
+    if sensor_moved:
         out.sensor = Track(times, sensor_mats)
     return out
