@@ -125,12 +125,9 @@ class SweepClock:
 
     def _set(self, whole, subframe):
         if self.at is not None:
-            self.at.owed = None  # set now: whatever was owed is superseded
-            if self.at.is_at(whole, subframe):
-                return
-        self.scene.frame_set(whole, subframe=subframe)
-        if self.at is not None:
-            self.at.now(whole, subframe)
+            self.at.set(whole, subframe)
+        else:
+            self.scene.frame_set(whole, subframe=subframe)
 
 
 class SceneTime:
@@ -148,7 +145,15 @@ class SceneTime:
         self.owed = None   # the frame a sweep left the scene to be put back at
         self._states = {}  # ((frame, 0.0), sensor) -> (keys, state read there)
 
-    def now(self, frame, subframe=0.0):
+    def set(self, frame, subframe=0.0):
+        """Set the scene at (``frame``, ``subframe``) unless it is there already; what
+        was owed is superseded."""
+        self.owed = None
+        if not self.is_at(frame, subframe):
+            self._set(frame, subframe)
+
+    def _set(self, frame, subframe=0.0):
+        self.scene.frame_set(int(frame), subframe=float(subframe))
         self.last = (int(frame), float(subframe))
 
     def owe(self, frame):
@@ -161,8 +166,7 @@ class SceneTime:
         if self.owed is not None:
             frame, self.owed = self.owed, None
             if self.last is not None and self.is_at(*self.last) and not self.is_at(frame, 0.0):
-                self.scene.frame_set(frame)
-                self.now(frame)
+                self._set(frame)
 
     def kept(self, when, keys, deform_keys, sensor):
         """The state read at ``when`` (a whole frame) of these ``keys`` and ``sensor``,
@@ -179,22 +183,25 @@ class SceneTime:
         if deform_keys or when[1] != 0.0:
             return
         mats, _, sensor_m = state
-        frozen = {}
-        for k, m in list(mats.items()) + [(None, sensor_m)]:
-            if m is not None:
-                m = m.copy()
-                m.setflags(write=False)
-            frozen[k] = m
-        sensor_m = frozen.pop(None)
+        frozen = {k: _read_only(m) for k, m in mats.items()}
         self._states.pop((when, sensor), None)
         while len(self._states) >= self.KEEP_STATES:
             self._states.pop(next(iter(self._states)))
-        self._states[(when, sensor)] = (frozenset(keys), (frozen, {}, sensor_m))
+        self._states[(when, sensor)] = (frozenset(keys), (frozen, {}, _read_only(sensor_m)))
 
     def is_at(self, frame, subframe):
         return (self.last == (int(frame), float(subframe))
                 and self.scene.frame_current == self.last[0]
                 and self.scene.frame_subframe == self.last[1])
+
+
+def _read_only(m):
+    """A read-only copy of matrix ``m`` (None stays None)."""
+    if m is None:
+        return None
+    m = m.copy()
+    m.setflags(write=False)
+    return m
 
 
 # What makes a scene's state at a frame depend on the frames evaluated before it

@@ -85,13 +85,10 @@ class BlenderScene:
 
     def set_frame(self, frame):
         at = self.time()
-        if at is not None:
-            at.owed = None  # (a sweep's way back to its frame: not needed now)
-            if at.is_at(frame, 0.0):  # the last sweep's end is this frame's start
-                return
-        self.scene.frame_set(int(frame))
-        if at is not None:
-            at.now(frame)
+        if at is not None:  # not set again when the last sweep's end is this frame
+            at.set(frame)
+        else:
+            self.scene.frame_set(int(frame))
 
     def _settle(self):
         """Put the scene back where the last sweep left it owing (``SceneTime``)."""

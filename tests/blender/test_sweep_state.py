@@ -60,8 +60,16 @@ def _animated_street(scene):
 def _states(source, frame, times, keys, sensor):
     source.set_frame(frame)
     with source.sweep(frame, 0.1) as sweep:
+        # the clock sets the scene itself, or through the source's SceneTime
+        at = sweep.clock.at
         counting = sweep.clock.scene = _Counting(sweep.clock.scene)
-        got = [sweep.state(t, keys, set(), sensor) for t in times]
+        if at is not None:
+            at.scene = counting
+        try:
+            got = [sweep.state(t, keys, set(), sensor) for t in times]
+        finally:
+            if at is not None:
+                at.scene = counting._scene
     return got, counting.sets
 
 
