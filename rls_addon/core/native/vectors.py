@@ -55,11 +55,18 @@ def shifted(a, c):
                     out=out[:n].reshape(-1, 3 * _FOLD))
     np.subtract(m[n:], c, out=out[n:])
     out.flags.writeable = False
-    for kept, (lo, hi) in _BOUNDS:
-        if kept is a or _whole_view(a, kept):
-            keep_bounds(out, lo - c, hi - c)
-            break
+    got = _kept_bounds(a)
+    if got is not None:
+        keep_bounds(out, got[0] - c, got[1] - c)
     return out
+
+
+def _kept_bounds(a):
+    """The kept (lo, hi) of ``a`` (the array itself or a whole view of it), or None."""
+    for kept, got in _BOUNDS:
+        if kept is a or _whole_view(a, kept):
+            return got
+    return None
 
 
 def column_bounds(a):
@@ -68,9 +75,9 @@ def column_bounds(a):
     rows are folded ``_FOLD`` at a time into long ones first (the same extremes).
     The answers for the last two read-only arrays that own their data (whose
     contents cannot change) are kept for the next calls with them."""
-    for kept, got in _BOUNDS:
-        if kept is a or _whole_view(a, kept):
-            return got[0].copy(), got[1].copy()
+    got = _kept_bounds(a)
+    if got is not None:
+        return got[0].copy(), got[1].copy()
     m = np.asarray(a, np.float64).reshape(-1, 3)
     n = len(m) - len(m) % _FOLD
     if n:
@@ -81,7 +88,5 @@ def column_bounds(a):
             lo, hi = np.minimum(lo, m[n:].min(axis=0)), np.maximum(hi, m[n:].max(axis=0))
     else:
         lo, hi = m.min(axis=0), m.max(axis=0)
-    if isinstance(a, np.ndarray) and a.base is None and not a.flags.writeable:
-        _BOUNDS[:] = [(a, (lo, hi))] + _BOUNDS[:1]
-        return lo.copy(), hi.copy()
+    keep_bounds(a, lo, hi)  # (kept only for a read-only array that owns its data)
     return lo, hi

@@ -226,11 +226,14 @@ def object_boxes(instances, objects, tracks, classes, result, sensor_pose_at, rm
     # its silhouette's), hold what both counts need
     radii = np.maximum(np.linalg.norm(sizes / 2 + margin, axis=1),
                        np.linalg.norm(sizes, axis=1) / 2 + 1e-6)
+    # and each box grown by its margin, as half sizes along the world's axes (its
+    # rotated half sizes' absolute sums): what narrows a sphere holding the sensor
+    extents = np.einsum("bij,bj->bi", np.abs(poses[:, :3, :3]),
+                        sizes / 2 + max(margin, 0.0)) * (1 + 1e-9)
     names = {o.name: j for j, o in enumerate(rays.objects)}
     share, on_box, inside = box_counts.box_counts(
         cells, [names.get(instances[k].key, -2) for k in chosen], poses, sizes, margin, rmax,
-        pts["range"], pts["ghost"] == 0, cells.segments(poses[:, :3, 3], radii, np.einsum(
-            "bij,bj->bi", np.abs(poses[:, :3, :3]), sizes / 2 + max(margin, 0.0)) * (1 + 1e-9)))
+        pts["range"], pts["ghost"] == 0, cells.segments(poses[:, :3, 3], radii, extents))
     sensor = sensor_pose_at(t_ref)
     out = []
     for j, k in enumerate(chosen):
