@@ -223,11 +223,48 @@ def history_free(data):
 
 def read_state(depsgraph, keys, deform_keys, sensor_name):
     """World matrices of instances named in ``keys``, local vertices of those in
-    ``deform_keys``, and the sensor matrix, at the depsgraph's current time."""
-    mats, verts, sensor = {}, {}, None
+    ``deform_keys``, and the sensor matrix, at the depsgraph's current time.
+
+    Where no vertices are wanted and the depsgraph lists no instances beside its
+    objects (``_object_matrices``), every object's matrix comes in one call; otherwise
+    (and as the reference, ``_walk_state``) the instances are walked one by one."""
     if not keys:  # the sensor alone (a drive through a still scene): no walk over all
         obj = depsgraph.objects.get(sensor_name) if sensor_name else None
-        return mats, verts, None if obj is None else np.array(obj.matrix_world, np.float64)
+        return {}, {}, None if obj is None else np.array(obj.matrix_world, np.float64)
+    if not deform_keys:
+        got = _object_matrices(depsgraph)
+        if got is not None:
+            names, m = got
+            mats, sensor = {}, None
+            for j, name in enumerate(names):
+                if name == sensor_name:
+                    sensor = m[j]
+                elif name in keys:
+                    mats[name] = m[j]
+            return mats, {}, sensor
+    return _walk_state(depsgraph, keys, deform_keys, sensor_name)
+
+
+def _object_matrices(depsgraph):
+    """(names, (N, 4, 4) float64 world matrices) of the depsgraph's objects, the
+    matrices in one ``foreach_get``; None when it lists instances beside its objects
+    (a collection instance, particles, curves or text made meshes: ``object_instances``
+    then has more entries than ``objects``, and those need ``_walk_state``). Without
+    them the two list the same objects, each object's instance an object itself keyed
+    by its name (``instance_key``), with the same float32 matrix (Blender's are
+    column-major: transposed here); tested against ``_walk_state``."""
+    objects = depsgraph.objects
+    names = objects.keys()
+    if len(depsgraph.object_instances) != len(names):
+        return None
+    flat = np.empty(16 * len(names), np.float32)
+    objects.foreach_get("matrix_world", flat)
+    return names, flat.reshape(-1, 4, 4).transpose(0, 2, 1).astype(np.float64)
+
+
+def _walk_state(depsgraph, keys, deform_keys, sensor_name):
+    """``read_state`` by a walk over every instance: the reference of its one call."""
+    mats, verts, sensor = {}, {}, None
     for inst in depsgraph.object_instances:
         if inst.is_instance:
             key = instance_key(inst)

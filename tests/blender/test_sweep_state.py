@@ -1,11 +1,15 @@
 """The scene at a sub-frame time (``blender/motion.read_state``): with no object to
 follow, the sensor is read straight from the depsgraph, the matrix the walk over every
-instance finds (a LiDAR driving and turning over a still scene)."""
+instance finds (a LiDAR driving and turning over a still scene); with objects to
+follow and no instances beside the objects, every matrix in one call, the ones the
+walk finds (``_walk_state``, the reference)."""
 
 import bpy
 import numpy as np
 
-from rls_addon.blender.motion import SweepClock, read_state
+from rls_addon.blender.motion import SweepClock, _object_matrices, _walk_state, read_state
+
+from rls_addon.blender.extract import instance_key
 
 from .conftest import add_lidar, mesh_object
 
@@ -22,12 +26,56 @@ def test_the_sensor_alone_is_read_as_the_walk_reads_it(scene):
         clock.set(t)
         dg = bpy.context.evaluated_depsgraph_get()
         mats, verts, alone = read_state(dg, set(), set(), lidar.name)
-        _, _, walked = read_state(dg, {"no such object"}, set(), lidar.name)
+        _, _, walked = _walk_state(dg, {"no such object"}, set(), lidar.name)
         assert mats == {} and verts == {}
         assert alone.tobytes() == walked.tobytes()
         assert alone[0, 3] > 0.0
     clock.restore()
     assert read_state(bpy.context.evaluated_depsgraph_get(), set(), set(), "Gone")[2] is None
+
+
+def test_every_matrix_in_one_call_is_the_one_the_walk_reads(scene):
+    """Moving, turning, accelerating, scaled and parented objects and a turning LiDAR
+    at times across a sweep (sub-frames, the seam at the next frame's start): the
+    matrices read in one call are the walk's, byte for byte, with the same keys; a
+    collection instance beside them (an instance that is not an object itself) sends
+    the read back to the walk, which alone names it."""
+    car, lidar = _animated_street(scene)
+    car.scale = (1.0, 2.0, 0.5)
+    still = mesh_object("Still", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [(0, 1, 2)])
+    still.location = (3.0, -4.0, 0.25)
+    trailer = mesh_object("Trailer", [(0, 0, 0), (2, 0, 0), (0, 1, 0)], [(0, 1, 2)])
+    trailer.parent, trailer.location = car, (-3.0, 0.5, 0.0)
+    keys = {"Car", "Trailer", "Still", "Gone"}
+
+    def both(frame, subframe):
+        scene.frame_set(frame, subframe=subframe)
+        dg = bpy.context.evaluated_depsgraph_get()
+        return dg, read_state(dg, keys, set(), lidar.name), _walk_state(dg, keys, set(), lidar.name)
+
+    seen = set()
+    for frame, subframe in ((3, 0.0), (3, 0.125), (3, 0.5), (3, 0.875), (4, 0.0), (7, 0.3)):
+        dg, (mats, verts, sensor), (ref, _, ref_sensor) = both(frame, subframe)
+        assert _object_matrices(dg) is not None  # the one call was taken
+        assert sorted(mats) == sorted(ref) == ["Car", "Still", "Trailer"] and verts == {}
+        for k in ref:
+            assert mats[k].dtype == np.float64 and mats[k].tobytes() == ref[k].tobytes()
+        assert sensor.tobytes() == ref_sensor.tobytes()
+        seen.add(mats["Trailer"].tobytes())
+    assert len(seen) == 6  # the trailer moves with its parent at every time
+    # a collection instance: the walk, which alone knows its key
+    group = bpy.data.collections.new("Group")
+    group.objects.link(mesh_object("Cone", [(0, 0, 0), (1, 0, 0), (0, 0, 1)], [(0, 1, 2)]))
+    holder = bpy.data.objects.new("Holder", None)
+    holder.instance_type, holder.instance_collection = "COLLECTION", group
+    scene.collection.objects.link(holder)
+    dg, (mats, _, sensor), (ref, _, ref_sensor) = both(5, 0.5)
+    assert _object_matrices(dg) is None
+    names = [instance_key(i) for i in dg.object_instances if i.is_instance]
+    keys.update(names)
+    dg, (mats, _, sensor), (ref, _, ref_sensor) = both(5, 0.5)
+    assert names and set(mats) == set(ref) and set(names) <= set(mats)
+    assert all(mats[k].tobytes() == ref[k].tobytes() for k in ref)
 
 
 class _Counting:
