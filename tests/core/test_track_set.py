@@ -123,6 +123,31 @@ def test_tracks_made_together_are_each_tracks_own():
         [_interp_error(times, m, probe_t, p, q) for m, p, q in zip(mats, probe, points)]
 
 
+def test_tracks_of_samples_decomposed_as_read_are_those_decomposed_together():
+    """A sweep decomposes its samples as it reads them (``polar_parts`` of the first
+    five, then of each round's midpoints, interleaved: ``sweep._interleaved``) and
+    makes its tracks of them (``Track.many``'s ``parts``): the tracks decomposing all
+    of them together gives, byte for byte (driving, accelerating, turning, tumbling,
+    sheared and mirrored bodies, a flip mid-sweep; 5, 9 and 17 samples)."""
+    from rls_addon.core.scan.sweep import _interleaved
+    from rls_addon.core.scene.motion import polar_parts
+
+    rng = np.random.default_rng(11)
+    times = np.linspace(0.0, 0.1, 17)
+    mats = np.array([tr.at(times) for tr in tracks(rng, 30) if len(tr.times) > 1])
+    mats[::4, 9:] = mats[::4, 9:] @ np.diag([-1.0, 1.0, 1.0, 1.0])
+    parts = polar_parts(mats[:, ::4])
+    for step in (4, 2, 1):
+        every = mats[:, ::step]
+        if step < 4:
+            parts = tuple(_interleaved(a, b) for a, b in zip(parts, polar_parts(mats[:, step::2 * step])))
+        for made, together in zip(Track.many(times[::step], every, parts),
+                                  Track.many(times[::step], every)):
+            assert np.array_equal(made._quat, together._quat)
+            assert np.array_equal(made._scale, together._scale)
+            assert np.array_equal(made.at(times[:-1] + 0.002), together.at(times[:-1] + 0.002))
+
+
 def test_a_frames_ray_origins_in_c_come_with_their_bounds(monkeypatch):
     """The C origins are read-only and their column bounds, found in the same pass, are
     kept: numpy's least and greatest of them (driving, accelerating, turning,

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..scene.motion import Track
+from ..scene.motion import Track, polar_parts
 from ..scene.track_set import TrackSet
 
 INTERP_TOLERANCE_M = 1e-4  # max error of pose interpolation between samples
@@ -39,18 +39,19 @@ def _error(got, probe_m, points):
     return float(np.linalg.norm(a - b, axis=2).max())
 
 
-def _interp_errors(times, mats, probe_t, probe_m, points):
+def _interp_errors(times, mats, probe_t, probe_m, points, parts=None):
     """``_interp_error`` of M bodies sampled at the same times ((M, K, 4, 4) ``mats``,
     (M, P, 4, 4) ``probe_m``, a list of M point arrays): their tracks made and
     evaluated together (``Track.many``, ``TrackSet``) and every body's distances in one
-    product (``_errors``): the same numbers, body for body."""
+    product (``_errors``): the same numbers, body for body. ``parts``: ``mats``'
+    ``polar_parts``, when made already (two bodies or more)."""
     if not len(mats):
         return []
     p = len(probe_t)
     if len(mats) == 1:  # a sensor driving through a still scene: one track, Track's own
         got = Track(times, mats[0]).at(probe_t)
     else:
-        tracks = Track.many(times, mats)
+        tracks = Track.many(times, mats, parts)
         got = TrackSet(tracks).at(np.repeat(np.arange(len(tracks)), p),
                                   np.tile(np.asarray(probe_t, np.float64), len(tracks)))
     return _errors(got.reshape(len(mats), p, 4, 4), probe_m, points)
@@ -74,7 +75,12 @@ def _errors(got, probe_m, points):
 def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, track_sensor):
     """Sample candidate instances (indices into ``instances``) and the sensor over a
     sweep of ``period`` seconds. Returns (times, {index: (K,4,4)}, {index: [local
-    vertices per sample]}, sensor (K,4,4) or None)."""
+    vertices per sample]}, sensor (K,4,4) or None, {index: the (K,4,4)'s
+    ``polar_parts``} or None).
+
+    With two bodies or more (the sensor counts), each sample's matrices are decomposed
+    once, as they are read (``polar_parts``), for the error checks of every round and
+    the tracks ``classify`` makes, instead of each time a track is made of them."""
     keys = {instances[k].key: k for k in candidates}
     deform_keys = {instances[k].key for k in candidates} & set(deform_keys)
     order = list(keys.items())
@@ -104,7 +110,7 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
     # through its scene (Blender) is left at the next frame's start, where a run goes
     # next. Every state is read once whatever the order.
     states = [state_at(t) for t in times[:-1]]
-    every = None
+    every = parts = None  # parts: every's polar_parts, with two bodies or more
     while n < MAX_SAMPLES:
         mids = (times[:-1] + times[1:]) / 2
         mid_states = [state_at(t) for t in mids]
@@ -112,14 +118,19 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
             states.append(state_at(times[-1]))
             every = stacked(states)
         at_mids = stacked(mid_states)
+        if len(every) > 1:
+            parts = polar_parts(every) if parts is None else parts
+            mid_parts = polar_parts(at_mids)
         # every body at once: the same errors as one body at a time (_interp_error)
-        worst = max(_interp_errors(times, every, mids, at_mids, corners), default=0.0)
+        worst = max(_interp_errors(times, every, mids, at_mids, corners, parts), default=0.0)
         merged_t = np.empty(2 * n - 1)
         merged_t[0::2], merged_t[1::2] = times, mids
         merged = [None] * (2 * n - 1)
         merged[0::2], merged[1::2] = states, mid_states
         both = np.empty((len(every), 2 * n - 1, 4, 4))
         both[:, 0::2], both[:, 1::2] = every, at_mids
+        if parts is not None:
+            parts = tuple(_interleaved(a, b) for a, b in zip(parts, mid_parts))
         times, states, every, n = merged_t, merged, both, 2 * n - 1
         if worst <= INTERP_TOLERANCE_M:
             break
@@ -130,7 +141,17 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
     vertices = {k: [s[1].get(instances[k].key) for s in states] for k in candidates
                 if instances[k].key in deform_keys}
     sensor_mats = every[-1] if track_sensor else None
-    return times, matrices, vertices, sensor_mats
+    decomposed = None if parts is None else {
+        k: (parts[0][j], parts[1][j]) for j, (_, k) in enumerate(order)}
+    return times, matrices, vertices, sensor_mats, decomposed
+
+
+def _interleaved(a, b):
+    """(M, 2S - 1, ...): the S columns of ``a`` with the S - 1 of ``b`` between them
+    (a sweep's samples with their midpoints)."""
+    out = np.empty((a.shape[0], a.shape[1] + b.shape[1]) + a.shape[2:])
+    out[:, 0::2], out[:, 1::2] = a, b
+    return out
 
 
 def deformation(vertex_samples):
@@ -214,9 +235,8 @@ def classify(sweep, period, instances, mobility, sensor):
     cand = list(mobility.candidates)
     if not cand and not mobility.sensor_moves:
         return SweepMotion()
-    times, mats, verts, sensor_mats = sample_sweep(sweep, period, instances, cand,
-                                                   mobility.deformable, sensor,
-                                                   mobility.sensor_moves)
+    times, mats, verts, sensor_mats, decomposed = sample_sweep(
+        sweep, period, instances, cand, mobility.deformable, sensor, mobility.sensor_moves)
     out = SweepMotion(times=times, samples=len(times))
     # which bodies moved: every candidate's samples against its first, at once
     stack = np.array([mats[k] for k in cand], np.float64).reshape(len(cand), len(times), 4, 4)
@@ -228,9 +248,12 @@ def classify(sweep, period, instances, mobility, sensor):
             kinds[k] = deform
     sensor_moved = (sensor_mats is not None
                     and np.abs(sensor_mats - sensor_mats[0]).max() > 1e-12)
-    # the tracks of every body that moved, made together (Track.many: Track's own)
+    # the tracks of every body that moved, made together (Track.many: Track's own) of
+    # the decompositions made as they were sampled
+    parts = None if decomposed is None or not kinds else tuple(
+        np.array([decomposed[k][i] for k in kinds]) for i in (0, 1))
     for (k, deform), track in zip(kinds.items(),
-                                  Track.many(times, [mats[k] for k in kinds])):
+                                  Track.many(times, [mats[k] for k in kinds], parts)):
         out.tracks[k] = track
         if deform > 1e-9:
             inst = instances[k]

@@ -93,6 +93,18 @@ def polar(linear):
     return r, np.swapaxes(r, -1, -2) @ linear
 
 
+def polar_parts(matrices):
+    """(rotations, scale and shear): ``polar`` of the 3x3 parts of (..., 4, 4)
+    ``matrices``, each shaped (..., 3, 3). Each matrix's the same bits however many
+    are decomposed with it (numpy decomposes and multiplies them one by one), so a
+    sweep decomposes each sample once, as it is read, and its tracks take them
+    (``Track.many``'s ``parts``; tested against decomposing them together)."""
+    m = np.asarray(matrices, dtype=np.float64)
+    rot, scale = polar(m.reshape(-1, 4, 4)[:, :3, :3])
+    shape = m.shape[:-2] + (3, 3)
+    return rot.reshape(shape), scale.reshape(shape)
+
+
 def rigid(matrices):
     """4x4 poses (one (4, 4) or a stack (N, 4, 4)) without their scale and shear: the
     3x3 replaced by ``polar``'s rotation, the translation kept."""
@@ -151,15 +163,20 @@ class Track:
         return cls(np.zeros(1), np.asarray(matrix, np.float64)[None])
 
     @classmethod
-    def many(cls, times, matrices):
+    def many(cls, times, matrices, parts=None):
         """[Track] of M bodies sampled at the same ``times`` ((M, K, 4, 4)
         ``matrices``): each what ``Track(times, matrices[m])`` gives, byte for byte,
-        their decompositions made together (a sweep's traffic: dozens of bodies)."""
+        their decompositions made together (a sweep's traffic: dozens of bodies).
+        ``parts``: the matrices' ``polar_parts`` when they were made already (a
+        sweep's samples, decomposed as they were read)."""
         times = np.asarray(times, dtype=np.float64).reshape(-1)
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, len(times), 4, 4)
         if not len(m):
             return []
-        rot, scale = polar(m.reshape(-1, 4, 4)[:, :3, :3])
+        if parts is None:
+            rot, scale = polar(m.reshape(-1, 4, 4)[:, :3, :3])
+        else:
+            rot, scale = (np.asarray(a, np.float64).reshape(-1, 3, 3) for a in parts)
         quat = quat_from_matrix(rot).reshape(len(m), len(times), 4)
         scale = scale.reshape(len(m), len(times), 3, 3)
         for k in range(1, len(times)):  # neighbouring quaternions on one side, as one by one
