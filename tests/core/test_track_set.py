@@ -111,10 +111,14 @@ def test_tracks_made_together_are_each_tracks_own():
     times = np.linspace(0.0, 0.1, 9)
     mats = np.array([tr.at(times) for tr in tracks(rng, 40) if len(tr.times) > 1])
     mats[::5, 4:] = mats[::5, 4:] @ np.diag([-1.0, 1.0, 1.0, 1.0])  # a flip mid-sweep
+    mats[1::5] = mats[1::5, :1]  # parked the whole sweep (is_static, made together)
+    mats[2::5, -1, 0, 3] = np.nextafter(mats[2::5, 0, 0, 3], np.inf)  # all but one ulp
+    mats[2::5, :-1] = mats[2::5, :1]
     for one, many in zip([Track(times, m) for m in mats] + [Track(times[:2], mats[0, :2])],
                          Track.many(times, mats) + Track.many(times[:2], mats[:1, :2])):
         assert np.array_equal(one._quat, many._quat) and np.array_equal(one._scale, many._scale)
         assert np.array_equal(one.velocities, many.velocities)
+        assert one.is_static is many.is_static
         assert np.array_equal(one.at(times[:-1] + 0.003), many.at(times[:-1] + 0.003))
     probe_t = (times[1:] + times[:-1]) / 2
     probe = mats[:, :8] + rng.normal(0, 1e-4, (len(mats), 8, 4, 4))

@@ -185,11 +185,13 @@ class Track:
                 dot[j] = np.dot(quat[j, k - 1], quat[j, k])
             quat[dot < 0, k] *= -1.0
         velocity = knot_velocities(m[:, :, :3, 3], times)
+        static = np.all(m == m[:, :1], axis=(1, 2, 3))  # is_static of each, at once
         out = []
         for j in range(len(m)):
             track = cls.__new__(cls)
             track.times, track.matrices = times, m[j]
             track._scale, track._quat, track._velocity = scale[j], quat[j], velocity[j]
+            track._static = bool(static[j])
             out.append(track)
         return out
 
