@@ -274,6 +274,25 @@ def _own_points(pts, ids, period):
     n = len(ids)
     times, seams = [None] * n, [False] * n
     unique, box_of = np.unique(ids, return_inverse=True)
+    got = None
+    if unique[0] >= 0 and unique[-1] <= np.iinfo(np.uint32).max:
+        got = box_counts.own_groups(pts, unique)  # compiled, where built
+    first, t = got if got is not None else _own_groups_numpy(pts, unique)
+    count = (first[1:] - first[:-1])[box_of]
+    got = _medians(t, first, period)
+    if got is None:  # not finite: box by box
+        got = [split_at_seam(t[first[u]:first[u + 1]], period) if first[u + 1] > first[u]
+               else (None, False) for u in range(len(unique))]
+    for j in range(n):
+        if count[j]:
+            times[j], seams[j] = got[box_of[j]]
+    return count, times, seams
+
+
+def _own_groups_numpy(pts, unique):
+    """The real (not ghost) points whose id is one of ``unique`` (sorted) grouped by
+    it: (the groups' starts, len(unique) + 1; the groups' times, each group in the
+    points' order). The reference of the compiled ``box_counts.own_groups``."""
     inst = np.ascontiguousarray(pts["instance"])
     if inst.dtype != np.uint32 or unique[0] < 0 or unique[-1] > np.iinfo(np.uint32).max:
         inst = inst.astype(np.int64)
@@ -286,16 +305,7 @@ def _own_points(pts, ids, period):
                        kind="stable")
     rows = rows[order]
     first = np.searchsorted(group[order], np.arange(len(unique) + 1))
-    count = (first[1:] - first[:-1])[box_of]
-    t = np.asarray(pts["time"], np.float64)[rows]
-    got = _medians(t, first, period)
-    if got is None:  # not finite: box by box
-        got = [split_at_seam(t[first[u]:first[u + 1]], period) if first[u + 1] > first[u]
-               else (None, False) for u in range(len(unique))]
-    for j in range(n):
-        if count[j]:
-            times[j], seams[j] = got[box_of[j]]
-    return count, times, seams
+    return first, np.asarray(pts["time"], np.float64)[rows]
 
 
 def _medians(t, first, period):
