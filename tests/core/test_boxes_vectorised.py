@@ -331,3 +331,22 @@ def test_the_compiled_grouping_of_points_is_numpys():
         assert got[0][2] == got[0][3] and len(got[1]) > n / 10 * (1 if view is pts else 0.3)
     other = np.zeros(5, [("instance", "<i8"), ("time", "<f8"), ("ghost", "u1")])
     assert box_counts.own_groups(other, keys) is None
+
+
+def test_every_moving_objects_velocity_at_once_is_its_own():
+    """``_velocities_from`` (all moving objects' centre velocities in one product)
+    equals ``_velocity_from`` object by object, bit for bit: turned, scaled and sheared
+    matrices, spans of different lengths."""
+    from rls_addon.core.output.ground_truth import _velocities_from, _velocity_from
+
+    rng = np.random.default_rng(29)
+    n = 40
+    m = np.repeat(np.eye(4)[None], 2 * n, axis=0)
+    m[:, :3, :] = rng.normal(0, 3, (2 * n, 3, 4))
+    centres = rng.uniform(-3, 3, (n, 3))
+    spans = np.c_[rng.uniform(0, 0.1, n), np.zeros(n)]
+    spans[:, 1] = spans[:, 0] + rng.uniform(1e-4, 2e-3, n)
+    got = _velocities_from(m.reshape(n, 2, 4, 4), centres, spans)
+    want = [_velocity_from(np.ascontiguousarray(m[2 * j:2 * j + 2]), centres[j], *spans[j])
+            for j in range(n)]
+    assert got.tobytes() == np.array(want).tobytes()
