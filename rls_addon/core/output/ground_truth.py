@@ -24,9 +24,11 @@ Visibility, per box and sensor:
 A frame's boxes are made all at once (``object_boxes``): the objects' poses from one
 evaluation of every track (``scene.track_set``), the rays and points near each box
 from the rays grouped once by direction (``ray_cells``), every box's counts in one
-pass (``box_counts``, compiled where built). ``box_reference`` makes them box by box,
-as this module did before (about 95 ms of a 230 ms frame through the sample
-intersection's traffic, 2026-11-28); the tests hold the two to the same numbers.
+pass (``box_counts``, compiled where built), every box's own points grouped in one
+pass over the point records (``box_counts.own_groups``, compiled where built).
+``box_reference`` makes them box by box, as this module did before (about 95 ms of a
+230 ms frame through the sample intersection's traffic, 2026-11-28); the tests hold
+the two to the same numbers.
 """
 
 import math
