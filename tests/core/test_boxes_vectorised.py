@@ -261,12 +261,16 @@ def test_every_centres_facing_ray_at_once_is_its_own(moving, turning):
     assert sum(w is None for w in want) >= 1 and sum(w is not None for w in want) > 140
 
 
-def test_every_boxs_time_from_its_points_at_once_is_split_at_seams():
-    """``_own_points`` (the groups' times sorted once, every median and seam test read
-    off them) against ``split_at_seam`` of each box's own points: odd and even counts,
-    one point, none, ghosts, boxes on the seam with more early or more late points,
-    points out of time order, two boxes of one id; and a time that is not finite."""
+@pytest.mark.parametrize("compiled", [True, False])
+def test_every_boxs_time_from_its_points_at_once_is_split_at_seams(monkeypatch, compiled):
+    """``_own_points`` (the points grouped by box, compiled or numpy; the groups' times
+    sorted once, every median and seam test read off them) against ``split_at_seam``
+    of each box's own points: odd and even counts, one point, none, ghosts, boxes on
+    the seam with more early or more late points, points out of time order, two boxes
+    of one id; and a time that is not finite."""
     from rls_addon.core.output.ground_truth import _own_points, split_at_seam
+
+    monkeypatch.setattr(box_counts, "compiled", compiled)
 
     rng = np.random.default_rng(17)
     period = 0.1
@@ -301,3 +305,48 @@ def test_every_boxs_time_from_its_points_at_once_is_split_at_seams():
     count, got_t, _ = _own_points(pts, ids, period)
     want = split_at_seam(pts["time"][(inst == 7) & (ghost == 0)], period)
     assert math.isnan(got_t[0]) == math.isnan(want[0])
+
+
+def test_the_compiled_grouping_of_points_is_numpys():
+    """``box_counts.own_groups`` (one compiled pass over the scan's point records, their
+    fields unaligned) gives ``_own_groups_numpy``'s groups and times, for points of a
+    moving scan's layout with ghosts and ids not among the boxes'; None for records
+    it cannot read (ids of another type), where numpy's are used."""
+    from rls_addon.core.output.ground_truth import _own_groups_numpy
+    from rls_addon.core.points import POINT_DTYPE
+
+    rng = np.random.default_rng(23)
+    n = 20000
+    pts = np.zeros(n, POINT_DTYPE)
+    pts["instance"] = rng.choice([0, 5, 6, 40, 2 ** 32 - 1, 77, 1000], n)
+    pts["time"] = np.sort(rng.uniform(0, 0.1, n)) + rng.normal(0, 1e-4, n)  # not all in order
+    pts["ghost"] = rng.random(n) < 0.15
+    keys = np.array([5, 40, 41, 1000, 2 ** 32 - 1], np.uint32)  # 41: no point
+    for view in (pts, pts[::3]):
+        got = box_counts.own_groups(view, keys)
+        assert got is not None  # the library is built here
+        want = _own_groups_numpy(view, keys.astype(np.int64))
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+        assert got[0][2] == got[0][3] and len(got[1]) > n / 10 * (1 if view is pts else 0.3)
+    other = np.zeros(5, [("instance", "<i8"), ("time", "<f8"), ("ghost", "u1")])
+    assert box_counts.own_groups(other, keys) is None
+
+
+def test_every_moving_objects_velocity_at_once_is_its_own():
+    """``_velocities_from`` (all moving objects' centre velocities in one product)
+    equals ``_velocity_from`` object by object, bit for bit: turned, scaled and sheared
+    matrices, spans of different lengths."""
+    from rls_addon.core.output.ground_truth import _velocities_from, _velocity_from
+
+    rng = np.random.default_rng(29)
+    n = 40
+    m = np.repeat(np.eye(4)[None], 2 * n, axis=0)
+    m[:, :3, :] = rng.normal(0, 3, (2 * n, 3, 4))
+    centres = rng.uniform(-3, 3, (n, 3))
+    spans = np.c_[rng.uniform(0, 0.1, n), np.zeros(n)]
+    spans[:, 1] = spans[:, 0] + rng.uniform(1e-4, 2e-3, n)
+    got = _velocities_from(m.reshape(n, 2, 4, 4), centres, spans)
+    want = [_velocity_from(np.ascontiguousarray(m[2 * j:2 * j + 2]), centres[j], *spans[j])
+            for j in range(n)]
+    assert got.tobytes() == np.array(want).tobytes()

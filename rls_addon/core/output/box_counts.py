@@ -247,8 +247,47 @@ class _BoxesArgs(ctypes.Structure):
                 ("inside", ctypes.c_void_p)]
 
 
+class _OwnPointsArgs(ctypes.Structure):
+    """``own_points_t`` of native/c/boxes.c."""
+
+    _fields_ = [("n", ctypes.c_int64), ("base", ctypes.c_void_p), ("stride", ctypes.c_int64),
+                ("off_instance", ctypes.c_int64), ("off_ghost", ctypes.c_int64),
+                ("off_time", ctypes.c_int64), ("keys", ctypes.c_int64),
+                ("key", ctypes.c_void_p), ("group", ctypes.c_void_p),
+                ("next", ctypes.c_void_p), ("first", ctypes.c_void_p),
+                ("times", ctypes.c_void_p)]
+
+
+def own_groups(pts, keys):
+    """The real (not ghost) points whose instance id is one of ``keys`` (sorted, unique
+    uint32), grouped by key in one compiled pass over the point records: (``first``,
+    keys + 1 group starts; the groups' times, each group in the points' order), what
+    ``ground_truth._own_groups_numpy`` gives; None where the library is not built or
+    the records are not the scan's (uint32 ids, uint8 ghost flags, float64 times)."""
+    fn = OWN_POINTS.get() if compiled else None
+    fields = pts.dtype.fields if isinstance(pts, np.ndarray) else None
+    want = {"instance": np.uint32, "ghost": np.uint8, "time": np.float64}
+    if (fn is None or fields is None or pts.ndim != 1
+            or any(name not in fields or fields[name][0] != np.dtype(t).newbyteorder("=")
+                   for name, t in want.items())):
+        return None
+    keys = np.ascontiguousarray(keys, np.uint32)
+    n = len(pts)
+    group, nxt = np.empty(n, np.int32), np.empty(max(len(keys), 1), np.int64)
+    first, times = np.empty(len(keys) + 1, np.int64), np.empty(n, np.float64)
+    stride = pts.strides[0] if n else pts.dtype.itemsize
+    args = _OwnPointsArgs(n, pts.ctypes.data, stride, fields["instance"][1],
+                          fields["ghost"][1], fields["time"][1], len(keys), keys.ctypes.data,
+                          group.ctypes.data, nxt.ctypes.data, first.ctypes.data,
+                          times.ctypes.data)
+    fn(ctypes.byref(args))
+    return first, times[:first[-1]]
+
+
 NATIVE_BOXES_ABI = 1
 BOX_COUNTS = Kernel("rls_box_counts", "rls_boxes_abi", NATIVE_BOXES_ABI,
                     [ctypes.POINTER(_BoxesArgs), ctypes.c_int])
-# Off: every frame counts its boxes in numpy (the reference the C code is tested against).
+OWN_POINTS = Kernel("rls_own_points", "rls_own_points_abi", 1,
+                    [ctypes.POINTER(_OwnPointsArgs)])
+# Off: every frame counts its boxes (and groups their points) in numpy (the reference the C code is tested against).
 compiled = True

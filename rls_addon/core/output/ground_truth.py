@@ -24,9 +24,11 @@ Visibility, per box and sensor:
 A frame's boxes are made all at once (``object_boxes``): the objects' poses from one
 evaluation of every track (``scene.track_set``), the rays and points near each box
 from the rays grouped once by direction (``ray_cells``), every box's counts in one
-pass (``box_counts``, compiled where built). ``box_reference`` makes them box by box,
-as this module did before (about 95 ms of a 230 ms frame through the sample
-intersection's traffic, 2026-11-28); the tests hold the two to the same numbers.
+pass (``box_counts``, compiled where built), every box's own points grouped in one
+pass over the point records (``box_counts.own_groups``, compiled where built).
+``box_reference`` makes them box by box, as this module did before (about 95 ms of a
+230 ms frame through the sample intersection's traffic, 2026-11-28); the tests hold
+the two to the same numbers.
 """
 
 import math
@@ -235,15 +237,15 @@ def object_boxes(instances, objects, tracks, classes, result, sensor_pose_at, rm
         cells, [names.get(instances[k].key, -2) for k in chosen], poses, sizes, margin, rmax,
         pts["range"], pts["ghost"] == 0, cells.segments(poses[:, :3, 3], radii, extents))
     sensor = sensor_pose_at(t_ref)
+    velocities = np.zeros((n, 3))
+    if moving:
+        velocities[moving] = _velocities_from(ab.reshape(-1, 2, 4, 4), ((lo + hi) / 2)[moving],
+                                              np.array([spans[j] for j in moving]))
     out = []
     for j, k in enumerate(chosen):
         inst = instances[k]
-        centre = (lo[j] + hi[j]) / 2
-        q = 2 * moving.index(j) if spans[j] is not None else 0
-        velocity = np.zeros(3) if spans[j] is None else _velocity_from(
-            np.ascontiguousarray(ab[q:q + 2]), centre, *spans[j])
         b = ObjectBox(int(ids[j]), inst.key, inst.label, sizes[j], poses[j], float(t_ref[j]),
-                      velocity, sensor[j], matrices[j, :3, 3].copy())
+                      velocities[j], sensor[j], matrices[j, :3, 3].copy())
         b.points, b.seam = int(own[j]), seams[j]
         b.start_matrix = matrices[j] if t_ref[j] == 0.0 else starts[j]
         b.points_in_box = int(inside[j])
@@ -274,6 +276,25 @@ def _own_points(pts, ids, period):
     n = len(ids)
     times, seams = [None] * n, [False] * n
     unique, box_of = np.unique(ids, return_inverse=True)
+    got = None
+    if unique[0] >= 0 and unique[-1] <= np.iinfo(np.uint32).max:
+        got = box_counts.own_groups(pts, unique)  # compiled, where built
+    first, t = got if got is not None else _own_groups_numpy(pts, unique)
+    count = (first[1:] - first[:-1])[box_of]
+    got = _medians(t, first, period)
+    if got is None:  # not finite: box by box
+        got = [split_at_seam(t[first[u]:first[u + 1]], period) if first[u + 1] > first[u]
+               else (None, False) for u in range(len(unique))]
+    for j in range(n):
+        if count[j]:
+            times[j], seams[j] = got[box_of[j]]
+    return count, times, seams
+
+
+def _own_groups_numpy(pts, unique):
+    """The real (not ghost) points whose id is one of ``unique`` (sorted) grouped by
+    it: (the groups' starts, len(unique) + 1; the groups' times, each group in the
+    points' order). The reference of the compiled ``box_counts.own_groups``."""
     inst = np.ascontiguousarray(pts["instance"])
     if inst.dtype != np.uint32 or unique[0] < 0 or unique[-1] > np.iinfo(np.uint32).max:
         inst = inst.astype(np.int64)
@@ -286,16 +307,7 @@ def _own_points(pts, ids, period):
                        kind="stable")
     rows = rows[order]
     first = np.searchsorted(group[order], np.arange(len(unique) + 1))
-    count = (first[1:] - first[:-1])[box_of]
-    t = np.asarray(pts["time"], np.float64)[rows]
-    got = _medians(t, first, period)
-    if got is None:  # not finite: box by box
-        got = [split_at_seam(t[first[u]:first[u + 1]], period) if first[u + 1] > first[u]
-               else (None, False) for u in range(len(unique))]
-    for j in range(n):
-        if count[j]:
-            times[j], seams[j] = got[box_of[j]]
-    return count, times, seams
+    return first, np.asarray(pts["time"], np.float64)[rows]
 
 
 def _medians(t, first, period):
@@ -373,6 +385,15 @@ def _velocity_from(m, centre_local, a, b):
     p = np.c_[np.asarray(centre_local, np.float64)[None], 1.0]
     c = np.einsum("kij,j->ki", m[:, :3, :], p[0])
     return (c[1] - c[0]) / (b - a)
+
+
+def _velocities_from(m, centres_local, spans):
+    """``_velocity_from`` of many objects at once: matrices ``m`` (N, 2, 4, 4) at the
+    times ``spans`` (N, 2), local points ``centres_local`` (N, 3); the same sums in the
+    same order (each row's four products added left to right)."""
+    p = np.c_[np.asarray(centres_local, np.float64), np.ones(len(m))]
+    c = np.einsum("nkij,nj->nki", m[:, :, :3, :], p)
+    return (c[:, 1] - c[:, 0]) / (spans[:, 1] - spans[:, 0])[:, None]
 
 
 def _velocity(track, centre_local, t, h=1e-3):

@@ -84,10 +84,19 @@ def _ranges(lo, hi):
 def _runs(starts, spans, owner):
     """(lo, hi, owner) arrays of the runs of ``cells.order`` that cell spans [(sector
     lo, sector hi, band lo, band hi)] cover: one run per sector, each of ``owner``."""
-    sec = np.concatenate([np.arange(s0, s1 + 1) for s0, s1, _, _ in spans]) * EL_CELLS
-    b0 = np.concatenate([np.full(s1 + 1 - s0, b) for s0, s1, b, _ in spans])
-    b1 = np.concatenate([np.full(s1 + 1 - s0, b) for s0, s1, _, b in spans])
-    return starts[sec + b0], starts[sec + b1 + 1], np.full(len(sec), owner)
+    return _runs_of(starts, np.array(spans, np.int64).reshape(-1, 4),
+                    np.full(len(spans), owner, np.int64))
+
+
+def _runs_of(starts, spans, owners):
+    """``_runs`` of many owners' spans at once: ``spans`` an (S, 4) array of (sector lo,
+    sector hi, band lo, band hi), span s of ``owners[s]``; the runs in the order of the
+    spans (one per sector, as ``_runs`` gives them span by span), in one pass of array
+    steps instead of one per span."""
+    span, sector = _ranges(spans[:, 0], spans[:, 1] + 1)
+    sec = sector * EL_CELLS
+    return (starts[sec + spans[span, 2]], starts[sec + spans[span, 3] + 1],
+            np.asarray(owners, np.int64)[span])
 
 
 class RayCells:
@@ -184,26 +193,27 @@ class RayCells:
         half sizes along the world axes of a box within the sphere (the ground-truth
         box grown by its margin), which narrows a sphere that holds the origins to the
         elevations that reach the box (``_bands``: a sensor on a car's roof)."""
-        boxes, los, his = [], [], []
-        starts = self.cells.starts
+        spans, owners = [], []  # every box's cell spans, then one pass over them all
+        whole = []  # boxes that take every ray
         for j, (c, r) in enumerate(zip(centres, radii)):
-            spans = self._spans(c, float(r) + self.travel)
-            bands = None if spans is not None or extents is None \
+            got = self._spans(c, float(r) + self.travel)
+            bands = None if got is not None or extents is None \
                 else self._bands(np.asarray(c, np.float64), np.asarray(extents[j], np.float64))
-            if spans is None and bands is None:
-                los.append(np.array([0]))
-                his.append(np.array([self.cells.n]))
-                boxes.append(np.array([j]))
-                continue
-            lo, hi, owner = _runs(starts, [(0, AZ_CELLS - 1, *bands)] if spans is None
-                                  else spans, j)
-            los.append(lo)
-            his.append(hi)
-            boxes.append(owner)
-        if not boxes:
+            if got is None and bands is None:
+                whole.append(j)
+                got = [(0, 0, 0, 0)]  # a placeholder: its run is every ray (below)
+            elif got is None:
+                got = [(0, AZ_CELLS - 1, *bands)]
+            spans += got
+            owners += [j] * len(got)
+        if not owners:
             z = np.zeros(0, np.int64)
             return z, z, z
-        box, lo, hi = (np.concatenate(x).astype(np.int64) for x in (boxes, los, his))
+        lo, hi, box = _runs_of(self.cells.starts, np.array(spans, np.int64).reshape(-1, 4),
+                               owners)
+        if whole:  # one run [0, n) in place of each placeholder's
+            every = np.isin(box, whole)
+            lo[every], hi[every] = 0, self.cells.n
         keep = hi > lo
         box, lo, hi = box[keep], lo[keep], hi[keep]
         pieces = np.maximum((hi - lo + SEGMENT - 1) // SEGMENT, 1)
@@ -232,17 +242,17 @@ class RayCells:
         """(owner, ray) pairs: for every direction ``vs[j]``, a superset of the rays
         within ``angles[j]`` of it (``within``'s, each ray once, in no set order),
         all directions in one go."""
-        starts, los, his, owners = self.cells.starts, [], [], []
+        spans, owners = [], []
         for j, (v, angle) in enumerate(zip(vs, angles)):
-            spans = self._cone_spans(np.asarray(v, np.float64), float(angle))
-            lo, hi, owner = _runs(starts, spans or [(0, AZ_CELLS - 1, 0, EL_CELLS - 1)], j)
-            los.append(lo)
-            his.append(hi)
-            owners.append(owner)
-        if not los:
+            got = self._cone_spans(np.asarray(v, np.float64), float(angle)) \
+                or [(0, AZ_CELLS - 1, 0, EL_CELLS - 1)]
+            spans += got
+            owners += [j] * len(got)
+        if not owners:
             z = np.zeros(0, np.int64)
             return z, z
-        owner, lo, hi = (np.concatenate(x).astype(np.int64) for x in (owners, los, his))
+        lo, hi, owner = _runs_of(self.cells.starts, np.array(spans, np.int64).reshape(-1, 4),
+                                 owners)
         seg, pos = _ranges(lo, hi)
         return owner[seg], self.cells.order[pos]
 

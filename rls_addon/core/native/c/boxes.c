@@ -167,3 +167,64 @@ RLS_EXPORT void rls_box_counts(const boxes_t *a, int threads) {
 RLS_EXPORT int rls_boxes_abi(void) {
     return RLS_BOXES_ABI;
 }
+
+/* The real points of every box, grouped (rls_own_points): a scan's points are records
+ * (a numpy structured array) with the instance id (uint32), the ghost flag (uint8)
+ * and the firing time (float64) at byte offsets of their own, possibly unaligned
+ * (read with memcpy). A point whose id is one of the boxes' sorted unique ``keys``
+ * and that is not a ghost belongs to that key's group; the groups' times come out
+ * one group after another, each in the points' order, ``first`` the groups' starts
+ * (keys + 1). ground_truth._own_groups_numpy is the reference this follows: the
+ * same groups in the same order (a stable sort of the group numbers). */
+#define RLS_OWN_POINTS_ABI 1
+
+typedef struct {
+    int64_t n;             /* points */
+    const char *base;      /* the first point's record */
+    int64_t stride;        /* bytes from one record to the next */
+    int64_t off_instance, off_ghost, off_time;
+    int64_t keys;          /* how many keys */
+    const uint32_t *key;   /* sorted, unique */
+    int32_t *group;        /* scratch, n: each point's group, -1: none */
+    int64_t *next;         /* scratch, keys: each group's next slot in times */
+    int64_t *first;        /* out, keys + 1 */
+    double *times;         /* out, up to n: the groups' times */
+} own_points_t;
+
+RLS_EXPORT void rls_own_points(const own_points_t *a) {
+    memset(a->first, 0, (size_t)(a->keys + 1) * sizeof(int64_t));
+    for (int64_t p = 0; p < a->n; p++) {
+        const char *rec = a->base + p * a->stride;
+        uint32_t id;
+        uint8_t ghost;
+        memcpy(&id, rec + a->off_instance, sizeof id);
+        memcpy(&ghost, rec + a->off_ghost, sizeof ghost);
+        int32_t g = -1;
+        if (ghost == 0) {
+            int64_t lo = 0, hi = a->keys;  /* the first key >= id */
+            while (lo < hi) {
+                int64_t mid = (lo + hi) / 2;
+                if (a->key[mid] < id) lo = mid + 1; else hi = mid;
+            }
+            if (lo < a->keys && a->key[lo] == id) {
+                g = (int32_t)lo;
+                a->first[lo + 1]++;
+            }
+        }
+        a->group[p] = g;
+    }
+    for (int64_t k = 0; k < a->keys; k++) a->first[k + 1] += a->first[k];
+    /* each group's next slot: its start, moving on as its points are placed */
+    int64_t *next = a->next;
+    memcpy(next, a->first, (size_t)a->keys * sizeof(int64_t));
+    for (int64_t p = 0; p < a->n; p++) {
+        const int32_t g = a->group[p];
+        if (g < 0) continue;
+        memcpy(&a->times[next[g]++], a->base + p * a->stride + a->off_time, sizeof(double));
+    }
+}
+
+/* The interface version of rls_own_points (RLS_OWN_POINTS_ABI). */
+RLS_EXPORT int rls_own_points_abi(void) {
+    return RLS_OWN_POINTS_ABI;
+}
