@@ -150,3 +150,65 @@ def test_no_ground_truth_when_switched_off_and_none_without_objects():
     ScanRun(sc, [SensorJob("pole", LidarSettings(), preset)], [1], factory=numpy_factory,
             on_result=lambda j, f, r, i: got.update(info=i)).run()
     assert got["info"]["objects"] == []
+
+
+def test_boxes_worked_out_behind_the_scan_are_the_boxes_and_their_errors_surface(
+        tmp_path, monkeypatch):
+    """A writer that writes behind the scan gets the boxes as a ``Later`` and works
+    them out on its thread, just before the frame's files (rls scan, rls dataset): the
+    same boxes as worked out in the scan (a run with previews), the same files written
+    behind or not; a box that cannot be worked out fails the run at its frame, and that
+    frame leaves no file."""
+    import json
+
+    from rls_addon.core.output.io import behind, read_sidecar
+    from rls_addon.core.output.io.writer import CloudWriter
+    from rls_addon.core.scan import session
+
+    preset = small_preset(steps=1800, noise=0.01)
+
+    def run(out, background=True, on_result=None):
+        sc, _, _ = scene(sensor_speed=10.0)
+        jobs = [SensorJob("pole", LidarSettings(scan=ScanSettings(), output=OutputSettings(
+            directory=str(out))), preset)]
+        writer = CloudWriter(sc.name, background=background)
+        return ScanRun(sc, jobs, [1, 2], writer=writer, factory=numpy_factory,
+                       on_result=on_result).run()
+
+    handed = []
+    write = CloudWriter.write
+
+    def spy(self, sensor, output, frame, points, info):
+        handed.append(type(info["objects"]))
+        return write(self, sensor, output, frame, points, info)
+
+    monkeypatch.setattr(CloudWriter, "write", spy)
+    seen = {}
+    run(tmp_path / "now", on_result=lambda j, f, r, i: seen.update({f: i["objects"]}))
+    assert handed == [list, list]  # a run that shows its results works them out at once
+    handed.clear()
+    for background in (True, False):
+        run(tmp_path / str(background), background=background)
+    assert handed == [behind.Later] * 4
+    for frame in (1, 2):
+        name = f"fake_pole_{frame:06d}.pcd"
+        side = read_sidecar(tmp_path / "True" / name)
+        assert side["objects"] == json.loads(json.dumps(seen[frame]))
+        assert {b["object"] for b in side["objects"]} == {"car", "bike"}
+        for other in ("now", "False"):
+            for f in (name, name.replace(".pcd", ".json")):
+                assert (tmp_path / "True" / f).read_bytes() == (tmp_path / other / f).read_bytes()
+
+    boxes, calls = session.object_boxes, []
+
+    def fails_at_frame_2(*args):
+        calls.append(args)
+        if len(calls) == 2:
+            raise ValueError("no box today")
+        return boxes(*args)
+
+    monkeypatch.setattr(session, "object_boxes", fails_at_frame_2)
+    with pytest.raises(ValueError, match="no box today"):
+        run(tmp_path / "failed")
+    assert sorted(p.name for p in (tmp_path / "failed").iterdir()) == [
+        "fake_pole_000001.json", "fake_pole_000001.pcd"]

@@ -222,8 +222,11 @@ class ScanRun:
         session = self.sessions[job.settings.backend]
         out = job.settings.output
         classes = [label_id(c) for c in out.object_classes] if out.ground_truth else None
+        # a writer behind the scan works the boxes out there, while the next frames scan
+        later = self.on_result is None and getattr(self.writer, "works_out_later", False)
         result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
-                                    object_classes=classes, values=self._values[job.name])
+                                    object_classes=classes, values=self._values[job.name],
+                                    boxes_later=later)
         info["frame_rate_hz"] = self.source.fps
         info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
         self._add_labels(info["labels"])

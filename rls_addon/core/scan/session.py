@@ -22,6 +22,7 @@ from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
 from .frame import scan_frame, sensor_frame
 from ..output.ground_truth import box_dicts, object_boxes
+from ..output.io.behind import Later
 from ..scene.geometry import nonfinite_warning
 from ..scene.instances import (bodies_key, object_table, static_key, without_nonfinite,
                                world_geometry)
@@ -84,7 +85,8 @@ class ScanSession:
         anchor = np.round(np.asarray(centre, np.float64) / cell) * cell
         return anchor, rmax * (1.0 + DRIVING_SLACK) + MOVER_MARGIN_M
 
-    def scan(self, source, sensor, preset, settings, frame, object_classes=None, values=None):
+    def scan(self, source, sensor, preset, settings, frame, object_classes=None, values=None,
+             boxes_later=False):
         """Scan ``frame`` (the source is already at it) of sensor ``sensor`` with device
         ``preset`` and ``ScanSettings`` ``settings``. Returns (ScanResult, info dict
         for the sidecar). ``object_classes`` (label ids): ground-truth boxes of the
@@ -92,6 +94,9 @@ class ScanSession:
         preset's ``DeviceValues`` under ``settings`` when the caller has them (a run
         resolves them once per sensor), else resolved here; either way once per scan,
         and what the frame, the sub-steps, the boxes and the sidecar read.
+        ``boxes_later``: the info's ``objects`` are a ``behind.Later`` that works them
+        out (the same boxes) when the frame's files are written, for a writer that
+        writes behind the scan (``works_out_later``).
 
         All of it with numpy's BLAS on one thread (``blas_threads.single_threaded``, as
         the frame itself): the sweep's, the bodies' and the boxes' many small products
@@ -100,9 +105,11 @@ class ScanSession:
         if values is None:
             values = device_values(preset, settings)
         with blas_threads.single_threaded():
-            return self._scan(source, sensor, preset, settings, values, frame, object_classes)
+            return self._scan(source, sensor, preset, settings, values, frame, object_classes,
+                              boxes_later)
 
-    def _scan(self, source, sensor, preset, settings, values, frame, object_classes):
+    def _scan(self, source, sensor, preset, settings, values, frame, object_classes,
+              boxes_later=False):
         pose = source.sensor_pose(sensor)
         frame_pose = sensor_frame(pose, sensor)  # its sensor frame (no scale): the sidecar's
         rmax = values.max_range_m
@@ -151,10 +158,14 @@ class ScanSession:
                           instances, substeps, n_used, objects, scene, result, read)
         info.update(sensor_pose_record(frame_pose, track, preset.period))
         if object_classes is not None:
-            info["objects"] = box_dicts(object_boxes(
-                instances, objects, motion.tracks if settings.motion != "snapshot" else {},
-                classes, result, _pose_function(frame_pose, track), rmax,
-                values.noise_sigma_m, preset.period)) if boxes else []
+            info["objects"] = []
+            if boxes:
+                # what the boxes read of the result: its points and rays (dropped below)
+                seen = dataclasses.replace(result)
+                info["objects"] = _boxes(
+                    instances, objects, motion.tracks if settings.motion != "snapshot" else {},
+                    classes, seen, _pose_function(frame_pose, track), rmax,
+                    values.noise_sigma_m, preset.period, later=boxes_later)
             info["object_classes"] = sorted(classes)
         result.rays_cast = None  # large; the boxes hold what was wanted from it
         return result, info
@@ -345,6 +356,19 @@ def _channels(preset):
     from ..device.presets import spinning_elevations_offsets
 
     return {"channel_elevations_deg": [float(e) for e in spinning_elevations_offsets(preset)[0]]}
+
+
+def _boxes(*args, later=False):
+    """``box_dicts`` of ``object_boxes(*args)``, or (``later``) a ``Later`` that works
+    them out on the thread that asks, with numpy's BLAS on one thread there too."""
+    if not later:
+        return box_dicts(object_boxes(*args))
+
+    def work():
+        with blas_threads.single_threaded():
+            return box_dicts(object_boxes(*args))
+
+    return Later(work)
 
 
 def _pose_function(pose, track):

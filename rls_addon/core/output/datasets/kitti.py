@@ -66,6 +66,7 @@ class KittiWriter:
     background       each frame's files written behind the scan (``io.behind``)"""
 
     shardable = True
+    works_out_later = True  # every write goes through ``WritesBehind.run`` (``behind.Later``)
 
     def __init__(self, root, scene_name, intensity_scale=1.0, points_format="npy", level=False,
                  min_points=1, split=None, overwrite=False, resume=False, background=False):

@@ -6,8 +6,15 @@ Up to ``WRITES_BEHIND`` writes wait their turn, so one slow fsync (a journal com
 10 ms among 3 ms frames) does not hold the scan up; a failed write raises at a later
 write or at ``flush`` (the end of a run, a cancel), once nothing runs behind it. The
 writer must not change what it handed over (a scan's points and info) meanwhile.
+
+A scan's info may also hold values left to work out when its files are written
+(``Later``: a driving lidar's ground-truth boxes, 12-16 ms of a traffic frame, much of
+it compiled or in large numpy steps that let go of Python's lock): they are worked
+out on the same thread, just before the write that needs them, while the next scans
+run; their errors surface as the write's. Where writing is not behind, at once.
 """
 
+import threading
 from collections import deque
 
 WRITES_BEHIND = 4
@@ -28,11 +35,12 @@ class WritesBehind:
 
     def run(self, fn, *args):
         """``fn(*args)``: behind the scan when enabled (returns None), else now (returns
-        its result)."""
+        its result). The ``Later`` values of any dict among ``args`` (a scan's info) are
+        worked out first, on the same thread, and put in their place."""
         if not self.enabled:
-            return fn(*args)
+            return _worked_out(fn, *args)
         self.make_room()
-        self.pending.append(_background_thread().submit(fn, *args))
+        self.pending.append(_background_thread().submit(_worked_out, fn, *args))
         return None
 
     def flush(self):
@@ -59,6 +67,38 @@ class WritesBehind:
                 self.flush()  # nothing left running behind the error
                 raise
             self.pending.popleft()
+
+
+class Later:
+    """A value of a scan's info left to be worked out when its files are written
+    (``work()``, once; see the module docstring). Calling it gives the value."""
+
+    def __init__(self, work):
+        self._work = work
+        self._lock = threading.Lock()
+        self._value = None
+
+    def __call__(self):
+        with self._lock:
+            if self._work is not None:
+                self._value = self._work()
+                self._work = None  # what it worked from (a frame's rays) can go
+            return self._value
+
+
+def worked_out(info):
+    """``info`` (a dict) with its ``Later`` values worked out and put in their place."""
+    for key, value in list(info.items()):
+        if isinstance(value, Later):
+            info[key] = value()
+    return info
+
+
+def _worked_out(fn, *args):
+    for a in args:
+        if isinstance(a, dict):
+            worked_out(a)
+    return fn(*args)
 
 
 def _wait(write):

@@ -31,6 +31,9 @@ class CloudWriter:
                kept (``existing``); others are replaced"""
 
     shardable = True  # a run's pieces may write on several workers
+    # every write goes through ``WritesBehind.run``: a scan may leave values of its info
+    # to be worked out there (``behind.Later``)
+    works_out_later = True
 
     def __init__(self, scene_name, overwrite=False, resume=False, sensors=(), preview=False,
                  background=False):
