@@ -74,14 +74,16 @@ bpy.ops.wm.save_as_mainfile(filepath=sys.argv[2])
 """
 
 # Where the core spends a frame: (module, attribute, stage). The stages nest: the
-# session's scan holds the sweep, the bodies, the frame and the boxes.
+# session's scan holds the sweep, the bodies and the frame; the boxes are worked out on
+# the writer's thread, behind the scan (``io.behind.Later``), overlapping the next frame:
+# their wall time there is not part of the step.
 STAGES = [
     ("rls_addon.blender.source", "BlenderScene.set_frame", "Blender: frame change"),
     ("rls_addon.blender.source", "BlenderScene.read", "Blender: scene read"),
     ("rls_addon.core.scan.session", "classify", "sweep sampled and classified"),
     ("rls_addon.core.scan.session", "ScanSession._bodies_of", "moving bodies"),
     ("rls_addon.core.scan.session", "scan_frame", "scan_frame"),
-    ("rls_addon.core.scan.session", "object_boxes", "ground-truth boxes"),
+    ("rls_addon.core.scan.session", "object_boxes", "ground-truth boxes (writer's thread)"),
     ("rls_addon.core.scan.session", "sensor_pose_record", "sidecar: sensor poses"),
 ]
 
@@ -315,7 +317,10 @@ def section(r):
     lines += ["",
               "Where a frame goes: the same frames in one process through the command's own "
               "`ScanRun`, each stage timed where the core calls it (medians per frame; the "
-              "session's scan holds the sweep, the bodies, `scan_frame` and the boxes; "
+              "session's scan holds the sweep, the bodies and `scan_frame`; the boxes are "
+              "worked out on the writer's thread behind the scan, overlapping the next "
+              "frame, so their wall time there (stretched by waiting for Python's lock) "
+              "is not part of the step; "
               "*step* is the whole step of the run, what the stages leave of it is the "
               "session's and the run's own work).\n",
               "| stage | " + " | ".join(names[n].split(",")[0] if n != "traffic_scan"
