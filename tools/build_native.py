@@ -78,7 +78,7 @@ EXPORTS = ("rls_embree_launch", "rls_embree_finish", "rls_embree_abi",
            "rls_ghost_aim", "rls_ghost_land", "rls_ghosts_abi",
            "rls_static_returns", "rls_returns_abi",
            "rls_echo_group", "rls_echo_choose", "rls_echoes_abi",
-           "rls_box_counts", "rls_boxes_abi",
+           "rls_box_counts", "rls_boxes_abi", "rls_own_points", "rls_own_points_abi",
            "rls_track_positions", "rls_tracks_abi",
            "rls_attach_instances", "rls_instances_abi")
 
