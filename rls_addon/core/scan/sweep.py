@@ -127,8 +127,7 @@ def sample_sweep(sweep, period, instances, candidates, deform_keys, sensor, trac
         merged_t[0::2], merged_t[1::2] = times, mids
         merged = [None] * (2 * n - 1)
         merged[0::2], merged[1::2] = states, mid_states
-        both = np.empty((len(every), 2 * n - 1, 4, 4))
-        both[:, 0::2], both[:, 1::2] = every, at_mids
+        both = _interleaved(every, at_mids)
         if parts is not None:
             parts = tuple(_interleaved(a, b) for a, b in zip(parts, mid_parts))
         times, states, every, n = merged_t, merged, both, 2 * n - 1

@@ -173,10 +173,8 @@ class Track:
         m = np.asarray(matrices, dtype=np.float64).reshape(-1, len(times), 4, 4)
         if not len(m):
             return []
-        if parts is None:
-            rot, scale = polar(m.reshape(-1, 4, 4)[:, :3, :3])
-        else:
-            rot, scale = (np.asarray(a, np.float64).reshape(-1, 3, 3) for a in parts)
+        rot, scale = (np.asarray(a, np.float64).reshape(-1, 3, 3)
+                      for a in (polar_parts(m) if parts is None else parts))
         quat = quat_from_matrix(rot).reshape(len(m), len(times), 4)
         scale = scale.reshape(len(m), len(times), 3, 3)
         for k in range(1, len(times)):  # neighbouring quaternions on one side, as one by one
