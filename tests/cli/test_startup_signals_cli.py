@@ -14,9 +14,9 @@ lands in Python's own start, before the first line of ``rls_addon/__main__.py`` 
 the signals over (about 30 ms here), end by the signal itself (a shell reports 128 + N
 too), having run nothing of RLS: nothing written and nothing said, or for SIGINT
 Python's KeyboardInterrupt traceback with no frame of RLS's after that first line
-(Python exits with 1 and "Fatal Python error: init_import_site" when the interrupt
-lands in its site module, or "Could not import runpy module" when it lands while ``-m``
-imports runpy). Notices a finished or stopped run printed ("rls: notice: ...") are its
+(Python exits with 1 and "Fatal Python error: init_..." naming its start-up step when the
+interrupt lands there, e.g. init_import_site in its site module or init_sys_streams while it
+imports io, or "Could not import runpy module" when it lands while ``-m`` imports runpy). Notices a finished or stopped run printed ("rls: notice: ...") are its
 own output, not the signal's."""
 
 import os
@@ -103,13 +103,16 @@ def before_rls(sig, code, stderr):
     """True when ``code`` and ``stderr`` are what a signal in Python's own start leaves:
     ended by the signal, saying nothing; or (SIGINT) Python's KeyboardInterrupt
     traceback with no frame of RLS's beyond the start-up import, ended by the signal or,
-    in the import of Python's site module, with Python's 'Fatal Python error' and 1."""
+    in a step of Python's own initialisation, with its 'Fatal Python error: init_...' and 1."""
     if code == -sig and not stderr.strip():
         return True
     if sig != signal.SIGINT or not stderr.rstrip().endswith("KeyboardInterrupt"):
         return False
-    python_said = ("Fatal Python error: init_import_site",  # in the site module
-                   "Could not import runpy module")  # in runpy, before -m runs anything
+    # Python's own start-up failing on the interrupt: "Fatal Python error: init_..." names
+    # the step of its initialisation it was in (init_import_site in the site module,
+    # init_sys_streams while importing io for the standard streams, ...); "Could not
+    # import runpy module" is runpy's import, before -m runs anything
+    python_said = ("Fatal Python error: init_", "Could not import runpy module")
     if code != -sig and not (code == 1 and stderr.startswith(python_said)):
         return False
     frames = re.findall(r'File "([^"]+)", line (\d+)', stderr)
