@@ -174,3 +174,26 @@ def test_a_frames_ray_origins_in_c_come_with_their_bounds(monkeypatch):
         monkeypatch.setattr(vectors, "_BOUNDS", [])
         got = track_set.positions_at(track, t)
         assert vectors._BOUNDS == [] and np.isnan(vectors.column_bounds(got)[0]).all()
+
+
+def test_a_firings_shared_time_gives_each_channel_the_bits_it_computes_alone():
+    """tracks.c copies the row above when a ray's time is the same to the bit (the
+    channels of a firing): every row has the bits it gets evaluated among rows of its
+    own time only, with -0.0 and 0.0 (equal, not the same bits) side by side, where a
+    copy by ``==`` or a copy of a row further up would give a zero of the wrong sign."""
+    from rls_addon.core.scene import track_set
+
+    assert track_set.TRACK_POSITIONS.get() is not None  # the library is built here
+    m = np.array([np.eye(4)] * 3)
+    m[:, :3, 3] = [[-0.0, -0.0, -0.0], [-1, -1, -1], [-3, -2, -1]]
+    rng = np.random.default_rng(8)
+    for track in [Track(np.array([0.0, 0.1, 0.2]), m)] + tracks(rng, 12)[:6]:
+        if len(track.times) < 2 or track.is_static:
+            continue
+        t = np.repeat(np.concatenate([np.tile([0.0, -0.0, -0.0, 0.0], 80),
+                                      np.linspace(-0.01, 0.11, 300)]), 2)
+        got = track_set.positions_at(track, t)
+        for v in np.unique(t.view(np.int64)).view(np.float64):
+            alone = track_set.positions_at(track, np.full(256, v))[0]
+            rows = got[t.view(np.int64) == np.float64(v).view(np.int64)]
+            assert (rows.view(np.int64) == alone.view(np.int64)).all(), v

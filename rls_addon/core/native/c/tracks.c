@@ -8,7 +8,9 @@
  * the fraction along it (clamped to [0, 1]; an interval of no length divides by 1), and
  * cubic Hermite with the knots' velocities, its four terms summed left to right as
  * numpy sums them; the library is built without fused multiply-add, so both give the
- * same bits. Times are split into shares on a few threads.
+ * same bits. A row whose time is the row above's (to the bit: the channels of a
+ * firing share it) copies that row's position, the same bits without the arithmetic.
+ * Times are split into shares on a few threads.
  *
  * With `bounds` the least and greatest of each column of the output come back too
  * (lo x y z, hi x y z: what native/vectors.py's column_bounds gives for it), found in
@@ -16,6 +18,7 @@
  * numpy, whose min and max a NaN wins). */
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "rls_shares.h"
 
@@ -40,6 +43,14 @@ typedef struct {
     int nan;
 } share_t;
 
+/* The same time to the bit (not ==, which takes -0.0 for 0.0): the same position. */
+static int same_bits(double a, double b) {
+    uint64_t x, y;
+    memcpy(&x, &a, sizeof x);
+    memcpy(&y, &b, sizeof y);
+    return x == y;
+}
+
 /* numpy's searchsorted(times, t, side="right") - 1, clipped to [0, K - 2]. */
 static int64_t segment(const double *times, int64_t k, double t) {
     if (t != t) return k - 2;  /* NaN sorts last */
@@ -63,6 +74,10 @@ static void run_share(void *arg) {
     int nan = 0;
     for (int64_t r = s->lo; r < s->hi; r++) {
         double t = a->t[r];
+        if (r > s->lo && same_bits(t, a->t[r - 1])) {  /* fired together: the row above */
+            for (int k = 0; k < 3; k++) a->out[3 * r + k] = a->out[3 * r - 3 + k];
+            continue;
+        }
         if (!have || t != last) {  /* a firing's channels share their time */
             i = segment(a->times, a->knots, t);
             last = t;
