@@ -47,7 +47,7 @@ def write_sidecar(cloud_path, info, overwrite=False):
     """Write ``info`` as JSON beside ``cloud_path``; returns the JSON path."""
     path = sidecar_path(cloud_path)
     try:
-        text = json_text.dumps(_plain(info), indent=2, sort_keys=True)
+        text = json_text.dumps(info, indent=2, sort_keys=True, plain=_plain)
     except (TypeError, ValueError) as exc:
         raise OutputError(f"cannot write {path}: metadata is not JSON-serialisable ({exc})") from None
     return atomic_write_bytes(path, (text + "\n").encode("utf-8"), overwrite=overwrite)
