@@ -197,3 +197,38 @@ def test_a_firings_shared_time_gives_each_channel_the_bits_it_computes_alone():
             alone = track_set.positions_at(track, np.full(256, v))[0]
             rows = got[t.view(np.int64) == np.float64(v).view(np.int64)]
             assert (rows.view(np.int64) == alone.view(np.int64)).all(), v
+
+
+def test_origins_centred_in_the_same_pass_are_shifteds_difference(monkeypatch):
+    """With a centre, tracks.c writes the origins centred on it too: what
+    ``vectors.shifted`` then gives for them is numpy's ``origins - centre`` byte for
+    byte (driving, accelerating, turning, mirrored tracks; a firing's channels at one
+    time; far from the world's origin), read-only, with its bounds kept as they are
+    kept for a difference worked out in numpy; another centre, or another array with
+    the same numbers, is worked out anew."""
+    from rls_addon.core.native import vectors
+    from rls_addon.core.scene import track_set
+
+    rng = np.random.default_rng(9)
+    for track in tracks(rng, 12):
+        if len(track.times) < 2 or track.is_static:
+            continue
+        monkeypatch.setattr(vectors, "_BOUNDS", [])
+        monkeypatch.setattr(vectors, "_SHIFTED", [])
+        m = track.matrices.copy()
+        m[:, :3, 3] += [4e5, -3e3, 12.0]
+        track = Track(track.times, m)
+        t = np.repeat(rng.uniform(-0.02, 0.12, 35000), 2)  # two shares on two threads
+        c = np.array([4e5 + 0.3, -3e3 - 1e-7, 11.0])
+        got = track_set.positions_at(track, t, c)
+        assert np.array_equal(got, track.positions_at(t))
+        centred = vectors.shifted(got, c)
+        want = np.asarray(got) - c
+        assert centred.tobytes() == want.tobytes() and not centred.flags.writeable
+        assert vectors._BOUNDS[0][0] is centred
+        lo, hi = vectors.column_bounds(centred)
+        assert np.array_equal(lo, want.min(axis=0)) and np.array_equal(hi, want.max(axis=0))
+        other = vectors.shifted(got, c + [1e-6, 0, 0])
+        assert other is not centred and other.tobytes() == (got - (c + [1e-6, 0, 0])).tobytes()
+        copy = got.copy()
+        assert vectors.shifted(copy, c) is not centred

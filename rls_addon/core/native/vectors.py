@@ -40,14 +40,37 @@ def keep_bounds(a, lo, hi):
     return a
 
 
+# (array, shift, a - shift) made by whoever made the array (a compiled kernel, in the
+# pass that wrote it: a driving sensor's ray origins and the same centred on its
+# prepared scene), for shifted to give
+_SHIFTED = []
+
+
+def keep_shifted(a, c, centred):
+    """Remember ``centred`` (``a - c``, the same bits, found by whoever made ``a``) as
+    ``shifted(a, c)``'s answer, for a read-only ``a`` that owns its data; ``centred``
+    is made read-only."""
+    if isinstance(a, np.ndarray) and a.base is None and not a.flags.writeable:
+        centred.flags.writeable = False
+        _SHIFTED[:] = [(a, np.array(c, np.float64).reshape(3), centred)]
+    return a
+
+
 def shifted(a, c):
     """``a - c`` for an (N, 3) float64 array and a (3,) shift, the same bits, read-only:
     the rows folded ``_FOLD`` at a time (numpy's broadcast over rows of three costs
     2.5x as much). When ``a``'s bounds are kept (``column_bounds``), the result's are
     kept too: rounding keeps order, so the least of the differences is the least
-    minus ``c`` (a driving sensor's origins, centred on its prepared scene)."""
-    m = np.ascontiguousarray(a, np.float64).reshape(-1, 3)
+    minus ``c`` (a driving sensor's origins, centred on its prepared scene). When its
+    maker worked ``a - c`` out already (``keep_shifted``), that array is the answer."""
     c = np.asarray(c, np.float64).reshape(3)
+    for kept, shift, centred in _SHIFTED:
+        if (kept is a or _whole_view(a, kept)) and shift.tobytes() == c.tobytes():
+            got = _kept_bounds(a)
+            if got is not None:
+                keep_bounds(centred, got[0] - c, got[1] - c)
+            return centred
+    m = np.ascontiguousarray(a, np.float64).reshape(-1, 3)
     n = len(m) - len(m) % _FOLD
     out = np.empty_like(m)
     if n:

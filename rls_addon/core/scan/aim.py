@@ -100,7 +100,9 @@ class _Aim:
     beam_origins: np.ndarray = None  # (N, 3) sensor frame, or None: all from the origin
 
     @classmethod
-    def of(cls, pattern, sensor_to_world, sensor_track, tscene):
+    def of(cls, pattern, sensor_to_world, sensor_track, tscene, centre=None):
+        """``centre``: the prepared scene's, when known (a moving sensor's origins come
+        centred on it too, for its cast: ``track_set.positions_at``)."""
         dirs_sensor = pattern.directions
         beam = pattern.origins  # (N, 3) sensor frame or None: the rays leave the origin
         if sensor_track is None or sensor_track.is_static:
@@ -115,7 +117,8 @@ class _Aim:
             # Driving without turning: one rotation for the sweep (the pattern turned
             # once, and kept while it does not turn), an origin per firing time (in C,
             # see track_set.positions_at; the distinct poses only when asked for).
-            origins = track_positions(sensor_track, tscene)
+            origins = track_positions(sensor_track, tscene, None if beam is not None
+                                      else centre)
             poses = _DistinctPoses(origins, tscene)
             rot = sensor_axes(sensor_track.matrices[0])[1]
             dirs = pattern.rotated(rot)
@@ -126,7 +129,8 @@ class _Aim:
             # firing time, by the track's turn within its knot interval (``Track.rotate``,
             # no matrix per time: with every channel at its own time, a matrix and its
             # polar decomposition per ray cost 240 ms a Pandar64 frame).
-            origins = track_positions(sensor_track, tscene)
+            origins = track_positions(sensor_track, tscene, None if beam is not None
+                                      else centre)
             poses = _DistinctPoses(origins, tscene)
             dirs = sensor_track.rotate(tscene, dirs_sensor)
             if beam is not None:

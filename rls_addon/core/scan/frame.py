@@ -222,7 +222,8 @@ def _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory, f
         substeps_used = s.substeps or adaptive_substeps(moving, sensor_track,
                                                         dv.motion_tolerance_m)
     tscene = effective_times(pattern.times, pattern.period, s.motion, substeps_used)
-    aim = _Aim.of(pattern, sensor_to_world, sensor_track, tscene)
+    aim = _Aim.of(pattern, sensor_to_world, sensor_track, tscene,
+                  scene.centre if isinstance(scene, PreparedScene) else None)
     pick = _Subset(n, ray_rows, pattern.trace_order)
     if pick.rows is not None:
         if dv.beam is not None or aim.poses.shape[0] != 1:

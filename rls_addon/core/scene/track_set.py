@@ -15,16 +15,19 @@ import numpy as np
 
 from ..native import kernels
 from ..native.kernels import Kernel
-from ..native.vectors import keep_bounds
+from ..native.vectors import keep_bounds, keep_shifted
 from .motion import Track, hermite, matrix_from_quat, slerp
 
 
-def positions_at(track, t):
+def positions_at(track, t, centre=None):
     """(N, 3) ``track.positions_at(t)`` (its reference), in C where it is built
     (``native/c/tracks.c``: the same bits) for the many times of a frame's rays, each
     firing at its own time. From C the array is read-only and its column bounds,
     found in the same pass, are kept (``vectors.keep_bounds``): a frame asks for them
-    four times (its prepared scene's cover, the re-check's octant table and limit)."""
+    four times (its prepared scene's cover, the re-check's octant table and limit).
+    With ``centre`` ((3,): the prepared scene's, which its cast centres the origins on)
+    C also writes them centred, in the same pass, and ``vectors.shifted(positions,
+    centre)`` gives that array (``vectors.keep_shifted``)."""
     t = np.asarray(t, np.float64).reshape(-1)
     fn = TRACK_POSITIONS.get() if compiled and len(t) >= 256 else None
     if fn is None or len(track.times) < 2 or track.is_static:
@@ -33,12 +36,18 @@ def positions_at(track, t):
              np.ascontiguousarray(track.velocities, np.float64), np.ascontiguousarray(t)]
     out = np.empty((len(t), 3))
     bounds = np.empty(6)
+    c = None if centre is None else np.array(centre, np.float64).reshape(3)
+    centred = None if c is None else np.empty((len(t), 3))
     args = _PositionsArgs(len(knots[0]), *(a.ctypes.data for a in knots[:3]), len(t),
-                          knots[3].ctypes.data, out.ctypes.data, bounds.ctypes.data, 0)
+                          knots[3].ctypes.data, out.ctypes.data, bounds.ctypes.data, 0,
+                          None if c is None else c.ctypes.data,
+                          None if c is None else centred.ctypes.data)
     fn(ctypes.byref(args), kernels.threads())
     out.flags.writeable = False
     if not args.nan:
         keep_bounds(out, bounds[:3], bounds[3:])
+    if c is not None:
+        keep_shifted(out, c, centred)
     return out
 
 
@@ -48,10 +57,11 @@ class _PositionsArgs(ctypes.Structure):
     _fields_ = [("knots", ctypes.c_int64), ("times", ctypes.c_void_p),
                 ("position", ctypes.c_void_p), ("velocity", ctypes.c_void_p),
                 ("n", ctypes.c_int64), ("t", ctypes.c_void_p), ("out", ctypes.c_void_p),
-                ("bounds", ctypes.c_void_p), ("nan", ctypes.c_int32)]
+                ("bounds", ctypes.c_void_p), ("nan", ctypes.c_int32),
+                ("centre", ctypes.c_void_p), ("centred", ctypes.c_void_p)]
 
 
-NATIVE_TRACKS_ABI = 2
+NATIVE_TRACKS_ABI = 3
 TRACK_POSITIONS = Kernel("rls_track_positions", "rls_tracks_abi", NATIVE_TRACKS_ABI,
                          [ctypes.POINTER(_PositionsArgs), ctypes.c_int])
 # Off: a frame's ray origins come from Track.positions_at (the reference the C code is

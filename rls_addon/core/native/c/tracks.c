@@ -12,6 +12,10 @@
  * firing share it) copies that row's position, the same bits without the arithmetic.
  * Times are split into shares on a few threads.
  *
+ * With `centre` the positions come back centred on it too (`centred`, each position
+ * minus the centre: native/vectors.py's shifted, the same bits), in the same pass: a
+ * frame's rays are cast from origins centred on its prepared scene.
+ *
  * With `bounds` the least and greatest of each column of the output come back too
  * (lo x y z, hi x y z: what native/vectors.py's column_bounds gives for it), found in
  * the same pass; `nan` is set when a position is not a number (the caller then asks
@@ -22,7 +26,7 @@
 
 #include "rls_shares.h"
 
-#define RLS_TRACKS_ABI 2
+#define RLS_TRACKS_ABI 3
 
 typedef struct {
     int64_t knots;          /* K >= 2 */
@@ -34,6 +38,8 @@ typedef struct {
     double *out;            /* n x 3 */
     double *bounds;         /* 6 (lo xyz, hi xyz) or NULL */
     int32_t nan;            /* out: 1 when a position is NaN (bounds not given) */
+    const double *centre;   /* 3, or NULL */
+    double *centred;        /* n x 3: out - centre (with centre) */
 } positions_t;
 
 typedef struct {
@@ -76,6 +82,8 @@ static void run_share(void *arg) {
         double t = a->t[r];
         if (r > s->lo && same_bits(t, a->t[r - 1])) {  /* fired together: the row above */
             for (int k = 0; k < 3; k++) a->out[3 * r + k] = a->out[3 * r - 3 + k];
+            if (a->centre)
+                for (int k = 0; k < 3; k++) a->centred[3 * r + k] = a->centred[3 * r - 3 + k];
             continue;
         }
         if (!have || t != last) {  /* a firing's channels share their time */
@@ -94,6 +102,7 @@ static void run_share(void *arg) {
         for (int k = 0; k < 3; k++) {
             double x = h00 * p0[k] + h10 * v0[k] + h01 * p1[k] + h11 * v1[k];
             a->out[3 * r + k] = x;
+            if (a->centre) a->centred[3 * r + k] = x - a->centre[k];
             lo[k] = x < lo[k] ? x : lo[k];
             hi[k] = x > hi[k] ? x : hi[k];
             nan |= x != x;
