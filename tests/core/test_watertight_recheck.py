@@ -46,3 +46,40 @@ def test_octant_boxes_are_the_union_of_the_boxes_ahead():
             want = np.r_[w.box_lo[sel].min(axis=0), w.box_hi[sel].max(axis=0)] \
                 if sel.any() else np.zeros(6)
             np.testing.assert_array_equal(boxes[code], want)
+
+
+def test_the_hull_is_built_from_numpys_bounds_of_the_triangles():
+    """The hull's boxes and the scene's extent (``triangle_bounds``, ``column_bounds``)
+    are what numpy's min and max over ``vertices[triangles]`` give, float for float:
+    random, degenerate (a repeated vertex, a point) and far-off triangles, groups and
+    cells as a prepared scene uses them."""
+    from rls_addon.core.casting import watertight
+    from rls_addon.core.casting.numpy_caster import NumpyCaster
+
+    rng = np.random.default_rng(40)
+    v = rng.normal(size=(3000, 3)) * [50.0, 30.0, 4.0] + [1e4, -2e3, 0.0]
+    v[::7] = -v[::7]
+    t = rng.integers(0, len(v), (4000, 3))
+    t[::11, 1] = t[::11, 0]
+    t[::13] = t[::13, :1]
+    v = np.vstack([v, [[1e6, -1e6, 1e6]]])  # a vertex of no triangle: not in the extent
+    tv = v[t]
+    lo, hi = watertight.triangle_bounds(v, t)
+    assert lo.tobytes() == tv.min(axis=1).tobytes() and hi.tobytes() == tv.max(axis=1).tobytes()
+    groups = rng.integers(0, 5, len(t))
+    got = watertight.cluster_boxes(v, t, groups, 7.5)
+    # the reference: each triangle's box from numpy's reduction over its corners
+    tmin, tmax = tv.min(axis=1), tv.max(axis=1)
+    cells = np.floor((tmin + tmax) / 15.0).astype(np.int64)
+    cells -= cells.min(axis=0)
+    span = cells.max(axis=0) + 1
+    key = groups * int(np.prod(span)) + (cells[:, 0] * span[1] + cells[:, 1]) * span[2] \
+        + cells[:, 2]
+    want_lo = np.array([tmin[key == k].min(axis=0) for k in np.unique(key)])
+    want_hi = np.array([tmax[key == k].max(axis=0) for k in np.unique(key)])
+    assert np.array_equal(got[0], want_lo) and np.array_equal(got[1], want_hi)
+    w = watertight.WatertightCaster(NumpyCaster, v, t, groups, 7.5)
+    extent = float(np.linalg.norm(tv.reshape(-1, 3).max(0) - tv.reshape(-1, 3).min(0))) + 1.0
+    assert w.extent == extent
+    pad = 1e-5 * extent
+    assert np.array_equal(w.box_lo, want_lo - pad) and np.array_equal(w.box_hi, want_hi + pad)
