@@ -49,12 +49,14 @@ def test_octant_boxes_are_the_union_of_the_boxes_ahead():
 
 
 def test_the_hull_is_built_from_numpys_bounds_of_the_triangles():
-    """The hull's boxes and the scene's extent (``triangle_bounds``, ``column_bounds``)
+    """The hull's boxes and the scene's extent (``vectors.triangle_bounds``,
+    ``column_bounds``)
     are what numpy's min and max over ``vertices[triangles]`` give, float for float:
     random, degenerate (a repeated vertex, a point) and far-off triangles, groups and
     cells as a prepared scene uses them."""
     from rls_addon.core.casting import watertight
     from rls_addon.core.casting.numpy_caster import NumpyCaster
+    from rls_addon.core.native import vectors
 
     rng = np.random.default_rng(40)
     v = rng.normal(size=(3000, 3)) * [50.0, 30.0, 4.0] + [1e4, -2e3, 0.0]
@@ -64,8 +66,13 @@ def test_the_hull_is_built_from_numpys_bounds_of_the_triangles():
     t[::13] = t[::13, :1]
     v = np.vstack([v, [[1e6, -1e6, 1e6]]])  # a vertex of no triangle: not in the extent
     tv = v[t]
-    lo, hi = watertight.triangle_bounds(v, t)
+    lo, hi = vectors.triangle_bounds(v, t)
     assert lo.tobytes() == tv.min(axis=1).tobytes() and hi.tobytes() == tv.max(axis=1).tobytes()
+    bad = v.copy()  # a NaN or infinite corner (clean_for_casting drops those triangles)
+    bad[5:40:3] = [np.nan, np.inf, -np.inf]
+    got = vectors.triangle_bounds(bad, t)
+    assert np.array_equal(got[0], bad[t].min(axis=1), equal_nan=True)
+    assert np.array_equal(got[1], bad[t].max(axis=1), equal_nan=True)
     groups = rng.integers(0, 5, len(t))
     got = watertight.cluster_boxes(v, t, groups, 7.5)
     # the reference: each triangle's box from numpy's reduction over its corners

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import SceneError
+from ..native.vectors import triangle_bounds
 
 
 @dataclass(frozen=True)
@@ -204,8 +205,7 @@ def clean_for_casting(geometry, centre, max_range, min_area=1e-12):
         if n_bad:
             warnings.append(f"skipped {n_bad} degenerate (zero-area) triangle(s)")
         # Distance from the sensor to each triangle's bounding box.
-        tv = local[tris]
-        lo, hi = tv.min(axis=1), tv.max(axis=1)
+        lo, hi = triangle_bounds(local, tris)
         gap = np.maximum(np.maximum(lo, -hi), 0.0)
         near = np.einsum("ij,ij->i", gap, gap) <= float(max_range) ** 2
     keep = np.nonzero(good & near)[0]
