@@ -73,9 +73,6 @@ static int64_t segment(const double *times, int64_t k, double t) {
 static void run_share(void *arg) {
     share_t *s = (share_t *)arg;
     const positions_t *a = s->a;
-    int64_t i = 0;
-    double last = 0.0;
-    int have = 0;
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     int nan = 0;
     for (int64_t r = s->lo; r < s->hi; r++) {
@@ -86,11 +83,7 @@ static void run_share(void *arg) {
                 for (int k = 0; k < 3; k++) a->centred[3 * r + k] = a->centred[3 * r - 3 + k];
             continue;
         }
-        if (!have || t != last) {  /* a firing's channels share their time */
-            i = segment(a->times, a->knots, t);
-            last = t;
-            have = 1;
-        }
+        int64_t i = segment(a->times, a->knots, t);
         double span = a->times[i + 1] - a->times[i];
         double f = (t - a->times[i]) / (span > 0 ? span : 1.0);
         f = f < 0.0 ? 0.0 : (f > 1.0 ? 1.0 : f);  /* np.clip: a NaN stays NaN */
