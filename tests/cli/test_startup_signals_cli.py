@@ -7,7 +7,8 @@ traceback, and leaves only complete files.
 The points are drawn from a fixed seed per command over that command's own time to its
 first progress line (to its end for the two without frames), measured here, so a
 failure names its seed, trial, signal and delay and can be replayed. Runs go two at a
-time.
+time. Where fewer than half the 50 found a run to stop (the reference ran slower than
+the trials: a busy machine), more follow within the quickest finished trial's time.
 
 What the process may also do: finish before the signal (exit 0); or, for a signal that
 lands in Python's own start, before the first line of ``rls_addon/__main__.py`` takes
@@ -88,6 +89,9 @@ def until_first_frame(args):
 
 
 def stopped(args, sig, delay):
+    """(exit code, stdout, stderr, seconds from the start to the exit) of a run sent
+    ``sig`` ``delay`` seconds after its start."""
+    t = time.perf_counter()
     proc = start(args)
     time.sleep(delay)
     proc.send_signal(sig)
@@ -96,7 +100,7 @@ def stopped(args, sig, delay):
     finally:
         if proc.poll() is None:
             proc.kill()
-    return proc.returncode, out, err
+    return proc.returncode, out, err, time.perf_counter() - t
 
 
 def before_rls(sig, code, stderr):
@@ -144,38 +148,56 @@ def written(case, out):
     return out.exists()
 
 
+def outcome(case, out, where, sig, code, stdout, stderr):
+    """Assert a stopped run ended as one may (see the module docstring); return how:
+    "stopped", "finished" or "python start"."""
+    python_start = before_rls(sig, code, stderr)
+    assert "Traceback" not in stderr or python_start, where
+    lines = outcome_lines(stderr)
+    if code == 128 + sig:
+        assert len(lines) == 1 and lines[0].startswith("rls: interrupted"), where
+        written(case, out)
+        return "stopped"
+    if code == 0:
+        assert not lines and stdout.lstrip().startswith("{"), where
+        assert written(case, out), where
+        return "finished"
+    assert python_start, where
+    assert stdout == "" and not written(case, out), where
+    return "python start"
+
+
 @pytest.mark.parametrize("case", list(CASES))
 def test_stop_signals_at_start_up_end_like_later(inputs, tmp_path, case):
     span = until_first_frame(CASES[case](inputs, tmp_path / "reference"))
     seed = f"issue 38, start-up signals: {case}"
     rng = random.Random(seed)
-    trials = [(n, rng.choice(SIGNALS), rng.uniform(0.0, span)) for n in range(TRIALS)]
 
     def trial(t):
         n, sig, delay = t
         out = tmp_path / f"run{n}"
-        code, stdout, stderr = stopped(CASES[case](inputs, out), sig, delay)
-        return t, out, code, stdout, stderr
+        return (t, out, *stopped(CASES[case](inputs, out), sig, delay))
 
     outcomes = {"stopped": 0, "finished": 0, "python start": 0}
-    with ThreadPoolExecutor(max_workers=2) as pool:
-        for (n, sig, delay), out, code, stdout, stderr in pool.map(trial, trials):
-            where = (f"seed {seed!r}, trial {n}: {sig.name} at {delay:.3f} s of {span:.3f} s; "
-                     f"exit {code}; stderr: {stderr[-1500:]}")
-            python_start = before_rls(sig, code, stderr)
-            assert "Traceback" not in stderr or python_start, where
-            lines = outcome_lines(stderr)
-            if code == 128 + sig:
-                assert len(lines) == 1 and lines[0].startswith("rls: interrupted"), where
-                written(case, out)
-                outcomes["stopped"] += 1
-            elif code == 0:
-                assert not lines and stdout.lstrip().startswith("{"), where
-                assert written(case, out), where
-                outcomes["finished"] += 1
-            else:
-                assert python_start, where
-                assert stdout == "" and not written(case, out), where
-                outcomes["python start"] += 1
-    print(f"{case}: {outcomes} over {span:.2f} s to the first frame")
+    done, within = 0, span
+    # The first TRIALS signals land over the reference run's time. How many of them
+    # stop a run (rather than finding it finished) depends on how fast the machine ran
+    # the reference against the trials (a busy machine varies); until half the trials
+    # have stopped a run, more follow within the quickest finished trial's time (up
+    # to 4 x TRIALS in all), so the count asked for never rests on timing.
+    while done < TRIALS or (outcomes["stopped"] < TRIALS // 2 and done < 4 * TRIALS):
+        batch = [(n, rng.choice(SIGNALS), rng.uniform(0.0, within))
+                 for n in range(done, done + (TRIALS if done < TRIALS else 10))]
+        quickest = within
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            for (n, sig, delay), out, code, stdout, stderr, took in pool.map(trial, batch):
+                where = (f"seed {seed!r}, trial {n}: {sig.name} at {delay:.3f} s of "
+                         f"{within:.3f} s; exit {code}; stderr: {stderr[-1500:]}")
+                how = outcome(case, out, where, sig, code, stdout, stderr)
+                outcomes[how] += 1
+                if how == "finished":
+                    quickest = min(quickest, took)
+        done += len(batch)
+        within = quickest
+    print(f"{case}: {outcomes} in {done} trials over {span:.2f} s to the first frame")
     assert outcomes["stopped"] >= TRIALS // 2, outcomes
