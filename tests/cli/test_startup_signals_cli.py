@@ -184,7 +184,8 @@ def test_stop_signals_at_start_up_end_like_later(inputs, tmp_path, case):
     # stop a run (rather than finding it finished) depends on how fast the machine ran
     # the reference against the trials (a busy machine varies); until half the trials
     # have stopped a run, more follow within the quickest finished trial's time (up
-    # to 4 x TRIALS in all), so the count asked for never rests on timing.
+    # to 4 x TRIALS in all), so the count asked for does not rest on the reference's
+    # timing.
     while done < TRIALS or (outcomes["stopped"] < TRIALS // 2 and done < 4 * TRIALS):
         batch = [(n, rng.choice(SIGNALS), rng.uniform(0.0, within))
                  for n in range(done, done + (TRIALS if done < TRIALS else 10))]
