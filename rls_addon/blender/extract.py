@@ -11,12 +11,19 @@ and a ``MeshReader`` (one per scan session) reads an unchanged mesh once over fr
 Instances keep their local triangles and matrix, so the motion layer can treat moving
 objects in their own frame; ``world_geometry`` joins any subset in world space with
 one shared object table and material table.
+
+Objects and materials are told apart by name (an instance's key, its mesh read once,
+its motion and label; a material's reflectivity). Names are unique within one file,
+but not across the libraries a scene links from: two objects (or materials) of the
+same name, one linked, are refused with the names to change (``_one_per_name``),
+never read as one.
 """
 
 import itertools
 
 import numpy as np
 
+from ..core.errors import SceneError
 from ..core.scene.geometry import MaterialInfo
 from ..core.scene.instances import Instance, object_table, world_geometry
 from .labels import object_label
@@ -222,10 +229,18 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     stats = {"objects": 0, "culled_by_range": 0, "hidden": 0}
     realized = {i.object.original.name for i in depsgraph.object_instances if _realizes_itself(i)}
     wanted, matrices, corners = [], [], []
+    names, material_names = {}, {}  # name -> full name (with its library), of those seen
     for n, inst in enumerate(depsgraph.object_instances):
         ob = inst.object
         orig = ob.original
-        if ob.type not in GEOMETRY_TYPES or orig.name in exclude or is_rls_helper(orig):
+        if ob.type not in GEOMETRY_TYPES:
+            continue
+        # every geometry object, read or not (a hidden or distant one's matrix would be
+        # taken for its namesake's in a sweep), and the instancer
+        _one_per_name(names, orig, "objects")
+        if inst.is_instance and inst.parent is not None:
+            _one_per_name(names, inst.parent.original, "objects")
+        if orig.name in exclude or is_rls_helper(orig):
             continue
         if not inst.is_instance and orig.name in realized:
             continue  # read through its realized mesh instance instead
@@ -259,6 +274,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         for i, mt in enumerate(slots):
             if mt is None:
                 continue
+            _one_per_name(material_names, mt, "materials")
             if mt.name not in mat_index:
                 mat_index[mt.name] = len(materials)
                 materials.append(material_info(mt))
@@ -275,6 +291,21 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     if reader is not None:
         reader.scan_done()
     return out, materials, stats
+
+
+def _one_per_name(seen, block, kind):
+    """Note ``block`` (an object or a material) in ``seen`` ({name: full name}); a
+    ``SceneError`` when another of its name was seen: one linked from a library
+    beside a local one, or from two libraries (their shapes, motion, labels or
+    reflectivity would be mixed up)."""
+    full = seen.setdefault(block.name, block.name_full)
+    if full != block.name_full:
+        a, b = sorted((full, block.name_full))
+        raise SceneError(f"two {kind} are named '{block.name}' ('{a}' and '{b}', from "
+                         f"different files): RLS tells {kind} apart by name and would mix "
+                         "them up; rename one of them (a linked one is made local first: "
+                         "Object > Relations > Make Local, with its materials for a "
+                         "material)")
 
 
 def _label(orig, parent, labels):

@@ -1,0 +1,110 @@
+"""Objects and materials linked from other files: RLS tells objects and materials
+apart by name, and names are unique only within one file. Two of one name (a linked one
+beside a local one) are refused with both full names, never read as one (before the
+check, a linked sphere named like a local cube was scanned as the cube); linked
+objects of names of their own are read as they are."""
+
+import bpy
+import numpy as np
+import pytest
+
+from rls_addon.core.errors import SceneError
+
+from .conftest import add_lidar, ground, mesh_object, scan
+
+
+def library(path, build):
+    """Save a file holding what ``build()`` makes, then start an empty one again."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    build()
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+
+
+def link(path, *names):
+    """Link objects ``names`` from the file at ``path`` into the scene."""
+    with bpy.data.libraries.load(str(path), link=True) as (_, dst):
+        dst.objects = list(names)
+    for ob in dst.objects:
+        bpy.context.scene.collection.objects.link(ob)
+    return dst.objects
+
+
+def sphere(name, location):
+    bpy.ops.mesh.primitive_uv_sphere_add(location=location)
+    bpy.context.object.name = name
+    return bpy.context.object
+
+
+def cube(name, location):
+    bpy.ops.mesh.primitive_cube_add(location=location)
+    bpy.context.object.name = name
+    return bpy.context.object
+
+
+def read():
+    from rls_addon.blender.extract import read_instances
+
+    return read_instances(bpy.context.evaluated_depsgraph_get())
+
+
+def test_a_linked_object_named_as_a_local_one_is_refused(scene, tmp_path):
+    lib = tmp_path / "cars.blend"
+    library(lib, lambda: sphere("Car", (10, 0, 1)))
+    add_lidar(location=(0, 0, 1.5))
+    ground()
+    cube("Car", (0, 10, 1))
+    (linked,) = link(lib, "Car")
+    assert linked.library is not None and linked.name == "Car"
+    with pytest.raises(SceneError, match=r"two objects are named 'Car' \('Car' and "
+                                         r"'Car \[cars\.blend\]'.*rename one of them"):
+        read()
+    # a scan says so too, and makes no points of the cube where the sphere stands
+    with pytest.raises(SceneError, match="two objects are named 'Car'"):
+        scan(bpy.data.objects["LiDAR"])
+
+
+def test_a_hidden_namesake_is_refused_too(scene, tmp_path):
+    # not read, but its matrix has its name: a sweep would take it for the visible one's
+    lib = tmp_path / "hidden.blend"
+
+    def build():
+        sphere("Car", (10, 0, 1)).hide_render = True
+
+    library(lib, build)
+    cube("Car", (0, 10, 1))
+    link(lib, "Car")
+    with pytest.raises(SceneError, match="two objects are named 'Car'"):
+        read()
+
+
+def test_materials_of_one_name_from_two_files_are_refused(scene, tmp_path):
+    lib = tmp_path / "signs.blend"
+
+    def build():
+        sign = cube("Sign", (10, 0, 1))
+        mat = bpy.data.materials.new("Paint")
+        mat["rls_reflectivity"] = 0.9
+        sign.data.materials.append(mat)
+
+    library(lib, build)
+    wall = mesh_object("Wall", [(0, 5, 0), (2, 5, 0), (2, 5, 2), (0, 5, 2)], [(0, 1, 2, 3)])
+    mat = bpy.data.materials.new("Paint")
+    mat["rls_reflectivity"] = 0.1
+    wall.data.materials.append(mat)
+    link(lib, "Sign")
+    with pytest.raises(SceneError, match=r"two materials are named 'Paint' \('Paint' and "
+                                         r"'Paint \[signs\.blend\]'"):
+        read()
+
+
+def test_linked_objects_of_their_own_names_are_read_as_they_are(scene, tmp_path):
+    lib = tmp_path / "props.blend"
+    library(lib, lambda: sphere("Ball", (10, 0, 1)))
+    local = cube("Box", (0, 10, 1))
+    (linked,) = link(lib, "Ball")
+    got = {i.key: i for i in read()[0]}
+    assert set(got) == {"Ball", "Box"}
+    assert len(got["Box"].vertices) == len(local.data.vertices) == 8
+    assert len(got["Ball"].vertices) == len(linked.data.vertices) > 8
+    assert np.allclose(got["Ball"].matrix[:3, 3], (10, 0, 1))
