@@ -16,7 +16,8 @@ Objects and materials are told apart by name (an instance's key, its mesh read o
 its motion and label; a material's reflectivity). Names are unique within one file,
 but not across the libraries a scene links from: two objects (or materials) of the
 same name, one linked, are refused with the names to change (``_one_per_name``),
-never read as one.
+never read as one. Blender units are read as metres: a scene whose Unit Scale is not 1
+(one unit another length) is refused (``_in_metres``), never scanned at the wrong size.
 """
 
 import itertools
@@ -223,6 +224,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     Two walks over the instances: the first finds those to read and their bounds (every
     one's distance from ``centre`` in one product, ``_bounds_distances``), the second
     reads them (an instance is valid only while the walk is at it)."""
+    _in_metres(depsgraph.scene)
     centre = None if centre is None else np.asarray(centre, dtype=np.float64)
     materials, mat_index = [MaterialInfo("default")], {}
     cache, out = {}, []
@@ -291,6 +293,24 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     if reader is not None:
         reader.scan_done()
     return out, materials, stats
+
+
+def _in_metres(scene):
+    """A ``SceneError`` unless one Blender unit of ``scene`` is one metre (its Unit
+    Scale 1, whatever units it shows): RLS reads positions, sizes, ranges and speeds
+    in Blender units as metres, so a scene modelled at another scale would be scanned
+    that many times too large or too small."""
+    scale = float(scene.unit_settings.scale_length)  # Blender keeps it above 0
+    if abs(scale - 1.0) > 1e-9:
+        size = f"{1 / scale:.4g} times too large" if scale < 1 else \
+            f"{scale:.4g} times too small"
+        raise SceneError(
+            f"scene '{scene.name}' has a Unit Scale of {scale:g} (Scene Properties > Units): "
+            f"one Blender unit is {scale:g} m there, and RLS reads Blender units as metres, "
+            f"so it would scan a world {size}; model the scene in "
+            "metres with Unit Scale 1 (a still scene: select everything, scale it by "
+            f"{scale:g} about the world origin, Object > Apply > Scale, then set Unit Scale "
+            "to 1; keyed motion needs its keys scaled too)")
 
 
 def _one_per_name(seen, block, kind):

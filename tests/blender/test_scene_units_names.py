@@ -1,8 +1,12 @@
-"""Objects and materials linked from other files: RLS tells objects and materials
-apart by name, and names are unique only within one file. Two of one name (a linked one
-beside a local one) are refused with both full names, never read as one (before the
-check, a linked sphere named like a local cube was scanned as the cube); linked
-objects of names of their own are read as they are."""
+"""What RLS assumes of a Blender scene, checked where it is read.
+
+Names: RLS tells objects and materials apart by name, and names are unique only within
+one file. Two of one name (a linked one beside a local one) are refused with both full
+names, never read as one (before the check, a linked sphere named like a local cube was
+scanned as the cube); linked objects of names of their own are read as they are.
+
+Units: Blender units are read as metres; a scene whose Unit Scale is not 1 is refused
+(it would be scanned at the wrong size), whatever units it only shows."""
 
 import bpy
 import numpy as np
@@ -108,3 +112,20 @@ def test_linked_objects_of_their_own_names_are_read_as_they_are(scene, tmp_path)
     assert len(got["Box"].vertices) == len(local.data.vertices) == 8
     assert len(got["Ball"].vertices) == len(linked.data.vertices) > 8
     assert np.allclose(got["Ball"].matrix[:3, 3], (10, 0, 1))
+
+
+@pytest.mark.parametrize("scale, size", [(0.01, "100 times too large"),
+                                         (1000.0, "1000 times too small")])
+def test_a_scene_not_in_metres_is_refused(scene, scale, size):
+    # Blender units are read as metres: at a Unit Scale of 0.01 a 4.5 m car modelled as
+    # 450 units would be scanned as a 450 m one
+    add_lidar(location=(0, 0, 1.5))
+    ground()
+    scene.unit_settings.scale_length = scale
+    with pytest.raises(SceneError, match=rf"Unit Scale of {scale:g} .*{size}.*Unit Scale 1"):
+        read()
+    with pytest.raises(SceneError, match="Unit Scale"):
+        scan(bpy.data.objects["LiDAR"])
+    scene.unit_settings.scale_length = 1.0  # metres, whatever units it shows
+    scene.unit_settings.system = "IMPERIAL"
+    assert len(read()[0]) == 1 and len(scan(bpy.data.objects["LiDAR"])[0].points) > 1000
