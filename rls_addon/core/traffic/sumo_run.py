@@ -97,12 +97,13 @@ def sibling(path, suffix):
 
 def vtypes_xml():
     lines = ['<additional>', f'    <vTypeDistribution id="{DISTRIBUTION}">']
-    for tid, vclass, prob, (l, w, h) in VEHICLE_MIX:
-        lines.append(f'        <vType id="{tid}" vClass="{vclass}" length="{l}" width="{w}" '
+    for tid, vclass, prob, (length, w, h) in VEHICLE_MIX:
+        lines.append(f'        <vType id="{tid}" vClass="{vclass}" length="{length}" width="{w}" '
                      f'height="{h}" probability="{prob}"/>')
-    tid, vclass, (l, w, h) = PEDESTRIAN
+    tid, vclass, (length, w, h) = PEDESTRIAN
     lines += ['    </vTypeDistribution>',
-              f'    <vType id="{tid}" vClass="{vclass}" length="{l}" width="{w}" height="{h}"/>',
+              f'    <vType id="{tid}" vClass="{vclass}" length="{length}" width="{w}" '
+              f'height="{h}"/>',
               '</additional>', '']
     return "\n".join(lines)
 
