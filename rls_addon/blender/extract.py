@@ -16,7 +16,9 @@ Objects and materials are told apart by name (an instance's key, its mesh read o
 its motion and label; a material's reflectivity). Names are unique within one file,
 but not across the libraries a scene links from: two objects (or materials) of the
 same name, one linked, are refused with the names to change (``_one_per_name``),
-never read as one. Blender units are read as metres: a scene whose Unit Scale is not 1
+never read as one. The depsgraph read is the viewport's: an object hidden in the
+viewport but not from render is not in it, so it is not scanned, and the read names it
+(``hidden_in_viewport``) for the scan to say so. Blender units are read as metres: a scene whose Unit Scale is not 1
 (one unit another length) is refused (``_in_metres``), never scanned at the wrong size.
 """
 
@@ -253,6 +255,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         matrices.append(np.array(inst.matrix_world, dtype=np.float64))
         if centre is not None and max_range is not None:
             corners.append(_corners(ob.bound_box))
+    stats["hidden_in_viewport"] = hidden_in_viewport(depsgraph, set(names.values()))
     if corners:
         near = _bounds_distances(np.array(matrices), np.array(corners), centre) <= max_range
         stats["culled_by_range"] = int(len(near) - np.count_nonzero(near))
@@ -293,6 +296,41 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     if reader is not None:
         reader.scan_done()
     return out, materials, stats
+
+
+def hidden_in_viewport(depsgraph, present=None):
+    """Sorted full names of the geometry objects a render of the depsgraph's view layer
+    shows that the depsgraph (the viewport's) leaves out, so they are not scanned: an
+    object hidden with its eye or its monitor icon, or in a collection disabled in
+    viewports. A render shows an object not hidden from render in a collection that
+    is neither excluded from the view layer nor hidden from render (nor any above it).
+    ``present``: the full names of the objects the depsgraph lists (found here when
+    not given). LiDARs and what RLS draws are never scanned, hidden or not."""
+    if present is None:
+        present = {i.object.original.name_full for i in depsgraph.object_instances}
+    found, stack = set(), [depsgraph.view_layer.layer_collection]
+    while stack:
+        lc = stack.pop()
+        if lc.exclude or lc.collection.hide_render:
+            continue
+        stack.extend(lc.children)
+        for ob in lc.collection.objects:
+            if (ob.type in GEOMETRY_TYPES and not ob.hide_render
+                    and ob.name_full not in present and not is_rls_helper(ob)):
+                found.add(ob.name_full)
+    return sorted(found)
+
+
+def hidden_in_viewport_warning(names, shown=5):
+    """What a scan says of objects ``hidden_in_viewport`` names."""
+    listed = ", ".join(f"'{n}'" for n in names[:shown])
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    one = len(names) == 1
+    it = "it" if one else "them"
+    return (f"{len(names)} object{'' if one else 's'} hidden in the viewport but not from "
+            f"render {'is' if one else 'are'} not scanned ({listed}{more}): show {it} "
+            f"(Alt+H, or the monitor icon) to scan {it}, or disable {it} in renders (the "
+            f"camera icon) to leave {it} out without this warning")
 
 
 def _in_metres(scene):

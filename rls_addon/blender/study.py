@@ -9,7 +9,7 @@ from ..core.study.loop import run_study as core_run_study
 from ..core.errors import RegionError, SceneError
 from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
-from .extract import read_instances
+from .extract import hidden_in_viewport_warning, read_instances
 from .region import is_lob, lob_polygon_world
 from .source import traffic_span
 from .scenes.build import is_mount, mount_position
@@ -51,6 +51,7 @@ class BlenderStudyScene:
         self.scene = scene
         self.name = scene.name
         self.file = os.path.basename(bpy.data.filepath)  # '' for an unsaved file
+        self.warnings = []  # what its last static read could not read (the study says it)
 
     def current_frame(self):
         return self.scene.frame_current
@@ -65,7 +66,9 @@ class BlenderStudyScene:
         return [(obj.name, mount_position(obj)) for obj in find_mounts(self.scene, names)]
 
     def static_geometry(self, hidden_labels):
-        instances, materials, _ = read_instances(bpy.context.evaluated_depsgraph_get())
+        instances, materials, stats = read_instances(bpy.context.evaluated_depsgraph_get())
+        unseen = stats["hidden_in_viewport"]
+        self.warnings = [hidden_in_viewport_warning(unseen)] if unseen else []
         hidden = sorted(i.key for i in instances if i.label in hidden_labels)
         static = [i for i in instances if i.label not in hidden_labels]
         return world_geometry(static, object_table(static), materials), hidden

@@ -129,3 +129,54 @@ def test_a_scene_not_in_metres_is_refused(scene, scale, size):
     scene.unit_settings.scale_length = 1.0  # metres, whatever units it shows
     scene.unit_settings.system = "IMPERIAL"
     assert len(read()[0]) == 1 and len(scan(bpy.data.objects["LiDAR"])[0].points) > 1000
+
+
+def test_objects_hidden_in_the_viewport_but_not_from_render_are_named(scene, tmp_path):
+    # The viewport's depsgraph leaves them out, so they are not scanned: a scan says so
+    from rls_addon.blender.extract import hidden_in_viewport, hidden_in_viewport_warning
+
+    lidar = add_lidar(location=(0, 0, 1.5))
+    ground()
+    eye = cube("Eye", (5, 0, 1))
+    monitor = cube("Monitor", (0, 5, 1))
+    both = cube("Gone", (-5, 0, 1))
+    inner = bpy.data.collections.new("Inner")
+    scene.collection.children.link(inner)
+    kept = cube("InHidden", (0, -5, 1))
+    scene.collection.objects.unlink(kept)
+    inner.objects.link(kept)
+    assert len(scan(lidar)[0].warnings) == 0
+    # a collection's eye in the view layer hides it on screen, but the depsgraph keeps
+    # its objects: they are scanned, and nothing is said
+    bpy.context.view_layer.layer_collection.children["Inner"].hide_viewport = True
+    result, info = scan(lidar)
+    assert result.warnings == [] and "InHidden" in {o["object"] for o in info["labels"].values()}
+    bpy.context.view_layer.layer_collection.children["Inner"].hide_viewport = False
+    eye.hide_set(True)                       # the eye: hidden in this view layer
+    monitor.hide_viewport = True             # the monitor: disabled in viewports
+    both.hide_viewport = both.hide_render = True   # out of renders too: no word of it
+    inner.hide_viewport = True               # its collection disabled in viewports
+    names = hidden_in_viewport(bpy.context.evaluated_depsgraph_get())
+    assert names == ["Eye", "InHidden", "Monitor"]
+    result, info = scan(lidar)
+    assert result.warnings[0] == hidden_in_viewport_warning(names)
+    assert "3 objects hidden in the viewport but not from render are not scanned" \
+        in result.warnings[0] and "'Eye', 'InHidden', 'Monitor'" in result.warnings[0]
+    labels = {o["object"] for o in info["labels"].values()}
+    assert labels.isdisjoint({"Eye", "Monitor", "InHidden", "Gone"})
+    # a placement study's static read says it too (its notices)
+    from rls_addon.blender.study import BlenderStudyScene
+
+    study_scene = BlenderStudyScene(scene)
+    study_scene.static_geometry(set())
+    assert study_scene.warnings == [hidden_in_viewport_warning(names)]
+    # excluded from the view layer, or its collection out of renders: a render would
+    # not show it either
+    bpy.context.view_layer.layer_collection.children["Inner"].exclude = True
+    eye.hide_set(False)
+    monitor.hide_render = True
+    assert hidden_in_viewport(bpy.context.evaluated_depsgraph_get()) == []
+    assert scan(lidar)[0].warnings == []
+    assert hidden_in_viewport_warning(["A"]).startswith(
+        "1 object hidden in the viewport but not from render is not scanned ('A'): show it")
+    assert "('a', 'b', 'c', 'd', 'e' and 2 more)" in hidden_in_viewport_warning(list("abcdefg"))

@@ -240,6 +240,30 @@ def test_study_loop_runs_in_the_core_with_a_fake_scene():
     assert c.infra_d == pytest.approx(ref.infra_d) and c.infra_nuc == pytest.approx(ref.infra_nuc)
 
 
+def test_what_the_scene_could_not_read_becomes_a_study_notice():
+    # a Blender scene with objects hidden in the viewport (not in its depsgraph) says
+    # so when it gives its static geometry; the study passes it on with its notices
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
+
+    scene = FakeStudyScene()
+    cfg = StudyConfig(device="generic_uniform32", k=(1,), pitches=(0.0,), disks=100,
+                      noise=False, dropout=False, frame=4)
+    quiet = run_study(scene, cfg, factory=lambda name: (NumpyCaster, None))
+    said = "1 object hidden in the viewport but not from render is not scanned ('shed')"
+    join = scene.static_geometry
+
+    def static_geometry(hidden_labels):
+        scene.warnings = [said]
+        return join(hidden_labels)
+
+    scene.static_geometry = static_geometry
+    told = run_study(scene, cfg, factory=lambda name: (NumpyCaster, None))
+    assert said not in quiet.notices and told.notices.count(said) == 1
+    assert [c.n_points for c in told.candidates] == [c.n_points for c in quiet.candidates]
+
+
 def test_study_errors_say_what_to_do():
     from rls_addon.core.casting import NumpyCaster
     from rls_addon.core.errors import SceneError

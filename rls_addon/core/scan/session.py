@@ -154,6 +154,7 @@ class ScanSession:
                             keep_rays=boxes)
         if skipped:
             result.warnings.insert(0, nonfinite_warning(skipped))
+        result.warnings[:0] = read.warnings
         info = self._info(preset, settings, values, sensor, frame, frame_pose, motion,
                           instances, substeps, n_used, objects, scene, result, read)
         info.update(sensor_pose_record(frame_pose, track, preset.period))

@@ -26,6 +26,9 @@ class SceneRead:
     instances: list           # [Instance]
     materials: list           # [MaterialInfo], shared by every instance
     stats: dict = field(default_factory=dict)  # objects, culled_by_range, hidden
+    # what a scan of this read should say of it (objects a render shows that the source
+    # could not read), in the source's own words
+    warnings: list = field(default_factory=list)
 
 
 @dataclass
@@ -105,7 +108,9 @@ class StudyScene(Protocol):
 
     def static_geometry(self, hidden_labels: set) -> tuple:
         """(SceneGeometry of everything rendered but objects with these label ids,
-        sorted names of the objects left out)."""
+        sorted names of the objects left out). A scene that could not read all that
+        a render shows may say so in a list ``warnings`` of its own (the study's
+        notices)."""
 
     def traffic(self, frames: tuple, labels: set) -> dict:
         """{frame: source.SceneRead} of the objects with these label ids at each frame

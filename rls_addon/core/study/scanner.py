@@ -75,6 +75,7 @@ class StudyScanner:
         geometry, self.hidden = scene.static_geometry(hide)
         self.backend_cls, notice = factory(cfg.backend)
         self.notices = [notice] if notice else []
+        self.notices += list(getattr(scene, "warnings", ()))  # what the scene left out
         self.settings = ScanSettings(seed=cfg.scan_seed, frame_space="world", noise=cfg.noise,
                                      dropout=cfg.dropout, motion="snapshot",
                                      ghosting=cfg.ghosting)
