@@ -18,8 +18,9 @@ but not across the libraries a scene links from: two objects (or materials) of t
 same name, one linked, are refused with the names to change (``_one_per_name``),
 never read as one. The depsgraph read is the viewport's: an object hidden in the
 viewport but not from render is not in it, so it is not scanned, and the read names it
-(``hidden_in_viewport``) for the scan to say so. Blender units are read as metres: a scene whose Unit Scale is not 1
-(one unit another length) is refused (``_in_metres``), never scanned at the wrong size.
+(``hidden_in_viewport``) for the scan to say so. Blender units are read as metres: a
+scene whose Unit Scale is not 1 (one unit another length) is refused (``_in_metres``),
+never scanned at the wrong size.
 """
 
 import itertools
