@@ -262,6 +262,11 @@ def test_what_the_scene_could_not_read_becomes_a_study_notice():
     told = run_study(scene, cfg, factory=lambda name: (NumpyCaster, None))
     assert said not in quiet.notices and told.notices.count(said) == 1
     assert [c.n_points for c in told.candidates] == [c.n_points for c in quiet.candidates]
+    # and the report carries it (study.json), not only the printed lines
+    from rls_addon.core.study.report import report_dict
+
+    assert report_dict(told)["notices"] == told.notices
+    assert said not in report_dict(quiet)["notices"]
 
 
 def test_study_errors_say_what_to_do():

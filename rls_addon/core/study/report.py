@@ -88,6 +88,7 @@ def report_dict(result):
                      "rotation_hz": getattr(cfg, "rotation_hz", None),
                      "lidar_mode": getattr(cfg, "lidar_mode", None)},
         "hidden_traffic": result.hidden_traffic,
+        "notices": list(result.notices),  # what a reader should know (printed too)
         "backend": result.backend, "structure_builds": result.structure_builds,
         "timing_s": {k: round(v, 4) for k, v in result.timing.items()},
         "candidates": candidate_rows(result),
