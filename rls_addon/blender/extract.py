@@ -348,6 +348,14 @@ def hidden_in_viewport_warning(names, shown=5):
             f"camera icon) to leave {it} out without this warning")
 
 
+def read_warnings(stats):
+    """What a scan (or a study) says of a read, from ``read_instances``' stats: the
+    objects a render shows that the read left out (``hidden_in_viewport``), or
+    nothing."""
+    hidden = stats.get("hidden_in_viewport")
+    return [hidden_in_viewport_warning(hidden)] if hidden else []
+
+
 def _in_metres(scene):
     """A ``SceneError`` unless one Blender unit of ``scene`` is one metre (its Unit
     Scale 1, whatever units it shows): RLS reads positions, sizes, ranges and speeds

@@ -6,8 +6,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.scene.source import Mobility, SceneRead
-from .extract import (MeshReader, hidden_in_viewport_warning, instance_key,
-                      read_instances, read_mesh)
+from .extract import MeshReader, instance_key, read_instances, read_mesh, read_warnings
 from .motion import (SceneTime, SweepClock, history_free, may_deform, may_move, mesh_is_fixed,
                      read_state, timeless)
 
@@ -129,9 +128,7 @@ class BlenderScene:
         instances, materials, stats = read_instances(
             self.depsgraph(), centre=centre, max_range=max_range, exclude=set(exclude),
             reader=self.meshes, labels=self._labels)
-        hidden = stats.get("hidden_in_viewport")
-        got = SceneRead(instances, materials, stats,
-                        [hidden_in_viewport_warning(hidden)] if hidden else [])
+        got = SceneRead(instances, materials, stats, read_warnings(stats))
         self._kept_read = (key, got) if self._keeps_reads(key[2]) else None
         return got
 

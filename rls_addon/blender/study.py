@@ -9,7 +9,7 @@ from ..core.study.loop import run_study as core_run_study
 from ..core.errors import RegionError, SceneError
 from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
-from .extract import hidden_in_viewport_warning, read_instances
+from .extract import read_instances, read_warnings
 from .region import is_lob, lob_polygon_world
 from .source import traffic_span
 from .scenes.build import is_mount, mount_position
@@ -67,8 +67,7 @@ class BlenderStudyScene:
 
     def static_geometry(self, hidden_labels):
         instances, materials, stats = read_instances(bpy.context.evaluated_depsgraph_get())
-        unseen = stats["hidden_in_viewport"]
-        self.warnings = [hidden_in_viewport_warning(unseen)] if unseen else []
+        self.warnings = read_warnings(stats)
         hidden = sorted(i.key for i in instances if i.label in hidden_labels)
         static = [i for i in instances if i.label not in hidden_labels]
         return world_geometry(static, object_table(static), materials), hidden
