@@ -84,6 +84,37 @@ def test_fixed_tracks_stand_for_objects_that_did_not_move():
     assert np.array_equal(both.at([1], [0.05])[0], moving.at([0.05])[0])
 
 
+def test_still_tracks_in_a_set_are_not_decomposed():
+    """A box's track of an object that stood still (``TrackSet.of``: a one-knot track
+    a frame, for every parked car) is not decomposed into rotations and scales: a
+    still row answers its first matrix, so they are never read. The set answers as
+    before, and a track asked for its decomposition later gets the one it always had
+    (``polar``, then each quaternion on the side of the one before)."""
+    from rls_addon.core.scene.motion import polar, quat_from_matrix
+
+    m = turned(0.7) @ np.diag([1.0, -2.0, 1.0, 1.0])
+    m[:3, 3] = [4, 5, 6]
+    parked = Track(np.array([0.0, 0.05, 0.1]), np.stack([m, m, m]))
+    moving = tracks(np.random.default_rng(4), 2)[1]
+    both = TrackSet.of([None, moving, parked], [m, np.eye(4), np.eye(4)])
+    fixed = both.tracks[0]
+    assert "_quat" not in vars(fixed) and "_scale" not in vars(fixed)
+    assert "_quat" not in vars(parked) and "_scale" not in vars(parked)
+    got = both.at([0, 1, 2, 2], [0.0, 0.05, 0.02, 0.1])
+    assert np.array_equal(got[0], m) and np.array_equal(got[2], m) and np.array_equal(got[3], m)
+    assert np.array_equal(got[1], moving.at([0.05])[0])
+    for track in tracks(np.random.default_rng(5), 12) + [fixed, parked]:
+        rot, scale = polar(track.matrices[:, :3, :3])
+        quat = quat_from_matrix(rot)
+        for k in range(1, len(quat)):
+            if np.dot(quat[k - 1], quat[k]) < 0:
+                quat[k] = -quat[k]
+        fresh = Track(track.times, track.matrices)
+        assert np.array_equal(fresh._scale, scale) and np.array_equal(fresh._quat, quat)
+        fresh = Track(track.times, track.matrices)
+        assert np.array_equal(fresh._quat, quat) and np.array_equal(fresh._scale, scale)
+
+
 def test_a_frames_ray_origins_in_c_are_the_tracks_own():
     """A moving sensor's position at each ray's time (``track_set.positions_at``: in C
     where built) equals ``Track.positions_at`` byte for byte: driving, accelerating,

@@ -152,11 +152,22 @@ class Track:
     def __post_init__(self):
         self.times = np.asarray(self.times, dtype=np.float64).reshape(-1)
         self.matrices = np.asarray(self.matrices, dtype=np.float64).reshape(-1, 4, 4)
-        rot, self._scale = polar(self.matrices[:, :3, :3])
-        self._quat = quat_from_matrix(rot)
-        for k in range(1, len(self._quat)):  # keep neighbouring quaternions on one side
-            if np.dot(self._quat[k - 1], self._quat[k]) < 0:
-                self._quat[k] = -self._quat[k]
+
+    def __getattr__(self, name):
+        """``_quat`` and ``_scale``, the knots' rotations (unit quaternions, each on the
+        side of the one before) and scale and shear parts (``polar``), worked out when
+        first asked for: a track that never turns its rays or interpolates a rotation
+        (an object that stood still, given a one-knot track for its box each frame)
+        never pays for the decomposition (0.1 ms a track)."""
+        if name not in ("_quat", "_scale") or "matrices" not in self.__dict__:
+            raise AttributeError(name)
+        rot, scale = polar(self.matrices[:, :3, :3])
+        quat = quat_from_matrix(rot)
+        for k in range(1, len(quat)):  # keep neighbouring quaternions on one side
+            if np.dot(quat[k - 1], quat[k]) < 0:
+                quat[k] = -quat[k]
+        self._quat, self._scale = quat, scale
+        return quat if name == "_quat" else scale
 
     @classmethod
     def fixed(cls, matrix):

@@ -69,6 +69,10 @@ TRACK_POSITIONS = Kernel("rls_track_positions", "rls_tracks_abi", NATIVE_TRACKS_
 compiled = True
 
 
+_IDENTITY_QUAT = np.array([[1.0, 0.0, 0.0, 0.0]])
+_IDENTITY_3 = np.eye(3)[None]
+
+
 class TrackSet:
     """``tracks`` ([Track]) side by side: their knots concatenated, each track's first
     knot at ``first[k]``."""
@@ -85,8 +89,12 @@ class TrackSet:
         self.times = np.concatenate([tr.times for tr in self.tracks])
         self.positions = np.concatenate([tr.matrices[:, :3, 3] for tr in self.tracks])
         self.velocities = np.concatenate([tr.velocities for tr in self.tracks])
-        self.quats = np.concatenate([tr._quat for tr in self.tracks])
-        self.scales = np.concatenate([tr._scale for tr in self.tracks])
+        # a still track's rows are its first matrix (``starts``): its quaternions and
+        # scales are never read, so it is not decomposed for them (``Track._quat``)
+        self.quats = np.concatenate([_IDENTITY_QUAT.repeat(len(tr.times), 0) if still
+                                     else tr._quat for tr, still in zip(self.tracks, self.still)])
+        self.scales = np.concatenate([_IDENTITY_3.repeat(len(tr.times), 0) if still
+                                      else tr._scale for tr, still in zip(self.tracks, self.still)])
         self.starts = np.array([tr.matrices[0] for tr in self.tracks])
         # (K, longest) knot times, padded with +inf: a row's segment is counted in one
         # comparison (searchsorted on each track's own times, side="right")
