@@ -23,7 +23,9 @@ scene whose Unit Scale is not 1 (one unit another length) is refused (``_in_metr
 never scanned at the wrong size.
 """
 
+import dataclasses
 import itertools
+from typing import NamedTuple
 
 import numpy as np
 
@@ -33,6 +35,7 @@ from ..core.scene.instances import Instance, object_table, world_geometry
 from .labels import object_label
 from .materials import material_info
 from .sensor import is_lidar
+from .still_reads import StillEntry
 
 GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 
@@ -217,12 +220,16 @@ def instance_key(inst):
 
 
 def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=None,
-                   labels=None):
+                   labels=None, still=None):
     """Instances visible to render (see module doc). Returns (instances, material
     table, stats). ``reader``: a scan session's ``MeshReader`` (meshes unchanged since
     its last frame are not read again, and instances carry its mesh ids). ``labels``: a
     dict kept by a source whose file nobody edits, {(object, instancer): label id}, so
     each object's label is looked up once (its collections are walked for it).
+    ``still``: (names of objects that cannot change, {name: ``StillEntry``} of the reads
+    with this centre, range and exclusions), for a source whose file nobody edits
+    (``still_reads``): what an earlier read made of such an object is given back, the
+    others read; the same read, object for object.
 
     Two walks over the instances: the first finds those to read and their bounds (every
     one's distance from ``centre`` in one product, ``_bounds_distances``), the second
@@ -235,9 +242,22 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     realized = {i.object.original.name for i in depsgraph.object_instances if _realizes_itself(i)}
     wanted, matrices, corners = [], [], []
     names, material_names = {}, {}  # name -> full name (with its library), of those seen
+    still_names, entries = still if still is not None else ((), None)
+    kept, fresh = {}, {}  # walk position -> StillEntry given back, or being made
+    kept_far = 0
     for n, inst in enumerate(depsgraph.object_instances):
         ob = inst.object
         orig = ob.original
+        entry = None
+        if not inst.is_instance and orig.name in still_names:
+            entry = entries.get(orig.name)
+            if entry is not None:  # read before, and cannot have changed
+                _one_per_name(names, _Named(orig.name, entry.full_name), "objects")
+                kept[n] = entry
+                stats["hidden"] += entry.kind == "hidden"
+                kept_far += entry.kind == "far"
+                continue
+            entry = fresh[n] = entries[orig.name] = StillEntry(orig.name_full)
         if ob.type not in GEOMETRY_TYPES:
             continue
         # every geometry object, read or not (a hidden or distant one's matrix would be
@@ -251,6 +271,8 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
             continue  # read through its realized mesh instance instead
         if orig.hide_render:
             stats["hidden"] += 1
+            if entry is not None:
+                entry.kind = "hidden"
             continue
         wanted.append(n)
         matrices.append(np.array(inst.matrix_world, dtype=np.float64))
@@ -259,11 +281,21 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     stats["hidden_in_viewport"] = hidden_in_viewport(depsgraph, set(names.values()))
     if corners:
         near = _bounds_distances(np.array(matrices), np.array(corners), centre) <= max_range
-        stats["culled_by_range"] = int(len(near) - np.count_nonzero(near))
+        stats["culled_by_range"] = int(len(near) - np.count_nonzero(near)) + kept_far
         keep = {n: mw for n, mw, ok in zip(wanted, matrices, near) if ok}
+        for n, ok in zip(wanted, near):
+            if not ok and n in fresh:
+                fresh[n].kind = "far"
     else:
+        stats["culled_by_range"] += kept_far
         keep = dict(zip(wanted, matrices))
     for n, inst in enumerate(depsgraph.object_instances):
+        entry = kept.get(n)
+        if entry is not None:
+            if entry.kind == "read":
+                out.append(_kept_instance(entry, materials, mat_index, material_names))
+                stats["objects"] += 1
+            continue
         mw = keep.get(n)
         if mw is None:
             continue
@@ -273,7 +305,10 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         if key not in cache:
             cache[key] = reader.read(ob, key) if reader is not None else read_mesh(ob) + (0,)
         co, tri, mat, mesh_id = cache[key]
+        entry = fresh.get(n)
         if len(tri) == 0:
+            if entry is not None:
+                entry.kind = "empty"
             continue
         slots = [s.material for s in ob.material_slots] or [None]
         local_to_global = np.zeros(len(slots), dtype=np.int32)
@@ -294,9 +329,43 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         item.materials = item.material_indices(mat)
         out.append(item)
         stats["objects"] += 1
+        if entry is not None:
+            entry.kind, entry.instance, entry.slots = "read", item, mat
+            entry.slot_materials = [None if mt is None else (mt.name, mt.name_full)
+                                    for mt in slots]
+            entry.infos = {mt.name: materials[mat_index[mt.name]] for mt in slots
+                           if mt is not None}
     if reader is not None:
         reader.scan_done()
     return out, materials, stats
+
+
+class _Named(NamedTuple):
+    """A block's names, as ``_one_per_name`` reads them (a still object's, kept)."""
+
+    name: str
+    name_full: str
+
+
+def _kept_instance(entry, materials, mat_index, material_names):
+    """A still object's instance from an earlier read (``StillEntry``), its materials
+    noted and added to this read's table as reading it again would; the same record
+    when they land where they did then, else one with its slots mapped anew."""
+    local_to_global = np.zeros(len(entry.slot_materials), dtype=np.int32)
+    for i, named in enumerate(entry.slot_materials):
+        if named is None:
+            continue
+        _one_per_name(material_names, _Named(*named), "materials")
+        if named[0] not in mat_index:
+            mat_index[named[0]] = len(materials)
+            materials.append(entry.infos[named[0]])
+        local_to_global[i] = mat_index[named[0]]
+    inst = entry.instance
+    if np.array_equal(local_to_global, inst.slot_map):
+        return inst
+    item = dataclasses.replace(inst, slot_map=local_to_global)
+    item.materials = item.material_indices(entry.slots)
+    return item
 
 
 def hidden_in_viewport(depsgraph, present=None):

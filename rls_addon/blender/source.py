@@ -9,6 +9,7 @@ from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh, read_warnings
 from .motion import (SceneTime, SweepClock, history_free, may_deform, may_move, mesh_is_fixed,
                      read_state, timeless)
+from .still_reads import StillReads, still_objects
 
 
 def traffic_span(scene):
@@ -74,6 +75,7 @@ class BlenderScene:
         self._mobility = {}     # what was read -> its Mobility, for an unedited file
         self._time = None       # SceneTime, for an unedited file without history (time())
         self._labels = None if edited else {}  # objects' labels, for an unedited file
+        self._still = None  # StillReads of an unedited file (False: it has no still object)
 
     def depsgraph(self):
         self._settle()
@@ -125,12 +127,28 @@ class BlenderScene:
         key = (np.asarray(centre, np.float64).tobytes(), float(max_range), frozenset(exclude))
         if self._kept_read is not None and self._kept_read[0] == key:
             return self._kept_read[1]
+        keeps = self._keeps_reads(key[2])
+        still = None if keeps else self._still_reads()
         instances, materials, stats = read_instances(
             self.depsgraph(), centre=centre, max_range=max_range, exclude=set(exclude),
-            reader=self.meshes, labels=self._labels)
+            reader=self.meshes, labels=self._labels,
+            still=None if still is None else (still.names, still.at(key)))
         got = SceneRead(instances, materials, stats, read_warnings(stats))
-        self._kept_read = (key, got) if self._keeps_reads(key[2]) else None
+        self._kept_read = (key, got) if keeps else None
         return got
+
+    def _still_reads(self):
+        """The ``StillReads`` of an unedited file with objects that cannot change over
+        time (``still_reads``: what a read made of them is kept for the next read from
+        the same place); None in Blender's interface, or when it has none."""
+        if self.edited:
+            return None
+        if self._still is None:
+            import bpy
+
+            names = still_objects(bpy.data)
+            self._still = StillReads(names) if names else False
+        return self._still or None
 
     def timeless(self):
         """Whether nothing in the scene changes from frame to frame (no animation,
