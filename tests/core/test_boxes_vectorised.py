@@ -32,7 +32,7 @@ def traffic(sensor="still"):
     """A ground, a wall, and road users around a sensor: a car driving straight, one
     turning while it brakes, a cyclist accelerating, a pedestrian behind the wall (no
     point) and one half behind it, a parked van across the sweep's seam (the sensor's
-    +X), a car far out of
+    +X), a car parked behind the wall (no point, standing still), a car far out of
     range; the sensor still, driving or turning."""
     boxes = {"ground": ((-80, -80, -1.2), (80, 80, -1.0), 1),
              "wall": ((-4.0, 6.0, -1.0), (4.0, 6.4, 3.0), 4),
@@ -42,7 +42,8 @@ def traffic(sensor="still"):
              "walker": ((-0.3, -0.3, 0.0), (0.3, 0.3, 1.8), 12),
              "peeker": ((-0.3, -0.3, 0.0), (0.3, 0.3, 1.8), 12),
              "van": ((-2.5, -1.0, 0.0), (2.5, 1.0, 2.2), 11),
-             "far": ((-2.0, -0.9, 0.0), (2.0, 0.9, 1.5), 11)}
+             "far": ((-2.0, -0.9, 0.0), (2.0, 0.9, 1.5), 11),
+             "parked": ((-1.0, -0.9, 0.0), (1.0, 0.9, 1.5), 11)}
     motion = {
         "car": lambda s: yawed((8.0 + 14.0 * s, -6.0, -1.0), 0.0),
         # a right turn of radius 9 m at 8 m/s, slowing at 2 m/s^2
@@ -53,6 +54,7 @@ def traffic(sensor="still"):
         "peeker": lambda s: yawed((4.2 + 0.3 * s, 9.5, -1.0), 0.0),  # half behind the wall
         "van": lambda s: yawed((20.0, -1.0, -1.0), 0.0),
         "far": lambda s: yawed((300.0 + 10 * s, 0.0, -1.0), 0.0),
+        "parked": lambda s: yawed((-1.0, 11.0, -1.0), 0.3),
     }
     sensors = {"still": lambda s: translation((0.0, 0.0, 1.0)),
                "driving": lambda s: translation((-4.0 + 12.0 * s, -2.0, 1.0)),
@@ -95,9 +97,11 @@ def both_ways(monkeypatch, sc, sensor, frames=(1, 2, 3), **scan_kw):
 def test_all_boxes_at_once_equal_the_per_object_reference(monkeypatch, sensor, seam):
     compared = both_ways(monkeypatch, traffic(sensor), sensor, sweep_start_deg=seam)
     boxes = [json.loads(b) for b in compared]
-    assert len(boxes) == 3 * 7  # every road user, every frame
+    assert len(boxes) == 3 * 8  # every road user, every frame
     assert any(b["split_by_sweep_seam"] for b in boxes)  # the van on the seam
     assert any(not b["seen"] for b in boxes)              # the walker behind the wall
+    if sensor == "still":  # a still object that returned nothing faces a ray all the same
+        assert all(not b["seen"] and b["time_s"] > 0 for b in boxes if b["object"] == "parked")
     assert any(b["seen"] and 0 < b["visible_share"] < 1 for b in boxes)  # the peeker
     assert any(b["visible_share"] is None for b in boxes)  # far out of range
 
@@ -239,7 +243,7 @@ def test_every_boxs_record_made_together_is_its_own(monkeypatch):
         job = SensorJob(sensor, LidarSettings(scan=ScanSettings(), output=OutputSettings()),
                         small_preset(channels=16, steps=900))
         ScanRun(traffic(sensor), [job], [1, 2], factory=numpy_factory).run()
-    assert len(seen) == 2 * 2 * 7 and all(b.start_matrix is not None for b in seen)
+    assert len(seen) == 2 * 2 * 8 and all(b.start_matrix is not None for b in seen)
 
 
 @pytest.mark.parametrize("moving,turning", [(False, False), (True, False), (True, True)])
@@ -350,3 +354,37 @@ def test_every_moving_objects_velocity_at_once_is_its_own():
     want = [_velocity_from(np.ascontiguousarray(m[2 * j:2 * j + 2]), centres[j], *spans[j])
             for j in range(n)]
     assert got.tobytes() == np.array(want).tobytes()
+
+
+def test_a_still_box_that_returned_nothing_faces_its_ray_once(monkeypatch):
+    """The reference time of a box with no point is found again at the time found, as
+    ``box_reference`` does; a box that stood still is where it was, so it keeps the ray
+    it faced and is not looked for again (every parked car out of sight, every frame).
+    Its times are the reference's either way."""
+    from rls_addon.core.output import ground_truth
+    from rls_addon.core.scene.motion import Track
+    from rls_addon.core.scene.track_set import TrackSet
+
+    rays = spinning_rays(np.random.default_rng(17), moving=True)
+    cells = RayCells(rays)
+    times = np.linspace(0.0, 0.1, 5)
+    driving = Track(times, np.stack([translation((5.0 + 10 * s, 3.0, 0.0)) for s in times]))
+    tset = TrackSet.of([None, driving, None],
+                       [translation((-6.0, 2.0, 0.5)), None, translation((0.0, -9.0, 1.0))])
+    centres = np.zeros((3, 3))
+    asked = []
+    real = box_counts.facing_rays
+
+    def counted(cells_, c):
+        asked.append(len(c))
+        return real(cells_, c)
+
+    monkeypatch.setattr(box_counts, "facing_rays", counted)
+    got = ground_truth._times_facing(cells, tset, [0, 1, 2], centres)
+    assert asked == [3, 1]  # the driving car alone in the second round
+    for j in range(3):
+        t = float(rays.times[0])
+        for _ in range(2):
+            centre = (tset.tracks[j].at([t])[0] @ np.r_[centres[j], 1.0])[:3]
+            t = float(rays.times[box_counts.facing(rays, centre, slice(None))[0]])
+        assert got[j] == t

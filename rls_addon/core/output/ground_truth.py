@@ -351,21 +351,31 @@ def _times_facing(cells, tset, boxes, centres_local, rounds=2):
     """The reference times of the boxes ``boxes`` (indices into ``tset``) whose
     objects returned nothing: the firing time of the ray that points most nearly at
     the object's centre, the centre taken at that time again, ``rounds`` times
-    (``box_reference._time_facing``, every box's track evaluated at once)."""
+    (``box_reference._time_facing``, every box's track evaluated at once). A box whose
+    centre a round leaves where it was (an object that stood still) keeps its ray:
+    the same centre faces the same ray (``facing_rays`` answers each centre on its
+    own), so it is not looked for again."""
     rays = cells.rays
     t = np.full(len(boxes), float(rays.times[0]) if len(rays.times) else 0.0)
     if not len(boxes):
         return t
     local = [np.r_[np.asarray(centres_local[j], np.float64), 1.0] for j in boxes]
+    last = None
     for _ in range(rounds):
         at = tset.at(boxes, t)
         if not len(rays.dirs):
             break
         centres = np.array([(at[q] @ c)[:3] for q, c in enumerate(local)])
-        best = box_counts.facing_rays(cells, centres)
+        moved = np.arange(len(boxes)) if last is None else \
+            np.nonzero((centres != last).any(axis=1))[0]
+        last = centres
+        if not len(moved):
+            break
+        best = box_counts.facing_rays(cells, centres[moved])
         for q in np.nonzero(best < 0)[0]:
-            best[q] = box_counts.facing(rays, centres[q], slice(None))[0]
-        t = np.asarray(rays.times, np.float64)[best]
+            best[q] = box_counts.facing(rays, centres[moved[q]], slice(None))[0]
+        t = t.copy()
+        t[moved] = np.asarray(rays.times, np.float64)[best]
     return t
 
 
