@@ -85,6 +85,26 @@ def mesh_is_fixed(obj):
             and (obj.parent is None or obj.parent_type in {"OBJECT", "BONE"}))
 
 
+def object_is_still(obj):
+    """True when nothing can change ``obj``'s read over time in a file nobody edits
+    (given the file's other data-blocks still: ``still_objects``)."""
+    return (obj.type == "MESH" and obj.parent is None and obj.instance_type == "NONE"
+            and mesh_is_fixed(obj) and not may_move(obj))
+
+
+def still_objects(data):
+    """Names of the objects of ``data`` (``bpy.data``) that cannot change over time: none
+    when a data-block other than an object (a mesh, material, node group, texture,
+    world, scene...) is animated or driven, or the file has history
+    (``motion.history_free``)."""
+    if not history_free(data):
+        return frozenset()
+    if any(_animated(block) or _animated(getattr(block, "node_tree", None))
+           for block in _data_blocks(data, skip={"objects"})):
+        return frozenset()
+    return frozenset(o.name for o in data.objects if object_is_still(o))
+
+
 def may_deform(obj):
     keys = getattr(getattr(obj, "data", None), "shape_keys", None)
     return bool(len(obj.modifiers) or (keys is not None and len(keys.key_blocks) > 1)

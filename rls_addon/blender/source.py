@@ -8,8 +8,8 @@ import numpy as np
 from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh, read_warnings
 from .motion import (SceneTime, SweepClock, history_free, may_deform, may_move, mesh_is_fixed,
-                     read_state, timeless)
-from .still_reads import StillReads, still_objects
+                     read_state, still_objects, timeless)
+from .still_reads import StillReads
 
 
 def traffic_span(scene):

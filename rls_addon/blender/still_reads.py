@@ -5,48 +5,25 @@ A drive through traffic reads the scene every frame: the traffic moves, so the r
 cannot be kept whole (``source.BlenderScene``: only a file where nothing changes over
 time keeps it). But most of a street stands still (buildings, poles, parked cars), and
 reading an object costs 50-150 us a frame (its matrix, bounds, materials, label and
-record): 100 parked cars cost 20 ms of a 60 ms frame. An object that cannot change
-(``object_is_still``) reads the same at every frame, so what one read made of it is
+record): 100 parked cars cost 10-25 ms of a 60-110 ms frame. An object that cannot
+change (``motion.object_is_still``) reads the same at every frame, so what one read made
+of it is
 given back at the next read with the same centre, range and left-out objects: the
 instance record itself, with its materials, or that it was hidden, left out or beyond
 the range. The objects that may change are read as always, and the read is the one a
 full read gives, object for object and in the same order (tested).
 
-Exactness is ``object_is_still``'s: a mesh object with no modifier or shape key, not
-parented, neither it nor its mesh animated or driven, no constraint or rigid body, no
-instancing, in a file where no data-block but objects is animated or driven (so none
-of its materials, node groups or textures changes) and nothing steps from frame to
-frame (``motion.history_free``). Anything else is read every frame.
+Exactness is ``motion.object_is_still``'s: a mesh object with no modifier or shape key,
+not parented, neither it nor its mesh animated or driven, no constraint or rigid body,
+no instancing, in a file where no data-block but objects is animated or driven (so
+none of its materials, node groups or textures changes) and nothing steps from frame
+to frame (``motion.history_free``). Anything else is read every frame.
 """
 
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
 KEEP_READS = 4  # reads (centre, range, left out) kept: a driving lidar's cells, a few lidars
-
-
-def object_is_still(obj):
-    """True when nothing can change ``obj``'s read over time in a file nobody edits
-    (given the file's other data-blocks still: ``still_objects``)."""
-    from .motion import may_move, mesh_is_fixed  # (motion reads through extract, which keeps these)
-
-    return (obj.type == "MESH" and obj.parent is None and obj.instance_type == "NONE"
-            and mesh_is_fixed(obj) and not may_move(obj))
-
-
-def still_objects(data):
-    """Names of the objects of ``data`` (``bpy.data``) that cannot change over time: none
-    when a data-block other than an object (a mesh, material, node group, texture,
-    world, scene...) is animated or driven, or the file has history
-    (``motion.history_free``)."""
-    from .motion import _animated, _data_blocks, history_free
-
-    if not history_free(data):
-        return frozenset()
-    if any(_animated(block) or _animated(getattr(block, "node_tree", None))
-           for block in _data_blocks(data, skip={"objects"})):
-        return frozenset()
-    return frozenset(o.name for o in data.objects if object_is_still(o))
 
 
 @dataclass

@@ -9,7 +9,7 @@ import numpy as np
 
 from rls_addon.blender.extract import read_instances
 from rls_addon.blender.source import BlenderScene
-from rls_addon.blender.still_reads import still_objects
+from rls_addon.blender.motion import still_objects
 
 from .conftest import add_lidar, mesh_object
 
