@@ -269,7 +269,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
             continue
         if not inst.is_instance and orig.name in realized:
             continue  # read through its realized mesh instance instead
-        if orig.hide_render:
+        if orig.hide_render or (not inst.is_instance and not shown_itself_in_render(orig)):
             stats["hidden"] += 1
             if entry is not None:
                 entry.kind = "hidden"
@@ -366,6 +366,22 @@ def _kept_instance(entry, materials, mat_index, material_names):
     item = dataclasses.replace(inst, slot_map=local_to_global)
     item.materials = item.material_indices(entry.slots)
     return item
+
+
+def shown_itself_in_render(obj):
+    """Whether a render shows ``obj``'s own geometry where it stands, as Blender decides
+    it (``BKE_object_visibility``, the depsgraph's ``deg_object_hide_original``), where
+    the viewport's depsgraph read here may differ: an instancer (particles, or instancing
+    on vertices or faces) shows itself only with *Instancing > Render* on
+    (``show_instancer_for_render``), and a child of an object instancing on its vertices
+    or faces is shown only at those, never at its own place. A metaball is left to
+    Blender (its balls' visibility goes with their family's base)."""
+    if (len(obj.particle_systems) or obj.instance_type != "NONE") \
+            and not obj.show_instancer_for_render:
+        return False
+    parent = obj.parent
+    return not (parent is not None and parent.instance_type in {"VERTS", "FACES"}
+                and obj.type != "META")
 
 
 def hidden_in_viewport(depsgraph, present=None):

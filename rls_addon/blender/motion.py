@@ -43,6 +43,26 @@ def may_move(obj):
     return False
 
 
+def instancer_may_move(obj):
+    """True when anything could move what the instancer ``obj`` places: ``obj`` itself
+    (``may_move``) or, for a collection instance, any object of its collection, or of
+    the collections instanced in turn inside it. A depsgraph instance names only its
+    top instancer and its object, so an animated empty between them (a nested
+    collection instance) is found here, or the instance would be read as still."""
+    seen, stack = set(), [obj]
+    while stack:
+        o = stack.pop()
+        if o.name_full in seen:
+            continue
+        seen.add(o.name_full)
+        if may_move(o):
+            return True
+        coll = o.instance_collection if o.instance_type == "COLLECTION" else None
+        if coll is not None:
+            stack.extend(coll.all_objects)
+    return False
+
+
 # Modifiers whose result may change from frame to frame with no keyframe or driver:
 # simulations, caches, and those taking the frame or the scene time as an input.
 _CHANGE_BY_THEMSELVES = {"NODES", "ARMATURE", "CLOTH", "SOFT_BODY", "OCEAN", "WAVE",

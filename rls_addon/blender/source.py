@@ -7,8 +7,8 @@ import numpy as np
 
 from ..core.scene.source import Mobility, SceneRead
 from .extract import MeshReader, instance_key, read_instances, read_mesh, read_warnings
-from .motion import (SceneTime, SweepClock, history_free, may_deform, may_move, mesh_is_fixed,
-                     read_state, still_objects, timeless)
+from .motion import (SceneTime, SweepClock, history_free, instancer_may_move, may_deform,
+                     may_move, mesh_is_fixed, read_state, still_objects, timeless)
 from .still_reads import StillReads
 
 
@@ -181,12 +181,19 @@ class BlenderScene:
         return Mobility(list(kept.candidates), set(kept.deformable), kept.sensor_moves)
 
     def _mobility_of(self, instances, sensor):
-        objects = self.scene.objects
-        out = Mobility(sensor_moves=may_move(objects[sensor]))
+        import bpy
+
+        # An instance's object and instancer are looked up in the file, not the scene:
+        # a collection an instancer shows need not be linked to the scene at all.
+        objects = bpy.data.objects
+        out = Mobility(sensor_moves=may_move(self.scene.objects[sensor]))
+        instancers = {}  # instancer name -> whether it or what it instances may move
         for k, inst in enumerate(instances):
             ob = objects.get(inst.source)
             par = objects.get(inst.parent) if inst.parent else None
-            if (ob is not None and may_move(ob)) or (par is not None and may_move(par)):
+            if par is not None and par.name not in instancers:
+                instancers[par.name] = instancer_may_move(par)
+            if (ob is not None and may_move(ob)) or (par is not None and instancers[par.name]):
                 out.candidates.append(k)
                 if ob is not None and may_deform(ob):
                     out.deformable.add(inst.key)
