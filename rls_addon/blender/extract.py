@@ -211,6 +211,31 @@ def _realizes_itself(inst):
                 and inst.parent.original.name == inst.object.original.name)
 
 
+def _realized(depsgraph):
+    """Names of the objects the depsgraph lists as an instance of themselves: curves,
+    text and surfaces evaluated to a mesh (``_realizes_itself``), read through that
+    instance. Geometry nodes that make instances of geometry they generate (Instance on
+    Points of a generated mesh, or of an object's geometry) list such instances too,
+    one per instance and on a mesh object, with no name or mesh of their own to tell
+    them apart: they would be scanned as one another, or not at all, so a
+    ``SceneError`` says how to scan the object instead."""
+    count, types = {}, {}
+    for inst in depsgraph.object_instances:
+        if _realizes_itself(inst):
+            name = inst.object.original.name
+            count[name] = count.get(name, 0) + 1
+            types[name] = inst.object.original.type
+    for name, n in count.items():
+        if n > 1 or types[name] == "MESH":
+            raise SceneError(
+                f"object '{name}': its geometry nodes make instances of geometry they "
+                "generate (an Instance on Points of a generated mesh, or of an object's "
+                "geometry), which RLS cannot tell apart yet and would scan wrongly; add a "
+                "Realize Instances node before its Group Output, or instance objects of a "
+                "collection instead")
+    return set(count)
+
+
 def instance_key(inst):
     """Stable name of a depsgraph instance."""
     orig = inst.object.original
@@ -239,7 +264,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     materials, mat_index = [MaterialInfo("default")], {}
     cache, out = {}, []
     stats = {"objects": 0, "culled_by_range": 0, "hidden": 0}
-    realized = {i.object.original.name for i in depsgraph.object_instances if _realizes_itself(i)}
+    realized = _realized(depsgraph)
     wanted, matrices, corners = [], [], []
     names, material_names = {}, {}  # name -> full name (with its library), of those seen
     still_names, entries = still if still is not None else ((), None)
