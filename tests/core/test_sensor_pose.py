@@ -9,6 +9,7 @@ from rls_addon.core.casting import NumpyCaster
 from rls_addon.core.errors import SceneError
 from rls_addon.core.output.io.sidecar import points_to_world
 from rls_addon.core.points import xyz
+from rls_addon.core.scan.aim import sensor_frame
 from rls_addon.core.scan.frame import sensor_axes
 from rls_addon.core.scan.session import ScanSession
 from rls_addon.core.scan.settings import ScanSettings
@@ -127,3 +128,29 @@ def test_a_moving_lidar_whose_scale_reaches_zero_is_one_scene_error_naming_it():
     with pytest.raises(SceneError) as err:
         ScanSession(NumpyCaster).scan(scene, "pole", PRESET, ScanSettings(), 1)
     assert str(err.value).startswith("LiDAR 'pole' has zero scale on an axis: ")
+
+
+def test_a_sheared_lidar_is_one_scene_error_naming_it():
+    """A LiDAR turned under a parent scaled unevenly has axes not at right angles in
+    the world (an audit measured its scan 26 degrees off its drawn +X): no one sensor
+    frame, so it is refused, still or moving; scaled along its own axes or mirrored, it
+    is not (above)."""
+    turned = yawed(30.0, (1.0, 1.0, 1.0))
+    parent = np.diag([3.0, 1.0, 1.0, 1.0])  # an uneven scale along the world's x
+    scene = street()
+    scene.sensors["pole"] = lambda t: parent @ turned
+    with pytest.raises(SceneError) as err:
+        ScanSession(NumpyCaster).scan(scene, "pole", PRESET, ScanSettings(), 1, [11])
+    assert str(err.value).startswith("LiDAR 'pole' is sheared: its axes are not at right "
+                                     "angles in the world (X-Y ")
+    assert "Apply > Scale" in str(err.value)
+    # a shear that grows over a moving LiDAR's sweep is caught too
+    scene = street()
+    scene.moving_sensors = {"pole"}
+    scene.sensors["pole"] = lambda t: np.diag([1.0 + 20.0 * t, 1.0, 1.0, 1.0]) @ turned
+    with pytest.raises(SceneError, match="LiDAR 'pole' is sheared"):
+        ScanSession(NumpyCaster).scan(scene, "pole", PRESET, ScanSettings(), 1)
+    # a shear far below a degree's hundredth (float32 rounding) is no shear
+    almost = turned.copy()
+    almost[:3, 0] += 1e-6
+    assert np.isfinite(sensor_frame(almost, "pole")).all()

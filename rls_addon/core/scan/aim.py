@@ -59,6 +59,9 @@ _AXES = {}
 
 # A LiDAR axis shorter than this share of its longest has zero scale: it has no axes.
 ZERO_SCALE = 1e-9
+# Its axes' cosines beyond this (0.006 degrees from a right angle, far above the float32
+# rounding of Blender's matrices): sheared, no sensor frame.
+MAX_SHEAR_COS = 1e-4
 
 
 def sensor_frame(matrix, sensor="sensor"):
@@ -80,6 +83,23 @@ def sensor_frame(matrix, sensor="sensor"):
         raise SceneError(f"LiDAR '{sensor}' has zero scale on an axis: its axes have lengths "
                          f"({axes}) in the world, so it has no sensor frame; give every "
                          "scale value of it (and of its parents) a non-zero size")
+    # Its axes at right angles (scaled along them, or mirrored, they still are): a
+    # sheared matrix, as under a parent scaled unevenly along axes turned from the
+    # LiDAR's, has no one sensor frame, and its field-of-view outline is drawn sheared.
+    unit = stack[:, :3, :3] / lengths[:, None, :]
+    cos = np.abs(np.einsum("nij,nik->njk", unit, unit) - np.eye(3)).max(axis=(1, 2))
+    sheared = ~(cos <= MAX_SHEAR_COS)
+    if sheared.any():
+        k = int(np.argmax(sheared))
+        c = unit[k]
+        angles = [float(np.degrees(np.arccos(np.clip(abs(c[:, i] @ c[:, j]), 0.0, 1.0))))
+                  for i, j in ((0, 1), (0, 2), (1, 2))]
+        raise SceneError(
+            f"LiDAR '{sensor}' is sheared: its axes are not at right angles in the world "
+            f"(X-Y {angles[0]:.1f}, X-Z {angles[1]:.1f}, Y-Z {angles[2]:.1f} degrees), as "
+            "under a parent scaled unevenly along axes turned from the LiDAR's, so it has "
+            "no one sensor frame; apply the parent's scale (Object > Apply > Scale) or "
+            "clear the LiDAR's parent keeping its transform")
     return rigid(m)
 
 
