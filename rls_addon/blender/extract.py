@@ -270,6 +270,8 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     still_names, entries = still if still is not None else ((), None)
     kept, fresh = {}, {}  # walk position -> StillEntry given back, or being made
     kept_far = 0
+    viewport_only = []  # "'object' (modifier)" set otherwise for render than viewport
+    looked_at = set()   # objects whose modifiers were looked at
     for n, inst in enumerate(depsgraph.object_instances):
         ob = inst.object
         orig = ob.original
@@ -299,11 +301,15 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
             if entry is not None:
                 entry.kind = "hidden"
             continue
+        if len(orig.modifiers) and orig.name not in looked_at:
+            looked_at.add(orig.name)
+            viewport_only += [f"'{orig.name}' ({mod})" for mod in _render_differs(orig)]
         wanted.append(n)
         matrices.append(np.array(inst.matrix_world, dtype=np.float64))
         if centre is not None and max_range is not None:
             corners.append(_corners(ob.bound_box))
     stats["hidden_in_viewport"] = hidden_in_viewport(depsgraph, set(names.values()))
+    stats["viewport_modifiers"] = viewport_only
     if corners:
         near = _bounds_distances(np.array(matrices), np.array(corners), centre) <= max_range
         stats["culled_by_range"] = int(len(near) - np.count_nonzero(near)) + kept_far
@@ -458,12 +464,40 @@ def hidden_in_viewport_warning(names, shown=5):
             f"camera icon) to leave {it} out without this warning")
 
 
+# Modifier settings with a viewport and a render value (levels of detail)
+_LEVELS = {"SUBSURF": ("levels", "render_levels"), "MULTIRES": ("levels", "render_levels")}
+
+
+def _render_differs(obj):
+    """Names of ``obj``'s modifiers a render applies otherwise than the viewport, whose
+    geometry this read is: shown in one and not the other, or at other levels."""
+    out = []
+    for mod in obj.modifiers:
+        pair = _LEVELS.get(mod.type)
+        if mod.show_viewport != mod.show_render or (
+                pair and mod.show_render and getattr(mod, pair[0]) != getattr(mod, pair[1])):
+            out.append(mod.name)
+    return out
+
+
+def viewport_modifiers_warning(names, shown=5):
+    """What a scan says of the objects whose modifiers a render applies otherwise."""
+    listed = ", ".join(names[:shown])
+    more = f" and {len(names) - shown} more" if len(names) > shown else ""
+    return (f"{len(names)} modifier{'' if len(names) == 1 else 's'} set otherwise for "
+            f"render than for the viewport ({listed}{more}): RLS scans the viewport's "
+            "geometry, not a render's; give each the same visibility and levels in both "
+            "to scan what a render shows")
+
+
 def read_warnings(stats):
     """What a scan (or a study) says of a read, from ``read_instances``' stats: the
-    objects a render shows that the read left out (``hidden_in_viewport``), or
-    nothing."""
+    objects a render shows that the read left out (``hidden_in_viewport``), the
+    modifiers a render applies otherwise (``viewport_modifiers``), or nothing."""
     hidden = stats.get("hidden_in_viewport")
-    return [hidden_in_viewport_warning(hidden)] if hidden else []
+    modifiers = stats.get("viewport_modifiers")
+    return ([hidden_in_viewport_warning(hidden)] if hidden else []) + \
+        ([viewport_modifiers_warning(modifiers)] if modifiers else [])
 
 
 def _in_metres(scene):

@@ -180,3 +180,31 @@ def test_objects_hidden_in_the_viewport_but_not_from_render_are_named(scene, tmp
     assert hidden_in_viewport_warning(["A"]).startswith(
         "1 object hidden in the viewport but not from render is not scanned ('A'): show it")
     assert "('a', 'b', 'c', 'd', 'e' and 2 more)" in hidden_in_viewport_warning(list("abcdefg"))
+
+
+def test_modifiers_set_otherwise_for_render_are_named_in_a_warning(scene):
+    """The read is the viewport's geometry (Python builds no render depsgraph): an audit
+    found an Array modifier off in the viewport but on for render scanned as 1 post of
+    3, and a Subdivision at viewport level 0, render level 3, 16 cm short. The scan
+    says so, naming each such modifier; modifiers set alike say nothing."""
+    from rls_addon.blender.extract import read_instances, read_warnings
+
+    post = mesh_object("Post", [(5, -0.2, 0), (5, 0.2, 0), (5, 0.2, 3), (5, -0.2, 3)],
+                       [(0, 1, 2, 3)])
+    array = post.modifiers.new("Row", "ARRAY")
+    array.relative_offset_displace = (0.0, 8.0, 0.0)
+    array.count = 3
+    smooth = mesh_object("Rock", [(8, 0, 0), (9, 0, 0), (9, 1, 0)], [(0, 1, 2)])
+    sub = smooth.modifiers.new("Smooth", "SUBSURF")
+    sub.levels = sub.render_levels = 1
+    lidar = add_lidar()
+    _, _, stats = read_instances(bpy.context.evaluated_depsgraph_get(), exclude={lidar.name})
+    assert read_warnings(stats) == []
+    array.show_viewport = False
+    smooth.modifiers["Smooth"].render_levels = 3
+    _, _, stats = read_instances(bpy.context.evaluated_depsgraph_get(), exclude={lidar.name})
+    (warning,) = read_warnings(stats)
+    assert warning.startswith("2 modifiers set otherwise for render than for the viewport "
+                              "('Post' (Row), 'Rock' (Smooth)): RLS scans the viewport's")
+    result, info = scan(lidar)
+    assert any("set otherwise for render" in w for w in info["warnings"])
