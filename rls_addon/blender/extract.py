@@ -211,20 +211,25 @@ def _realizes_itself(inst):
                 and inst.parent.original.name == inst.object.original.name)
 
 
-def _realized(depsgraph):
+def _realized(depsgraph, exclude=()):
     """Names of the objects the depsgraph lists as an instance of themselves: curves,
     text and surfaces evaluated to a mesh (``_realizes_itself``), read through that
     instance. Geometry nodes that make instances of geometry they generate (Instance on
     Points of a generated mesh, or of an object's geometry) list such instances too,
     one per instance and on a mesh object, with no name or mesh of their own to tell
     them apart: they would be scanned as one another, or not at all, so a
-    ``SceneError`` says how to scan the object instead."""
+    ``SceneError`` says how to scan the object instead (not for objects left out of
+    the read: ``exclude``, hidden from render, and what RLS draws, such as a preview's
+    points)."""
     count, types = {}, {}
     for inst in depsgraph.object_instances:
         if _realizes_itself(inst):
-            name = inst.object.original.name
+            orig = inst.object.original
+            name = orig.name
+            if name in exclude or orig.hide_render or is_rls_helper(orig):
+                continue
             count[name] = count.get(name, 0) + 1
-            types[name] = inst.object.original.type
+            types[name] = orig.type
     for name, n in count.items():
         if n > 1 or types[name] == "MESH":
             raise SceneError(
@@ -264,7 +269,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     materials, mat_index = [MaterialInfo("default")], {}
     cache, out = {}, []
     stats = {"objects": 0, "culled_by_range": 0, "hidden": 0}
-    realized = _realized(depsgraph)
+    realized = _realized(depsgraph, exclude)
     wanted, matrices, corners = [], [], []
     names, material_names = {}, {}  # name -> full name (with its library), of those seen
     still_names, entries = still if still is not None else ((), None)

@@ -71,3 +71,15 @@ def test_realized_instances_are_scanned_where_a_render_shows_them(scene):
     assert wall.any() and small.any() and big.any()
     assert np.all(np.abs(y[small] + 3.0) <= 0.5 + 1e-3)
     assert np.all(np.abs(y[big] - 3.0) <= 1.0 + 1e-3)
+
+
+def test_objects_left_out_of_the_read_are_not_refused(scene):
+    """The refusal is for what would be scanned: not an object hidden from render, nor
+    RLS's own drawings (a preview's points are instanced by geometry nodes too)."""
+    wall = _wall_with_cubes(realize=False)
+    wall.hide_render = True
+    lidar = add_lidar(location=(0, 0, 1))
+    read_instances(bpy.context.evaluated_depsgraph_get(), exclude={lidar.name})
+    wall.hide_render = False
+    wall["rls_preview"] = True
+    read_instances(bpy.context.evaluated_depsgraph_get(), exclude={lidar.name})
