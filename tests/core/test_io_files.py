@@ -200,7 +200,8 @@ def test_templates_escaping_the_directory_are_rejected(tmp_path, template):
         output_path(tmp_path, template, scene="s", sensor="l", frame=1, fmt="pcd_ascii")
 
 
-@pytest.mark.parametrize("template", ["{frames}", "{scene", "{0}", "", "dir/"])
+@pytest.mark.parametrize("template", ["{frames}", "{scene", "{0}", "", "dir/",
+                                      "{frame.__class__}", "{scene[0]}_{frame}", "{}"])
 def test_bad_templates_are_output_errors(tmp_path, template):
     with pytest.raises(OutputError):
         output_path(tmp_path, template, scene="s", sensor="l", frame=1, fmt="pcd_ascii")
