@@ -252,6 +252,16 @@ def interrupted_at(job):
     return f" after {done} of {job.total} scans"
 
 
+def interrupted_message(job):
+    """The one line of a stopped run: what is on disk and how to go on. A run that
+    writes one file for all its scans (a ROS 2 bag) leaves none and cannot be resumed."""
+    if job is not None and getattr(job.writer, "per_scan", True) is False:
+        return (f"rls: interrupted{interrupted_at(job)}; a ROS 2 bag is written whole when "
+                "its run ends, so none was left (a bag cannot be resumed): run it again")
+    return (f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
+            "partial was left; rerun with --resume to continue")
+
+
 def run(args):
     from ..core.errors import interrupt_exit_code
     from .distribute import run_scan, scene_file
@@ -263,8 +273,7 @@ def run(args):
             say(f"rls: notice: {notice}")
         run_scan(args, job, scene_file(args))
     except KeyboardInterrupt as exc:
-        say(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-            "partial was left; rerun with --resume to continue")
+        say(interrupted_message(job))
         return interrupt_exit_code(exc)
     print(json.dumps(job.summary(), indent=2))
     return 0

@@ -265,6 +265,16 @@ BAD = [
      "ouster_os1_64", r"nanbeam\.json line 1: beam_altitude_angles\[1\] must be finite"),
     ("rows.csv", "".join(f"{i}.5,0.1\n" for i in range(31)) + "3.0\n", "robosense_rs32",
      r"rows\.csv line 32: expected 2 columns like the first row, got 1"),
+    # what the decoders raise besides their own errors: RecursionError, ValueError
+    ("deep.json", '{"beam_altitude_angles": ' + "[" * 100_000 + "]" * 100_000 + "}",
+     "ouster_os1_64", r"deep\.json: not a readable JSON file \(nested too deeply\)"),
+    ("bigint.json", '{"beam_altitude_angles": [' + "1" * 5000 + '], "beam_azimuth_angles": [0]}',
+     "ouster_os1_64", r"bigint\.json: not a readable JSON file \(Exceeds the limit"),
+    ("deep.yaml", "lasers: " + "[" * 100_000 + "]" * 100_000 + "\n", "velodyne_vlp16",
+     r"deep\.yaml: not a readable YAML file \(nested too deeply\)"),
+    ("bigint.yaml", "lasers:\n- {laser_id: " + "1" * 5000 + ", rot_correction: 0.0, "
+     "vert_correction: 0.1}\n", "velodyne_vlp16",
+     r"bigint\.yaml: not a readable YAML file \(Exceeds the limit"),
 ]
 
 

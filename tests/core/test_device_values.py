@@ -4,8 +4,10 @@ applied in one place, and what the frame draws with is what the sidecar records.
 import dataclasses
 
 import numpy as np
+import pytest
 
 from rls_addon.core.device.presets import get_preset
+from rls_addon.core.errors import SettingsError
 from rls_addon.core.scan.device_values import DeviceValues, device_values
 from rls_addon.core.scan.run import ScanRun, SensorJob
 from rls_addon.core.scan.settings import LidarSettings, ScanSettings
@@ -35,6 +37,21 @@ def test_every_override_is_applied():
     assert v.weather is not None and v.weather.alpha > 0
     on = device_values(p, ScanSettings())
     assert on.detection is not None and on.beam is not None
+
+
+@pytest.mark.parametrize("kw,words", [
+    (dict(min_range_m=150.0, max_range_m=100.0), r"minimum range \(150 m, the override\) "
+                                                 r"must be below the maximum range \(100 m"),
+    (dict(max_range_m=0.1), r"minimum range \(1 m, the preset's\).*\(0.1 m, the override\)"),
+    (dict(min_range_m=200.0), r"\(200 m, the override\).*\(100 m, the preset's\)"),
+    (dict(min_range_m=5.0, max_range_m=5.0), r"must be below"),
+])
+def test_a_range_override_that_keeps_no_return_is_refused(kw, words):
+    """Min Range 150 m over Max Range 100 m scanned clouds of 0 points with exit 0."""
+    p = get_preset("velodyne_vlp16")  # 1..100 m
+    assert (p.range.min_m, p.range.max_m) == (1.0, 100.0)
+    with pytest.raises(SettingsError, match=words):
+        device_values(p, ScanSettings(**kw))
 
 
 def test_noise_off_is_zero_sigma_and_the_tolerance_keeps_the_devices_noise():

@@ -200,7 +200,8 @@ def test_templates_escaping_the_directory_are_rejected(tmp_path, template):
         output_path(tmp_path, template, scene="s", sensor="l", frame=1, fmt="pcd_ascii")
 
 
-@pytest.mark.parametrize("template", ["{frames}", "{scene", "{0}", "", "dir/"])
+@pytest.mark.parametrize("template", ["{frames}", "{scene", "{0}", "", "dir/",
+                                      "{frame.__class__}", "{scene[0]}_{frame}", "{}"])
 def test_bad_templates_are_output_errors(tmp_path, template):
     with pytest.raises(OutputError):
         output_path(tmp_path, template, scene="s", sensor="l", frame=1, fmt="pcd_ascii")
@@ -221,6 +222,24 @@ def test_sidecar_round_trip_with_numpy_values(tmp_path):
     with pytest.raises(OutputError, match="--overwrite"):
         write_sidecar(cloud, info)
     assert read_sidecar(tmp_path / "other.pcd") is None
+
+
+def test_a_sidecar_another_formats_run_replaced_is_not_read_for_the_cloud_left(tmp_path):
+    """'x.pcd' and 'x.ply' share 'x.json': after 'rls scan --format ply_binary
+    --frame-space world --overwrite' over a PCD run, rls metrics read the PCD's
+    sensor-frame points with the PLY's world-frame sidecar (InfraD 1.6 for 14.7)."""
+    pcd = write_cloud(tmp_path / "s_000001.pcd", sample_cloud(3))
+    write_sidecar(pcd, {"format": "pcd_binary", "frame_space": "sensor", "points": 3})
+    assert read_sidecar(pcd)["frame_space"] == "sensor"
+    write_sidecar(tmp_path / "s_000001.ply", {"format": "ply_binary", "frame_space": "world",
+                                              "points": 3}, overwrite=True)
+    assert read_sidecar(tmp_path / "s_000001.ply")["frame_space"] == "world"
+    with pytest.raises(InputError, match=r"describes a ply_binary cloud \(s_000001\.ply\), "
+                                         r"not s_000001\.pcd"):
+        read_sidecar(pcd)
+    # a sidecar without a format (another tool's, older runs) is read as before
+    write_sidecar(pcd, {"frame_space": "sensor"}, overwrite=True)
+    assert read_sidecar(pcd) == {"frame_space": "sensor"}
 
 
 def test_sidecar_rejects_unserialisable(tmp_path):
@@ -252,3 +271,16 @@ def test_a_set_of_files_is_written_whole_or_not_at_all(tmp_path, monkeypatch):
     with pytest.raises(OutputError, match="already exists"):  # checked before any write
         atomic_mod.atomic_write_files({tmp_path / "new.txt": b"x", tmp_path / "a.txt": b"y"})
     assert not (tmp_path / "new.txt").exists() and (tmp_path / "a.txt").read_bytes() == b"a" * 10
+
+
+def test_the_sidecar_check_knows_every_formats_extension():
+    from rls_addon.core.output.io.formats import FORMATS
+    from rls_addon.core.output.io.sidecar import _check_sidecar_format
+
+    for fmt in FORMATS:
+        if not fmt.extension:
+            continue
+        cloud = pathlib.Path("c" + fmt.extension)
+        _check_sidecar_format({"format": fmt.id}, "c.json", cloud)  # its own: read
+        with pytest.raises(InputError, match="describes a"):
+            _check_sidecar_format({"format": fmt.id}, "c.json", pathlib.Path("c.other"))

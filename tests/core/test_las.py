@@ -248,6 +248,19 @@ def test_existing_files_and_overflow_leave_nothing_behind(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.las"]
     with pytest.raises(SettingsError, match="unknown sensor"):
         w.write(tmp_path / "c.las", "other", pts, UNIX_2024)
+    # a NaN offset (or point) is refused, not written as X = -2^31 for every point
+    with pytest.raises(OutputError, match="do not fit"):
+        LasWriter(["s"], offset=(np.nan, *WORLD[1:])).write(tmp_path / "d.las", "s", pts,
+                                                          UNIX_2024)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.las"]
+
+
+@pytest.mark.parametrize("offset", [(np.nan, 0.0, 0.0), (0.0, np.inf, 0.0)])
+def test_a_las_offset_that_is_not_finite_is_a_settings_error(offset):
+    from rls_addon.core.scan.settings import OutputSettings
+
+    with pytest.raises(SettingsError, match="LAS offset.*finite"):
+        OutputSettings(format="las", las_offset=offset)
 
 
 def test_settings_errors():

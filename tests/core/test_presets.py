@@ -129,6 +129,9 @@ HOSTILE = [
                    'h_mirror_hz = 1.0\nv_mirror_hz = 1.0\nh_amplitude_deg = 1.0\nupper_amplitude_deg = 1.0\n'
                    'lower_amplitude_deg = 1.0\nzones = [[0.0, 1.0]]\n', "'zones'"),
     ("schema version", "schema = 99\n" + GOOD, "'schema'"),
+    # an integer past Python's 4300-digit limit: tomllib's ValueError, not a traceback
+    ("huge integer", edit(GOOD, "frequency_hz = 10.0", "frequency_hz = " + "1" * 5000),
+     "not a readable TOML file"),
 ]
 
 

@@ -289,6 +289,23 @@ def test_a_stopped_run_counts_the_scans_its_workers_wrote(tmp_path):
     assert interrupted_at(None) == ""
 
 
+def test_a_stopped_bag_run_does_not_promise_a_resume(tmp_path):
+    """Ctrl-C of 'rls scan --format mcap' said 'finished files are complete ...; rerun
+    with --resume to continue' with no file left, and --resume is refused for a bag."""
+    from types import SimpleNamespace
+
+    from rls_addon.commands.scan import interrupted_message
+    from rls_addon.core.output.io.bag_writer import BagWriter
+
+    bag = SimpleNamespace(writer=BagWriter("scene", str(tmp_path)), index=37, total=60,
+                          finished=False, complete_on_disk=lambda: 0)
+    line = interrupted_message(bag)
+    assert line.startswith("rls: interrupted after 37 of 60 scans; a ROS 2 bag")
+    assert "--resume to continue" not in line and "none was left" in line
+    files = SimpleNamespace(writer=None, index=3, total=9)
+    assert interrupted_message(files).endswith("rerun with --resume to continue")
+
+
 def test_a_run_whose_files_will_not_fit_stops_after_its_first_scan(tmp_path, monkeypatch):
     """Issue 31: a run of 1,000,000 frames wrote 42 GB before anything said it needed
     about 2.5 TB. Each sensor's first scan gives its bytes per scan; what is still to

@@ -178,3 +178,40 @@ def test_reading_a_long_fcd_reports_its_progress(tmp_path):
     assert len(shares) == 2000 // fcd_module.PROGRESS_STEPS
     assert shares == sorted(shares) and 0 < shares[0] and shares[-1] <= 1.0
     assert shares[-1] > 0.9 and len(f.tracks["a"].times) == 2000
+
+
+# an entity of 200 kB referenced 90 times: 18 MB that expat's own guard (100x) lets
+# through; a declared entity of any size is refused before it is read
+ENTITY_DTD = ('<?xml version="1.0"?>\n<!DOCTYPE fcd-export [\n<!ENTITY e "' + "x" * 200_000
+              + '">\n]>\n')
+
+
+def test_an_internal_dtd_is_refused_nothing_expanded(tmp_path):
+    from rls_addon.core.roads.network import check_xml
+    from rls_addon.core.traffic.vtypes import read_vtypes
+
+    path = fcd(tmp_path, ("0.00", [veh(typ="&e;" * 90)]), ("0.10", [veh(typ="&e;" * 90)]))
+    with open(path) as fh:
+        text = fh.read().replace('<?xml version="1.0" encoding="UTF-8"?>\n', ENTITY_DTD)
+    with open(path, "w") as fh:
+        fh.write(text)
+    with pytest.raises(InputError, match=r"run\.xml declares its own DTD.*nothing in it is "
+                                         r"expanded") as exc:
+        read_fcd(path)
+    assert len(str(exc.value)) < 300
+    vtypes = tmp_path / "types.xml"
+    vtypes.write_text(ENTITY_DTD.replace("fcd-export", "additional")
+                      + '<additional><vType id="&e;" length="4"/></additional>\n')
+    with pytest.raises(InputError, match="declares its own DTD"):
+        read_vtypes(str(vtypes))
+    net = tmp_path / "x.net.xml"
+    net.write_text(ENTITY_DTD.replace("fcd-export", "net") + '<net version="1.9">&e;</net>\n')
+    with pytest.raises(InputError, match="declares its own DTD"):
+        check_xml(str(net))
+    with pytest.raises(InputError, match="declares its own DTD"):
+        sumo_run.has_sidewalks(str(net))
+    # a DOCTYPE without an internal subset is not refused (nothing to expand)
+    plain = tmp_path / "plain.xml"
+    plain.write_text('<?xml version="1.0"?>\n<!DOCTYPE fcd-export>\n' + HEAD.split("\n", 1)[1]
+                     + '<timestep time="0">' + veh() + "</timestep>" + TAIL)
+    assert read_fcd(str(plain)).tracks

@@ -216,6 +216,10 @@ def _velodyne_yaml(text, where):
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         _fail(where, mark.line + 1 if mark else None, f"not valid YAML ({getattr(exc, 'problem', exc)})")
+    except RecursionError:
+        _fail(where, None, "not a readable YAML file (nested too deeply)")
+    except ValueError as exc:  # a value the constructors refuse (an integer of 5000 digits)
+        _fail(where, None, f"not a readable YAML file ({str(exc).split(';')[0]})")
     finally:
         loader.dispose()
     if not isinstance(data, dict) or not isinstance(data.get("lasers"), list):
@@ -311,6 +315,10 @@ def _ouster(text, where):
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         _fail(where, exc.lineno, f"not valid JSON ({exc.msg})")
+    except RecursionError:
+        _fail(where, None, "not a readable JSON file (nested too deeply)")
+    except ValueError as exc:  # a value the decoder refuses (an integer of 5000 digits)
+        _fail(where, None, f"not a readable JSON file ({str(exc).split(';')[0]})")
     if not isinstance(data, dict):
         _fail(where, None, "not an Ouster metadata file (JSON object expected)")
     intr = data.get("beam_intrinsics") if isinstance(data.get("beam_intrinsics"), dict) else data

@@ -203,6 +203,8 @@ def load_preset(path):
         raise PresetError(f"{p}: not UTF-8 text") from None
     except RecursionError:
         raise PresetError(f"{p}: TOML nested too deeply") from None
+    except ValueError as exc:  # a value tomllib cannot convert (an integer of 5000 digits)
+        raise PresetError(f"{p}: not a readable TOML file ({str(exc).split(';')[0]})") from None
     preset = preset_from_dict(data, str(p), base_dir=p.parent)
     if len(_LOAD_CACHE) > 256:
         _LOAD_CACHE.clear()

@@ -121,9 +121,51 @@ class _Root(xml.sax.ContentHandler):
             self.root = name
 
 
+class _RootReached(Exception):
+    pass
+
+
+def refuse_internal_dtd(path):
+    """``InputError`` when the XML file at ``path`` has an internal DTD (where entities
+    are declared): SUMO writes none, and a file from elsewhere is read as data, with no
+    entity of its own expanded (a few hundred bytes can otherwise expand to gigabytes).
+    Reads only the file's prolog, up to its root element; a file that is not XML is left
+    to its reader to name."""
+    import xml.parsers.expat
+
+    found = []
+
+    def doctype(name, system_id, public_id, has_internal_subset):
+        if has_internal_subset:
+            found.append(name)
+        raise _RootReached
+
+    def start(name, attrs):
+        raise _RootReached
+
+    parser = xml.parsers.expat.ParserCreate()
+    parser.StartDoctypeDeclHandler = doctype
+    parser.StartElementHandler = start
+    try:
+        with open(path, "rb") as fh:
+            while True:
+                chunk = fh.read(1 << 16)
+                parser.Parse(chunk, not chunk)
+                if not chunk:
+                    break
+    except (_RootReached, xml.parsers.expat.ExpatError, OSError):
+        pass
+    if found:
+        raise InputError(f"{path} declares its own DTD (<!DOCTYPE {found[0]} [...]>, where "
+                         "entities are declared), which SUMO never writes: refused, nothing "
+                         "in it is expanded")
+
+
 def check_xml(path):
     """``InputError`` unless ``path`` is well-formed XML whose root element is <net>
-    (one pass of Python's expat parser; external entities are not loaded)."""
+    (one pass of Python's expat parser; external entities are not loaded, a file with
+    an internal DTD is refused: ``refuse_internal_dtd``)."""
+    refuse_internal_dtd(path)
     handler = _Root()
     parser = xml.sax.make_parser()
     parser.setFeature(xml.sax.handler.feature_external_ges, False)

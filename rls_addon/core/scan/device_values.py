@@ -11,6 +11,7 @@ it is resolved there, for scripts and tests)."""
 
 from dataclasses import dataclass
 
+from ..errors import SettingsError
 from ..physics.detection import detection_of
 from ..physics.footprint import beam_of
 from ..physics.weather import parse_weather
@@ -39,9 +40,18 @@ class DeviceValues:
         """The values of ``preset`` under ``settings`` (a ``ScanSettings``)."""
         s, rng = settings, preset.range
         sigma = rng.noise_sigma_m if s.noise_sigma_m is None else s.noise_sigma_m
+        lo = rng.min_m if s.min_range_m is None else s.min_range_m
+        hi = rng.max_m if s.max_range_m is None else s.max_range_m
+        if lo >= hi:  # every return would be dropped: an empty cloud, exit 0
+            lo_from = "the preset's" if s.min_range_m is None else "the override"
+            hi_from = "the preset's" if s.max_range_m is None else "the override"
+            raise SettingsError(
+                f"the minimum range ({lo:g} m, {lo_from}) must be below the maximum range "
+                f"({hi:g} m, {hi_from}) of '{preset.id}': no return would be kept; "
+                "change the LiDAR's Min Range or Max Range")
         return cls(
-            min_range_m=rng.min_m if s.min_range_m is None else s.min_range_m,
-            max_range_m=rng.max_m if s.max_range_m is None else s.max_range_m,
+            min_range_m=lo,
+            max_range_m=hi,
             noise_sigma_m=sigma if s.noise else 0.0,
             dropout=preset.dropout,
             attenuation_per_m=(preset.attenuation_per_m if s.attenuation_per_m is None

@@ -150,8 +150,11 @@ class OutputSettings:
         FORMATS.check(self.format)
         POINT_TYPE_CHOICES.check(self.point_type)
         _number(self.start_time_s, "the start time (start_time_s, s)", None)
-        if self.las_offset is not None and len(tuple(self.las_offset)) != 3:
-            raise SettingsError(f"a LAS offset is x, y, z in metres, got {self.las_offset!r}")
+        if self.las_offset is not None:
+            if len(tuple(self.las_offset)) != 3:
+                raise SettingsError(f"a LAS offset is x, y, z in metres, got {self.las_offset!r}")
+            for axis, v in zip("xyz", self.las_offset):  # a NaN offset makes every X -2^31
+                _number(v, f"the LAS offset's {axis} (las_offset, m)", None)
         for f in self.fields:
             if f not in ("x", "y", "z"):
                 FIELDS.check(f)

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..roads.network import refuse_internal_dtd
 from .xml_errors import parse_reason
 
 # A step of an object counts as consecutive with the next when they are at most this
@@ -96,6 +97,7 @@ def read_fcd(path, begin=None, end=None, progress=None):
     line. ``progress(share of the file read)`` every ``PROGRESS_STEPS`` timesteps."""
     if not os.path.isfile(path):
         raise InputError(f"FCD file not found: {path}")
+    refuse_internal_dtd(path)
     try:
         root = _root_tag(path)
         if root is not None and root != "fcd-export":

@@ -34,6 +34,7 @@ from dataclasses import dataclass, fields
 from ..errors import InputError, RLSError
 from ..output.io.atomic import atomic_write_files
 from ..roads.layout import STEP_S
+from ..roads.network import refuse_internal_dtd
 from .xml_errors import parse_reason
 
 
@@ -110,6 +111,7 @@ def vtypes_xml():
 
 def has_sidewalks(net):
     """Whether the network has lanes only pedestrians may use."""
+    refuse_internal_dtd(net)
     try:
         for _, el in ET.iterparse(net, events=("end",)):
             if el.tag == "lane" and el.get("allow") == "pedestrian":

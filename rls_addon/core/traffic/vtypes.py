@@ -20,6 +20,7 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 from ..errors import InputError
+from ..roads.network import refuse_internal_dtd
 from .xml_errors import parse_reason
 
 # vClass -> (length, width, height) in metres (SUMO 1.28 source, see the module doc).
@@ -112,6 +113,7 @@ def read_vtypes(path):
     """{id: VType} of every ``<vType>`` in a SUMO route or additional file (streamed;
     any other element is skipped)."""
     out = {}
+    refuse_internal_dtd(path)
     try:
         for _, el in ET.iterparse(path, events=("end",)):
             if el.tag == "vType":

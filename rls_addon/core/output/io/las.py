@@ -141,7 +141,7 @@ def auto_offset(xyz):
 def _integers(xyz, offset, scale):
     q = np.rint((xyz - offset) / scale)
     lo, hi = np.iinfo(np.int32).min, np.iinfo(np.int32).max
-    bad = (q < lo) | (q > hi)
+    bad = ~((q >= lo) & (q <= hi))  # NaN too: it would be cast to -2^31
     if bad.any():
         axis = "xyz"[int(np.argwhere(bad)[0][1])]
         raise OutputError(f"{axis} coordinates do not fit LAS's 32-bit integers with offset "

@@ -2,6 +2,7 @@
 
 import os
 import pathlib
+import string
 
 from ...errors import OutputError
 from .formats import FORMATS
@@ -22,6 +23,11 @@ def output_path(directory, template, *, scene, sensor, frame, fmt):
     """
     ext = FORMATS.get(fmt).extension
     try:
+        for _, name, _, _ in string.Formatter().parse(str(template)):
+            if name is not None and name not in ("scene", "sensor", "frame"):
+                # '{frame.__class__}', '{scene[0]}': an attribute or item of a placeholder
+                # (str.format reads them) named a file "<class 'int'>.pcd"
+                raise KeyError(name)
         rendered = str(template).format(
             scene=sanitize_name(scene), sensor=sanitize_name(sensor), frame=int(frame)
         )

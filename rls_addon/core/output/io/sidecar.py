@@ -77,9 +77,28 @@ def read_sidecar(cloud_path):
     if not path.is_file():
         return None
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        info = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise InputError(f"cannot read sidecar {path}: {exc}") from None
+    _check_sidecar_format(info, path, pathlib.Path(cloud_path))
+    return info
+
+
+def _check_sidecar_format(info, path, cloud):
+    """``InputError`` when the sidecar describes a cloud of another format than
+    ``cloud``'s: 'x.pcd' and 'x.ply' share 'x.json', so a run with --overwrite in
+    another format replaces the sidecar of the cloud it leaves behind (its frame, pose
+    and seed then describe other points)."""
+    fmt = info.get("format") if isinstance(info, dict) else None
+    if not isinstance(fmt, str):
+        return
+    # the extension of the format's files (formats.FORMATS, which this module may not
+    # import: pcd_*, ply_* and las write .pcd, .ply and .las; a bag has no sidecar)
+    ext = {"pcd": ".pcd", "ply": ".ply", "las": ".las"}.get(fmt.split("_")[0])
+    if ext and cloud.suffix.lower() != ext:
+        raise InputError(f"sidecar {path} describes a {fmt} cloud ({cloud.stem}{ext}), not "
+                         f"{cloud.name}: a later run wrote that format under the same name "
+                         f"(--overwrite); scan {cloud.name} again or read the {ext} file")
 
 
 def points_to_world(points, info, where="the cloud"):
