@@ -15,17 +15,17 @@ one shared object table and material table.
 Objects and materials are told apart by name (an instance's key, its mesh read once,
 its motion and label; a material's reflectivity). Names are unique within one file,
 but not across the libraries a scene links from: two objects (or materials) of the
-same name, one linked, are refused with the names to change (``_one_per_name``),
-never read as one. The depsgraph read is the viewport's: an object hidden in the
-viewport but not from render is not in it, so it is not scanned, and the read names it
-(``hidden_in_viewport``) for the scan to say so. Blender units are read as metres: a
-scene whose Unit Scale is not 1 (one unit another length) is refused (``_in_metres``),
-never scanned at the wrong size.
+same name, one linked, are refused with the names to change, never read as one. The
+depsgraph read is the viewport's: an object hidden in the viewport but not from render
+is not in it, so it is not scanned, and the read names it for the scan to say so, as it
+names modifiers a render applies otherwise. Blender units are read as metres: a scene
+whose Unit Scale is not 1 (one unit another length) is refused, never scanned at the
+wrong size. These rules live in ``read_rules``; what a read made of objects that
+cannot change is kept between frames of a file nobody edits (``still_reads``).
 """
 
 import dataclasses
 import itertools
-from typing import NamedTuple
 
 import numpy as np
 
@@ -33,22 +33,10 @@ from ..core.errors import SceneError
 from ..core.scene.geometry import MaterialInfo
 from ..core.scene.instances import Instance, object_table, world_geometry
 from .labels import object_label
+from .read_rules import (GEOMETRY_TYPES, Named, hidden_in_viewport, in_metres, is_rls_helper,
+                         one_per_name, render_differs, shown_itself_in_render)
 from .materials import material_info
-from .sensor import is_lidar
 from .still_reads import StillEntry
-
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
-
-
-# Custom properties of the objects RLS makes to show things (previews, fields of view,
-# study markers, coverage maps) and of regions: none of them is ever scanned
-HELPER_PROPERTIES = ("rls_preview", "rls_infralob", "rls_fov", "rls_study", "rls_coverage")
-
-
-def is_rls_helper(obj):
-    """LiDAR objects, previews, regions of interest and what RLS draws are never scanned."""
-    return bool(is_lidar(obj) or any(obj.get(p) for p in HELPER_PROPERTIES))
-
 
 def _corners(bound_box):
     """(8, 3) float64 corners of an object's local bounds (Blender's floats in one call
@@ -264,7 +252,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     Two walks over the instances: the first finds those to read and their bounds (every
     one's distance from ``centre`` in one product, ``_bounds_distances``), the second
     reads them (an instance is valid only while the walk is at it)."""
-    _in_metres(depsgraph.scene)
+    in_metres(depsgraph.scene)
     centre = None if centre is None else np.asarray(centre, dtype=np.float64)
     materials, mat_index = [MaterialInfo("default")], {}
     cache, out = {}, []
@@ -284,7 +272,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         if not inst.is_instance and orig.name in still_names:
             entry = entries.get(orig.name)
             if entry is not None:  # read before, and cannot have changed
-                _one_per_name(names, _Named(orig.name, entry.full_name), "objects")
+                one_per_name(names, Named(orig.name, entry.full_name), "objects")
                 kept[n] = entry
                 stats["hidden"] += entry.kind == "hidden"
                 kept_far += entry.kind == "far"
@@ -294,9 +282,9 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
             continue
         # every geometry object, read or not (a hidden or distant one's matrix would be
         # taken for its namesake's in a sweep), and the instancer
-        _one_per_name(names, orig, "objects")
+        one_per_name(names, orig, "objects")
         if inst.is_instance and inst.parent is not None:
-            _one_per_name(names, inst.parent.original, "objects")
+            one_per_name(names, inst.parent.original, "objects")
         if orig.name in exclude or is_rls_helper(orig):
             continue
         if not inst.is_instance and orig.name in realized:
@@ -308,7 +296,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
             continue
         if len(orig.modifiers) and orig.name not in looked_at:
             looked_at.add(orig.name)
-            viewport_only += [f"'{orig.name}' ({mod})" for mod in _render_differs(orig)]
+            viewport_only += [f"'{orig.name}' ({mod})" for mod in render_differs(orig)]
         wanted.append(n)
         matrices.append(np.array(inst.matrix_world, dtype=np.float64))
         if centre is not None and max_range is not None:
@@ -351,7 +339,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         for i, mt in enumerate(slots):
             if mt is None:
                 continue
-            _one_per_name(material_names, mt, "materials")
+            one_per_name(material_names, mt, "materials")
             if mt.name not in mat_index:
                 mat_index[mt.name] = len(materials)
                 materials.append(material_info(mt))
@@ -376,13 +364,6 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     return out, materials, stats
 
 
-class _Named(NamedTuple):
-    """A block's names, as ``_one_per_name`` reads them (a still object's, kept)."""
-
-    name: str
-    name_full: str
-
-
 def _kept_instance(entry, materials, mat_index, material_names):
     """A still object's instance from an earlier read (``StillEntry``), its materials
     noted and added to this read's table as reading it again would; the same record
@@ -391,7 +372,7 @@ def _kept_instance(entry, materials, mat_index, material_names):
     for i, named in enumerate(entry.slot_materials):
         if named is None:
             continue
-        _one_per_name(material_names, _Named(*named), "materials")
+        one_per_name(material_names, Named(*named), "materials")
         if named[0] not in mat_index:
             mat_index[named[0]] = len(materials)
             materials.append(entry.infos[named[0]])
@@ -402,140 +383,6 @@ def _kept_instance(entry, materials, mat_index, material_names):
     item = dataclasses.replace(inst, slot_map=local_to_global)
     item.materials = item.material_indices(entry.slots)
     return item
-
-
-def shown_itself_in_render(obj):
-    """Whether a render shows ``obj``'s own geometry where it stands, as Blender decides
-    it (``BKE_object_visibility``, the depsgraph's ``deg_object_hide_original``), where
-    the viewport's depsgraph read here may differ: an instancer (particles, or instancing
-    on vertices or faces) shows itself only with *Instancing > Render* on
-    (``show_instancer_for_render``), and a child of an object instancing on its vertices
-    or faces is shown only at those, never at its own place. A metaball is left to
-    Blender (its balls' visibility goes with their family's base)."""
-    if (len(obj.particle_systems) or obj.instance_type != "NONE") \
-            and not obj.show_instancer_for_render:
-        return False
-    parent = obj.parent
-    return not (parent is not None and parent.instance_type in {"VERTS", "FACES"}
-                and obj.type != "META")
-
-
-def hidden_in_viewport(depsgraph, present=None):
-    """Sorted full names of the geometry objects a render of the depsgraph's view layer
-    shows that the depsgraph (the viewport's) leaves out, so they are not scanned: an
-    object hidden with its eye or its monitor icon, or in a collection disabled in
-    viewports. A render shows an object not hidden from render in a collection that
-    is neither excluded from the view layer nor hidden from render (nor any above it).
-    ``present``: the full names of the objects the depsgraph lists (found here when
-    not given). LiDARs and what RLS draws are never scanned, hidden or not.
-
-    Each collection's names are compared with the depsgraph's in one set difference
-    (``keys()``; a collection's names are full names where no library is linked), so
-    only the objects it leaves out are looked at: 1.1 ms for 5,000 objects, against 18 ms
-    looking at each."""
-    import bpy
-
-    if present is None:
-        present = {i.object.original.name_full for i in depsgraph.object_instances}
-    by_name = not bpy.data.libraries  # no library: every name is its full name
-    found, stack = set(), [depsgraph.view_layer.layer_collection]
-    while stack:
-        lc = stack.pop()
-        if lc.exclude or lc.collection.hide_render:
-            continue
-        stack.extend(lc.children)
-        objects = lc.collection.objects
-        if by_name:
-            missing = set(objects.keys()) - present
-            if not missing:
-                continue
-            objects = [objects[n] for n in sorted(missing)]
-        for ob in objects:
-            if (ob.type in GEOMETRY_TYPES and not ob.hide_render
-                    and ob.name_full not in present and not is_rls_helper(ob)):
-                found.add(ob.name_full)
-    return sorted(found)
-
-
-def hidden_in_viewport_warning(names, shown=5):
-    """What a scan says of objects ``hidden_in_viewport`` names."""
-    listed = ", ".join(f"'{n}'" for n in names[:shown])
-    more = f" and {len(names) - shown} more" if len(names) > shown else ""
-    one = len(names) == 1
-    it = "it" if one else "them"
-    return (f"{len(names)} object{'' if one else 's'} hidden in the viewport but not from "
-            f"render {'is' if one else 'are'} not scanned ({listed}{more}): show {it} "
-            f"(Alt+H, or the monitor icon) to scan {it}, or disable {it} in renders (the "
-            f"camera icon) to leave {it} out without this warning")
-
-
-# Modifier settings with a viewport and a render value (levels of detail)
-_LEVELS = {"SUBSURF": ("levels", "render_levels"), "MULTIRES": ("levels", "render_levels")}
-
-
-def _render_differs(obj):
-    """Names of ``obj``'s modifiers a render applies otherwise than the viewport, whose
-    geometry this read is: shown in one and not the other, or at other levels."""
-    out = []
-    for mod in obj.modifiers:
-        pair = _LEVELS.get(mod.type)
-        if mod.show_viewport != mod.show_render or (
-                pair and mod.show_render and getattr(mod, pair[0]) != getattr(mod, pair[1])):
-            out.append(mod.name)
-    return out
-
-
-def viewport_modifiers_warning(names, shown=5):
-    """What a scan says of the objects whose modifiers a render applies otherwise."""
-    listed = ", ".join(names[:shown])
-    more = f" and {len(names) - shown} more" if len(names) > shown else ""
-    return (f"{len(names)} modifier{'' if len(names) == 1 else 's'} set otherwise for "
-            f"render than for the viewport ({listed}{more}): RLS scans the viewport's "
-            "geometry, not a render's; give each the same visibility and levels in both "
-            "to scan what a render shows")
-
-
-def read_warnings(stats):
-    """What a scan (or a study) says of a read, from ``read_instances``' stats: the
-    objects a render shows that the read left out (``hidden_in_viewport``), the
-    modifiers a render applies otherwise (``viewport_modifiers``), or nothing."""
-    hidden = stats.get("hidden_in_viewport")
-    modifiers = stats.get("viewport_modifiers")
-    return ([hidden_in_viewport_warning(hidden)] if hidden else []) + \
-        ([viewport_modifiers_warning(modifiers)] if modifiers else [])
-
-
-def _in_metres(scene):
-    """A ``SceneError`` unless one Blender unit of ``scene`` is one metre (its Unit
-    Scale 1, whatever units it shows): RLS reads positions, sizes, ranges and speeds
-    in Blender units as metres, so a scene modelled at another scale would be scanned
-    that many times too large or too small."""
-    scale = float(scene.unit_settings.scale_length)  # Blender keeps it above 0
-    if abs(scale - 1.0) > 1e-9:
-        size = f"{1 / scale:.4g} times too large" if scale < 1 else \
-            f"{scale:.4g} times too small"
-        raise SceneError(
-            f"scene '{scene.name}' has a Unit Scale of {scale:g} (Scene Properties > Units): "
-            f"one Blender unit is {scale:g} m there, and RLS reads Blender units as metres, "
-            f"so it would scan a world {size}; model the scene in "
-            "metres with Unit Scale 1 (a still scene: select everything, scale it by "
-            f"{scale:g} about the world origin, Object > Apply > Scale, then set Unit Scale "
-            "to 1; keyed motion needs its keys scaled too)")
-
-
-def _one_per_name(seen, block, kind):
-    """Note ``block`` (an object or a material) in ``seen`` ({name: full name}); a
-    ``SceneError`` when another of its name was seen: one linked from a library
-    beside a local one, or from two libraries (their shapes, motion, labels or
-    reflectivity would be mixed up)."""
-    full = seen.setdefault(block.name, block.name_full)
-    if full != block.name_full:
-        a, b = sorted((full, block.name_full))
-        raise SceneError(f"two {kind} are named '{block.name}' ('{a}' and '{b}', from "
-                         f"different files): RLS tells {kind} apart by name and would mix "
-                         "them up; rename one of them (a linked one is made local first: "
-                         "Object > Relations > Make Local, with its materials for a "
-                         "material)")
 
 
 def _label(orig, parent, labels):

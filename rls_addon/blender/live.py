@@ -32,7 +32,7 @@ from ..core.live.schedule import LIVE, LiveScheduler, LiveSettings
 from ..core.scan.kept_sweeps import KeptSweeps
 from ..core.scan.session import ScanSession
 from .coverage_map import remove_coverage, show_coverage
-from .extract import GEOMETRY_TYPES, is_rls_helper
+from .read_rules import GEOMETRY_TYPES, is_rls_helper
 from .preview import show_points
 from .region import lob_polygon_world
 from .sensor import lidar_objects, lidar_props, read_settings, sensor_job

@@ -17,7 +17,8 @@ import math
 
 import numpy as np
 
-from .extract import GEOMETRY_TYPES, instance_key, is_rls_helper, read_positions
+from .extract import instance_key, read_positions
+from .read_rules import GEOMETRY_TYPES, is_rls_helper
 
 
 def _animated(idblock):

@@ -6,9 +6,10 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.scene.source import Mobility, SceneRead
-from .extract import MeshReader, instance_key, read_instances, read_mesh, read_warnings
+from .extract import MeshReader, instance_key, read_instances, read_mesh
 from .motion import (SceneTime, SweepClock, history_free, instancer_may_move, may_deform,
                      may_move, mesh_is_fixed, read_state, still_objects, timeless)
+from .read_rules import read_warnings
 from .still_reads import StillReads
 
 

@@ -9,7 +9,8 @@ from ..core.study.loop import run_study as core_run_study
 from ..core.errors import RegionError, SceneError
 from ..core.scene.instances import object_table, world_geometry
 from ..core.scene.source import SceneRead
-from .extract import read_instances, read_warnings
+from .extract import read_instances
+from .read_rules import read_warnings
 from .region import is_lob, lob_polygon_world
 from .source import traffic_span
 from .scenes.build import is_mount, mount_position

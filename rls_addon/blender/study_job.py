@@ -16,7 +16,7 @@ from ..core.errors import OutputError, SceneError
 from ..core.study.config import study_config as core_study_config
 from ..core.study.loop import StudyRun
 from ..core.study.report import charts_png, report_clash, write_report
-from .extract import is_rls_helper
+from .read_rules import is_rls_helper
 from .region import is_lob
 from .scenes.build import is_mount
 from .study import BlenderStudyScene

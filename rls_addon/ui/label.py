@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..blender.extract import GEOMETRY_TYPES
+from ..blender.read_rules import GEOMETRY_TYPES
 from ..blender.region import is_lob
 
 

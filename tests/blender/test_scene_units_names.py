@@ -133,7 +133,7 @@ def test_a_scene_not_in_metres_is_refused(scene, scale, size):
 
 def test_objects_hidden_in_the_viewport_but_not_from_render_are_named(scene, tmp_path):
     # The viewport's depsgraph leaves them out, so they are not scanned: a scan says so
-    from rls_addon.blender.extract import hidden_in_viewport, hidden_in_viewport_warning
+    from rls_addon.blender.read_rules import hidden_in_viewport, hidden_in_viewport_warning
 
     lidar = add_lidar(location=(0, 0, 1.5))
     ground()
@@ -187,7 +187,8 @@ def test_modifiers_set_otherwise_for_render_are_named_in_a_warning(scene):
     found an Array modifier off in the viewport but on for render scanned as 1 post of
     3, and a Subdivision at viewport level 0, render level 3, 16 cm short. The scan
     says so, naming each such modifier; modifiers set alike say nothing."""
-    from rls_addon.blender.extract import read_instances, read_warnings
+    from rls_addon.blender.extract import read_instances
+    from rls_addon.blender.read_rules import read_warnings
 
     post = mesh_object("Post", [(5, -0.2, 0), (5, 0.2, 0), (5, 0.2, 3), (5, -0.2, 3)],
                        [(0, 1, 2, 3)])
