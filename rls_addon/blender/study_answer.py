@@ -109,11 +109,15 @@ def _child(parent, name):
 
 
 def _markers(coll, result, scores):
+    from mathutils import Matrix
+
     mesh = _marker_mesh()
     out = []
     for c in result.candidates:
         obj = bpy.data.objects.new(f"Study: {c.name}", mesh)
-        obj.matrix_world = [list(row) for row in c.pose]
+        # a Matrix of the rows: a nested list given to matrix_world is read column by
+        # column (every marker stood at the origin, turned the inverse way)
+        obj.matrix_world = Matrix([[float(v) for v in row] for row in c.pose])
         obj[STUDY_PROPERTY] = True
         obj["rls_candidate"] = c.index
         for score, values in scores.items():

@@ -267,3 +267,21 @@ def test_study_panel_draws_settings_and_the_sortable_table(scene, tmp_path, monk
                                    sc.rls_study, "row_index", 0)
     texts = [kw.get("text") for n, _, kw in item_log if n == "label"]
     assert rows[0].sensors in texts and f"{rows[0].infra_d:.2f}" in texts
+
+
+def test_markers_stand_at_their_candidates_poses(scene):
+    """Each marker is its candidate's sensor-to-world pose. A nested list given to
+    ``matrix_world`` is read column by column: the markers had stood at the world's
+    origin, turned the inverse way, whatever the candidates' poses."""
+    from rls_addon.blender.study_answer import _markers
+    from rls_addon.core.study.candidates import pose_matrix
+
+    cands = [SimpleNamespace(index=i, name=f"c{i}", pose=pose_matrix(p, yaw, pitch, roll))
+             for i, (p, yaw, pitch, roll) in enumerate([((25.0, 9.0, 8.4), 150.0, 15.0, 0.0),
+                                                        ((-12.0, 3.0, 6.0), -40.0, 35.0, 5.0)])]
+    coll = bpy.data.collections.new("RLS Study candidates")
+    scene.collection.children.link(coll)
+    marks = _markers(coll, SimpleNamespace(candidates=cands), {})
+    bpy.context.view_layer.update()
+    for m, c in zip(marks, cands):
+        assert np.array(m.matrix_world) == pytest.approx(c.pose, abs=1e-5)
