@@ -445,3 +445,27 @@ def test_sets_scored_in_chunks_as_in_one_batch(monkeypatch, chunk):
         assert np.array([p.infra_d for p in got]).tobytes() == d.tobytes()
         assert np.array([p.infra_nuc for p in got]).tobytes() == u.tobytes()
         assert [p.n_points for p in got] == n[idx].sum(axis=1).tolist()
+
+
+def test_a_region_no_candidate_reaches_is_one_clear_error():
+    """A region with no counted point from any candidate had every set scored InfraD 0
+    with no InfraNUC, and one named best (NaN in the printed summary); ``rls metrics``
+    refuses the same clouds. Likewise when no disk holds a point."""
+    from rls_addon.core.casting import NumpyCaster
+    from rls_addon.core.errors import SceneError
+    from rls_addon.core.study.config import StudyConfig
+    from rls_addon.core.study.loop import run_study
+
+    class Beyond(FakeStudyScene):
+        def region(self, name):  # 40 m past the road slab's edge: nothing counted there
+            return np.array([(70.0, -8.0), (90.0, -8.0), (90.0, 6.0), (70.0, 6.0)])
+
+    factory = lambda name: (NumpyCaster, None)  # noqa: E731
+    cfg = StudyConfig(k=(1, 2), disks=50, noise=False, dropout=False)
+    with pytest.raises(SceneError, match=r"no candidate puts a point labelled road, sidewalk "
+                                         r"in the region \(280\.0 m\^2\)"):
+        run_study(Beyond(), cfg, factory=factory)
+    tiny = StudyConfig(k=(1,), disks=1, radius=1e-4, noise=False, dropout=False)
+    with pytest.raises(SceneError, match="none of the 1 disks holds any of the candidates' "
+                                         "points"):
+        run_study(FakeStudyScene(), tiny, factory=factory)

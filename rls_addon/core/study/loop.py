@@ -11,6 +11,7 @@ import numpy as np
 
 from ..casting import caster_factory
 from ..errors import SceneError, SettingsError
+from ..labels import label_name
 from ..metrics.infra import density_map
 from ..metrics.visibility import VisibilityCounts, ranks
 from ..scene.traffic_keys import check_keyed, source_span
@@ -156,6 +157,7 @@ class StudyRun:
         if not self.scanned_all:
             raise SceneError(f"{int(np.count_nonzero(~self.scanned))} of {len(cands)} "
                              "candidates were not scanned")
+        self._refuse_empty_region()
         t_search = time.perf_counter()
         groups = [c.mount for c in cands] if cfg.one_per_mount else None
         cc = CandidateCounts(self.n_points, self.disk_counts, layout.area_m2, layout.p, groups)
@@ -202,6 +204,25 @@ class StudyRun:
             "maps_s": t_end - t_maps,
             "per_candidate_s": (t_search - self.t_scan) / max(len(cands), 1)})
         return result
+
+
+    def _refuse_empty_region(self):
+        """``SceneError`` when no candidate put a counted point in the region, or none in
+        any disk: every set would score InfraD 0 and no InfraNUC, and one of them be
+        named best (``rls metrics`` refuses the same clouds)."""
+        layout = self.inputs.layout
+        names = ", ".join(label_name(i) for i in self.scanner.label_ids)
+        if not self.n_points.any():
+            raise SceneError(
+                f"no candidate puts a point labelled {names} in the region "
+                f"({layout.area_m2:.1f} m^2): every placement would score InfraD 0, with no "
+                "InfraNUC; check that the region lies over the road within the device's "
+                "range of the mounts, and the labels (--labels)")
+        if not self.disk_counts.any():
+            raise SceneError(
+                f"none of the {len(layout.centres)} disks holds any of the candidates' points "
+                f"in the region, so InfraNUC cannot be estimated: use larger or more disks "
+                "(--radius, --disks)")
 
 
 @dataclasses.dataclass
