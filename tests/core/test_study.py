@@ -469,3 +469,21 @@ def test_a_region_no_candidate_reaches_is_one_clear_error():
     with pytest.raises(SceneError, match="none of the 1 disks holds any of the candidates' "
                                          "points"):
         run_study(FakeStudyScene(), tiny, factory=factory)
+
+
+@pytest.mark.parametrize("field, text, flag", [
+    ("pitches", "nan", "--pitch"), ("yaws", "0,inf", "--yaw"), ("k", "nan", "--k"),
+    ("grid_heights", "6,-inf", "--heights"), ("pitches", "0:inf:10", "--pitch")])
+def test_angles_heights_and_k_must_be_finite(field, text, flag):
+    """nan and inf parse as floats: a pitch or yaw of them had ended in numpy's 'SVD did
+    not converge' after the scene was read, a k of nan in a ValueError, a height of nan
+    in a message about the prepared scene's reach."""
+    from rls_addon.core.errors import SceneError
+    from rls_addon.core.study.config import StudyConfig, study_config
+
+    with pytest.raises(RegionError, match=f"{flag}: (every value must be a finite number|"
+                                          "expected)"):
+        study_config(**{field: text})
+    for name in ("roll", "grid_margin"):
+        with pytest.raises(SceneError, match="must be a finite number"):
+            StudyConfig(**{name: float("nan")})

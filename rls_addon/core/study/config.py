@@ -77,6 +77,10 @@ class StudyConfig:
     lidar_mode: str = None
 
     def __post_init__(self):
+        for name in ("roll", "grid_margin"):
+            if not math.isfinite(float(getattr(self, name))):
+                raise SceneError(f"the {name.replace('_', ' ')} must be a finite number, got "
+                                 f"{getattr(self, name)}")
         if self.evaluate_frames and not self.traffic_frames:
             self.traffic_frames = tuple(self.evaluate_frames)
         extra = sorted(set(self.evaluate_frames) - set(self.traffic_frames))
@@ -104,7 +108,7 @@ def parse_values(text, what="values"):
     try:
         if ":" in text:
             parts = [float(t) for t in text.split(":")]
-            if len(parts) != 3 or parts[2] <= 0:
+            if len(parts) != 3 or not all(math.isfinite(v) for v in parts) or parts[2] <= 0:
                 raise bad
             a, b, step = parts
             count = int(math.floor((b - a) / step + 1e-9)) + 1
@@ -116,6 +120,10 @@ def parse_values(text, what="values"):
         raise bad from None
     if not vals:
         raise RegionError(f"{what}: no values in {text!r}")
+    if not all(math.isfinite(v) for v in vals):
+        # nan and inf parse as floats: a candidate's pose of them had ended in numpy's
+        # "SVD did not converge", a k of them in a ValueError
+        raise RegionError(f"{what}: every value must be a finite number, got {text!r}")
     return vals
 
 
