@@ -8,6 +8,7 @@ import bpy
 import numpy as np
 
 from ..core.errors import SceneError
+from ..core.metrics.polygon import polygon_centroid
 from .fov import fov_object
 from .preview import preview_object
 from .region import lob_polygon_world
@@ -64,7 +65,7 @@ def add_lidar(scene, mounting, lob=None):
         position = mounting.at
     centre = None
     if mounting.face_region:
-        centre = lob_polygon_world(find_lob(scene, lob)).mean(axis=0)
+        centre = polygon_centroid(lob_polygon_world(find_lob(scene, lob)))
     return new_lidar(scene, mounting.name, preset.id, position,
                      mounting.euler(position, centre))
 

@@ -487,3 +487,31 @@ def test_angles_heights_and_k_must_be_finite(field, text, flag):
     for name in ("roll", "grid_margin"):
         with pytest.raises(SceneError, match="must be a finite number"):
             StudyConfig(**{name: float("nan")})
+
+
+def test_face_mode_looks_at_the_centroid_of_the_regions_area():
+    """'--yaw-mode face' faces the region's centre. It had faced the mean of the outline's
+    vertices: a 40 x 10 m rectangle with one corner rounded by 30 vertices pulled that
+    to (4.1, 7.7), 52 degrees off for a pole south of the middle, and a repeated vertex
+    moved it too. Rectangles (the sample scenes') face exactly where they did."""
+    from rls_addon.core.metrics.polygon import polygon_centroid
+    from rls_addon.core.study.candidates import make_candidates
+    from rls_addon.core.study.config import StudyConfig
+
+    arc = [(5 + 5 * math.cos(t), 5 + 5 * math.sin(t))
+           for t in np.linspace(math.pi / 2, math.pi, 30)]
+    rounded = np.array([(0, 0), (40, 0), (40, 10)] + arc, float)
+    # the centroid: the rectangle less the corner's square plus its quarter disk
+    quarter = math.pi * 25 / 4
+    area = 400 - 25 + quarter
+    qx = 5 - 4 * 5 / (3 * math.pi)  # the quarter disk's centroid, (qx, 10 - qx mirrored)
+    want = np.array([(400 * 20 - 25 * 2.5 + quarter * qx) / area,
+                     (400 * 5 - 25 * 7.5 + quarter * (5 + 4 * 5 / (3 * math.pi))) / area])
+    assert polygon_centroid(rounded) == pytest.approx(want, abs=0.02)  # 30 chords, not an arc
+    cfg = StudyConfig()
+    for region in (rounded, np.array([(0, 0), (40, 0), (40, 0), (40, 10), (0, 10)], float)):
+        c = polygon_centroid(region)
+        cand = make_candidates([("pole", (20.0, -5.0, 6.0))], cfg, region)[0]
+        assert cand.yaw_deg == pytest.approx(math.degrees(math.atan2(c[1] + 5.0, c[0] - 20.0)))
+    square = np.array(SQUARE, float)
+    assert polygon_centroid(square).tolist() == square.mean(axis=0).tolist() == [10.0, 5.0]

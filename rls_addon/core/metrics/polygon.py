@@ -151,6 +151,26 @@ def _meet(p, q, r, t):
     return p + s * d1
 
 
+def polygon_centroid(vertices):
+    """(x, y) of the region's centre: the centroid of its area, which a mean of its
+    vertices is not when they are unevenly spaced (a rounded corner drawn with many
+    vertices pulls that mean into the corner), nor with a vertex repeated. Worked out
+    about the vertices' mean, and that mean itself where the two agree to rounding (a
+    rectangle, any outline symmetric about it), so those stay exactly as they were."""
+    poly = as_polygon(vertices)
+    keep = np.r_[np.any(poly[1:] != poly[:-1], axis=1), np.any(poly[-1] != poly[0])]
+    ring = poly[keep] if keep.any() else poly
+    m = ring.mean(axis=0)
+    p = ring - m
+    x, y = p[:, 0], p[:, 1]
+    x1, y1 = np.roll(x, -1), np.roll(y, -1)
+    cross = x * y1 - x1 * y
+    area = 0.5 * float(cross.sum())
+    c = np.array([float(((x + x1) * cross).sum()), float(((y + y1) * cross).sum())]) / (6.0 * area)
+    scale = max(1.0, float(np.abs(p).max()))
+    return m if float(np.abs(c).max()) <= 1e-9 * scale else m + c
+
+
 def polygon_area(vertices):
     """Area in square metres (absolute shoelace)."""
     return abs(shoelace_area(as_polygon(vertices)))

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from ..errors import RegionError, SceneError
-from ..metrics.polygon import as_polygon
+from ..metrics.polygon import as_polygon, polygon_centroid
 from ..scene.mounting import facing_yaw_deg
 
 
@@ -42,8 +42,9 @@ class Candidate:
 
 
 def make_candidates(spots, cfg, polygon):
-    """Candidate placements: spots [(name, (x, y, z))] x pitches x yaws."""
-    centre = polygon.mean(axis=0)
+    """Candidate placements: spots [(name, (x, y, z))] x pitches x yaws; with
+    ``yaw_mode`` face, yaws from facing the centroid of the region's area."""
+    centre = polygon_centroid(polygon)
     out = []
     for mount, pos in spots:
         base = facing_yaw_deg(pos, centre) if cfg.yaw_mode == "face" else 0.0
