@@ -47,6 +47,13 @@ def lob_polygon_world(obj):
     """
     if getattr(obj, "type", None) != "MESH":
         raise RegionError(f"region object {getattr(obj, 'name', obj)!r} is not a mesh")
+    shown = [m.name for m in obj.modifiers if m.show_viewport]
+    if shown:
+        # the outline is the mesh's own: a Mirror or Array would show a region it is not
+        raise RegionError(f"region object {obj.name!r} has modifiers ({', '.join(shown)}) "
+                          "that change the region it shows, but its outline is read from "
+                          "its mesh without them; apply them (Object > Apply > All "
+                          "Modifiers) or remove them")
     mesh = obj.data
     if len(mesh.polygons) == 0:
         raise RegionError(f"region object {obj.name!r} has no faces; fill its outline (a plane or n-gon)")

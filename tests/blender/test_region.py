@@ -61,3 +61,16 @@ def test_metrics_command_reads_region_from_blend(scene, tmp_path):
     assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     assert out["infra_d"] == 4.0 and out["area_m2"] == pytest.approx(600.0)
+
+
+def test_a_region_whose_modifiers_change_its_outline_is_refused(scene):
+    """An audit found a 10 x 10 m plane with a Mirror modifier (20 x 10 m in the
+    viewport) read as its mesh alone: half the region ignored and InfraD doubled, with
+    no word. The outline is the mesh's own, so shown modifiers are refused with what to
+    do; one hidden in the viewport shows the mesh that is read, and is left alone."""
+    plane = mesh_object("LOB", [(0, 0, 0), (10, 0, 0), (10, 10, 0), (0, 10, 0)], [(0, 1, 2, 3)])
+    mirror = plane.modifiers.new("Mirror", "MIRROR")
+    with pytest.raises(RegionError, match=r"'LOB' has modifiers \(Mirror\).*Apply"):
+        lob_polygon_world(plane)
+    mirror.show_viewport = False
+    assert polygon_area(lob_polygon_world(plane)) == pytest.approx(100.0)

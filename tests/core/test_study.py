@@ -515,3 +515,24 @@ def test_face_mode_looks_at_the_centroid_of_the_regions_area():
         assert cand.yaw_deg == pytest.approx(math.degrees(math.atan2(c[1] + 5.0, c[0] - 20.0)))
     square = np.array(SQUARE, float)
     assert polygon_centroid(square).tolist() == square.mean(axis=0).tolist() == [10.0, 5.0]
+
+
+@pytest.mark.parametrize("pitches,yaws,spots", [
+    ((0.0, 0.0), (0.0,), [("pole", (1.0, 2.0, 6.0))]),           # a pitch twice
+    ((10.0,), (0.0, 360.0), [("pole", (1.0, 2.0, 6.0))]),        # one yaw, 360 apart
+    ((10.0,), (-90.0, 270.0), [("pole", (1.0, 2.0, 6.0))]),
+    ((10.0,), (0.0,), [("pole", (1.0, 2.0, 6.0)), ("pole again", (1.0, 2.0, 6.0))]),
+])
+def test_two_candidates_in_one_pose_are_refused(pitches, yaws, spots):
+    """An audit found '--pitch 10,10 --allow-shared-mounts --k 2' naming as best 'pair'
+    one LiDAR counted twice (InfraD exactly twice the single one's): a pose given
+    twice, in any of its spellings, is refused, naming both."""
+    from rls_addon.core.study.candidates import make_candidates
+    from rls_addon.core.study.config import StudyConfig
+
+    cfg = StudyConfig(pitches=pitches, yaws=yaws)
+    with pytest.raises(RegionError, match="are the same pose"):
+        make_candidates(spots, cfg, np.array(SQUARE, float))
+    # distinct poses at one mount are candidates as before
+    cfg = StudyConfig(pitches=(0.0, 10.0), yaws=(0.0, 90.0, 180.0, 270.0))
+    assert len(make_candidates(spots[:1], cfg, np.array(SQUARE, float))) == 8

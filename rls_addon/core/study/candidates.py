@@ -57,7 +57,23 @@ def make_candidates(spots, cfg, polygon):
                 out.append(Candidate(len(out), name, mount, tuple(float(v) for v in pos), y,
                                      float(pitch), float(cfg.roll),
                                      pose_matrix(pos, y, pitch, cfg.roll)))
+    _refuse_repeats(out)
     return out
+
+
+def _refuse_repeats(candidates):
+    """``RegionError`` when two candidates are one pose (a pitch or yaw given twice, a
+    yaw and the same yaw 360 degrees on, a mount named twice): two LiDARs in one pose
+    are no placement of two, and a set of them would count one sensor's points twice."""
+    seen = {}
+    for c in candidates:
+        key = (np.round(np.asarray(c.pose, np.float64), 9) + 0.0).tobytes()  # -0.0 is 0.0
+        other = seen.setdefault(key, c)
+        if other is not c:
+            raise RegionError(f"candidates '{other.name}' and '{c.name}' are the same pose "
+                              f"(at {', '.join(f'{v:g}' for v in c.position)}, yaw {c.yaw_deg:g}, "
+                              f"pitch {c.pitch_deg:g} degrees): give each pitch, yaw and mount "
+                              "once (yaws 360 degrees apart are one yaw)")
 
 
 # What a study keeps per candidate while it runs, beyond its disk counts (8 bytes a
