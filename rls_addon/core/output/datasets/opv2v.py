@@ -19,7 +19,9 @@ LiDAR's own frame, poses as ``[x, y, z, roll, yaw, pitch]`` in metres and degree
 turned into matrices by OpenCOOD's ``x_to_world``. A vehicle is ``location`` (its
 origin), ``center`` (from the origin to its box centre, world axes, as OpenCOOD adds
 them), ``extent`` (half length, width, height), ``angle`` ([roll, yaw, pitch]) and
-``speed`` (km/h, as OpenCDA logs it).
+``speed`` (km/h, as OpenCDA logs it). ``vehicles`` holds vehicles only: OpenCOOD
+(``base_postprocessor.generate_object_center``) takes every entry as a vehicle, so
+other road users go under ``rls: other_objects``.
 
 Agents: a LiDAR on a vehicle (its parent object) is that vehicle, with the vehicle's
 instance id; a LiDAR on infrastructure is a road-side unit with a negative id derived
@@ -50,6 +52,7 @@ from .common import (
 )
 
 KMH = 3.6
+VEHICLE = "vehicle"  # the one class OPV2V's 'vehicles' holds
 
 
 def rsu_id(sensor):
@@ -169,6 +172,7 @@ class Opv2vWriter:
         start = np.asarray(info["sensor_pose_start"], np.float64)
         boxes = info.get("objects", [])
         seam_notice(self.notices, sensor, boxes)
+        _others_notice(self.notices, boxes)
         carrier = self.carriers.get(sensor)
         ego = next((b for b in boxes if b["object"] == carrier), None)
         lidar_pose = carla_pose(start)
@@ -180,9 +184,14 @@ class Opv2vWriter:
             "true_ego_pos": ego_pose,
             "predicted_ego_pos": ego_pose,
             "ego_speed": float(np.linalg.norm(ego["world"]["velocity_mps"]) * KMH) if ego else 0.0,
+            # OpenCOOD takes every entry of 'vehicles' as a vehicle (OPV2V has no other
+            # class): the other road users are kept under 'rls'
             "vehicles": {int(b["instance"]): vehicle_entry(b) for b in boxes
-                         if b["object"] != carrier},
+                         if b["object"] != carrier and b["category"] == VEHICLE},
             "rls": {"scene": self.scene_name, "sensor": sensor, "frame": frame,
+                    "other_objects": {int(b["instance"]): vehicle_entry(b) for b in boxes
+                                      if b["object"] != carrier
+                                      and b["category"] != VEHICLE},
                     "points": int(len(points)), "timestamp_s": info.get("timestamp_s"),
                     "agent": self.agents[sensor], "carrier": carrier,
                     "device": info.get("device", {}).get("id"),
@@ -288,6 +297,15 @@ def agents_for(sensors, carriers):
         raise RLSError("two LiDARs ride on the same vehicle; OPV2V has one LiDAR per agent: "
                        "scan them into separate datasets")
     return out
+
+
+def _others_notice(notices, boxes):
+    """Add (once) the notice that road users other than vehicles are not OPV2V's."""
+    kinds = sorted({b["category"] for b in boxes if b["category"] != VEHICLE})
+    if kinds and not any(n.startswith("OPV2V lists vehicles only") for n in notices):
+        notices.append("OPV2V lists vehicles only (OpenCOOD takes every entry of a YAML's "
+                       f"'vehicles' as a vehicle): the {', '.join(kinds)} boxes are under "
+                       "'rls: other_objects', which OpenCOOD does not read")
 
 
 def _box_origin_pose(where):
