@@ -15,7 +15,8 @@ pcd_to_np``: ``colors[:, 0]``). So each .pcd holds x y z and a packed ``rgb`` wh
 three channels carry round(255 * intensity).
 
 Everything is in CARLA's left-handed frame (``carla``: y mirrored): the points in the
-LiDAR's own frame, poses as ``[x, y, z, roll, yaw, pitch]`` in metres and degrees,
+LiDAR's own frame (at the sweep start, the time of ``lidar_pose``, for a LiDAR that
+moves: ``points_at_sweep_start``), poses as ``[x, y, z, roll, yaw, pitch]`` in metres and degrees,
 turned into matrices by OpenCOOD's ``x_to_world``. A vehicle is ``location`` (its
 origin), ``center`` (from the origin to its box centre, world axes, as OpenCOOD adds
 them), ``extent`` (half length, width, height), ``angle`` ([roll, yaw, pitch]) and
@@ -45,6 +46,7 @@ from .common import (
     check_root,
     ensure_dir,
     frame_id,
+    points_world,
     scan_settings,
     seam_notice,
     settings_differences,
@@ -52,6 +54,9 @@ from .common import (
 )
 
 KMH = 3.6
+# Where a frame's points are: the LiDAR's frame at the sweep start, the frame of its
+# lidar_pose (recorded with the settings: frames of older runs are scanned again)
+POINTS_FRAME = "lidar_pose"
 VEHICLE = "vehicle"  # the one class OPV2V's 'vehicles' holds
 
 
@@ -71,6 +76,23 @@ def opv2v_points(points):
     c = c.astype(np.uint32)
     rec["rgb"] = ((c << 16) | (c << 8) | c).view(np.float32)
     return rec
+
+
+def points_at_sweep_start(points, info):
+    """``points`` (sensor frame, each at its own firing time) in the LiDAR's frame at the
+    sweep start, the one pose OPV2V gives a point file (``lidar_pose``): OpenCOOD maps
+    every point of a file by it (``basedataset.reform_param``: ``x1_to_x2(lidar_pose,
+    ego lidar_pose)``), as CARLA's LiDAR, which has no motion within a tick, makes them.
+    A LiDAR that moved during its sweep (its sidecar's ``sensor_poses``) has its points
+    taken through the world with its pose at their own times; a still one's are as
+    they are."""
+    if not info.get("sensor_poses"):
+        return points
+    inv = np.linalg.inv(np.asarray(info["sensor_pose_start"], np.float64))
+    local = points_world(points, info) @ inv[:3, :3].T + inv[:3, 3]
+    out = points.copy()
+    out["x"], out["y"], out["z"] = local[:, 0], local[:, 1], local[:, 2]
+    return out
 
 
 def vehicle_entry(box):
@@ -145,7 +167,8 @@ class Opv2vWriter:
             return None
         if n != body.get("rls", {}).get("points"):
             return None
-        if settings is not None and settings_differences(body["rls"].get("settings"), settings):
+        if settings is not None and settings_differences(body["rls"].get("settings"), settings,
+                                                         points_frame=POINTS_FRAME):
             return None
         self._pending.setdefault(frame, {})[sensor] = body  # its pose, for the others
         self._flush(frame, written=set())
@@ -159,7 +182,7 @@ class Opv2vWriter:
         except Exception:  # noqa: BLE001 - no readable frame: nothing to report
             return []
         rls = body.get("rls") if isinstance(body, dict) else None
-        return settings_differences(rls.get("settings"), settings) \
+        return settings_differences(rls.get("settings"), settings, points_frame=POINTS_FRAME) \
             if isinstance(rls, dict) else []
 
     def write(self, sensor, output, frame, points, info):
@@ -168,8 +191,9 @@ class Opv2vWriter:
         ensure_dir(self._dir(sensor))
         path = self.path(sensor, output, frame)
         ow = self.overwrite or self.resume
-        atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"), overwrite=ow)
         start = np.asarray(info["sensor_pose_start"], np.float64)
+        points = points_at_sweep_start(points, info)
+        atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"), overwrite=ow)
         boxes = info.get("objects", [])
         seam_notice(self.notices, sensor, boxes)
         _others_notice(self.notices, boxes)
@@ -196,7 +220,7 @@ class Opv2vWriter:
                     "agent": self.agents[sensor], "carrier": carrier,
                     "device": info.get("device", {}).get("id"),
                     "sensor_moves": bool(info.get("sensor_moves")),
-                    "settings": scan_settings(info)},
+                    "settings": scan_settings(info, points_frame=POINTS_FRAME)},
         }
         self._pending.setdefault(frame, {})[sensor] = body
         self._flush(frame, written={sensor})
