@@ -33,9 +33,11 @@ frame with y mirrored (CARLA's axes), ``lidar_pose`` ``[x, y, z, roll, yaw, pitc
 ``carla.blender_matrix(lidar_pose)`` is RLS's sensor pose. So a corner ``p`` of the
 ego frame is at ``blender_matrix(ego lidar_pose) @ (p with y mirrored)`` in RLS's
 world; the box is fitted to its world corners (``corners.corners_to_boxes``). A LiDAR
-that moved during its sweep has its points each in its frame at their own time, its
-``lidar_pose`` at the sweep start: its boxes are off by its travel until it scanned
-them, and a notice says so. The
+that moved during its sweep has its points in its frame at the sweep start, the frame
+of ``lidar_pose`` (``datasets.opv2v.points_at_sweep_start``; its settings record
+``points_frame``); datasets written before that had them each in its frame at their
+own time: their boxes are off by its travel until it scanned them, and a notice says
+so. The
 frame is the timestamp's number (RLS names the files by frame). OPV2V knows one class:
 every box is a vehicle."""
 
@@ -106,7 +108,8 @@ def _agent_folder(d):
 
 def ego_pose(ego, stamp):
     """(RLS's 4x4 world pose of the ego LiDAR at ``stamp``, whether RLS says it moved
-    during that sweep) from its YAML."""
+    during that sweep with its points each at their own time: not in the frame of its
+    ``lidar_pose``) from its YAML."""
     path = ego / f"{stamp}.yaml"
     try:
         body = _yaml().safe_load(path.read_text(encoding="utf-8"))
@@ -119,7 +122,9 @@ def ego_pose(ego, stamp):
     if len(pose) != 6 or not np.isfinite(pose).all():
         raise InputError(f"{path}: lidar_pose must be 6 finite numbers, got {pose}")
     rls = body.get("rls") if isinstance(body.get("rls"), dict) else {}
-    return blender_matrix(pose), bool(rls.get("sensor_moves"))
+    settings = rls.get("settings") if isinstance(rls.get("settings"), dict) else {}
+    skewed = bool(rls.get("sensor_moves")) and settings.get("points_frame") != "lidar_pose"
+    return blender_matrix(pose), skewed
 
 
 def prediction_files(folder):

@@ -99,7 +99,7 @@ def kitti_dataset(root, sensor_pose, level=False, frames=(1, 2), moving=False, s
 def opv2v_dataset(root, ego_pose, rsu_pose, frames=(3, 4), scene="scene"):
     """An RLS OPV2V dataset: LiDAR 'roof' on vehicle 'ego_car' (the ego) and road-side
     LiDAR 'pole'. Returns (scenario folder, {frame: world boxes of the vehicles the
-    ego's YAML lists (all objects but its carrier)})."""
+    ego's YAML lists (its vehicles but its carrier: OPV2V lists vehicles only)})."""
     carriers = {"roof": "ego_car"}
     writer = Opv2vWriter(root, scene, agents_for(["roof", "pole"], carriers), carriers)
     ego_obj = ("ego_car", VEHICLE, tuple(np.asarray(ego_pose)[:3, 3] - (0, 0, 1.0)),
@@ -110,5 +110,6 @@ def opv2v_dataset(root, ego_pose, rsu_pose, frames=(3, 4), scene="scene"):
         for sensor, p in (("roof", ego_pose), ("pole", rsu_pose)):
             boxes = object_boxes(p, shift, OBJECTS + [ego_obj])
             writer.write(sensor, None, f, points(), info(p, boxes))
-        truth[f] = np.array([[*(np.asarray(c) + shift), *s, y] for _, _, c, s, y, _ in OBJECTS])
+        truth[f] = np.array([[*(np.asarray(c) + shift), *s, y] for _, label, c, s, y, _
+                             in OBJECTS if label == VEHICLE])
     return writer.scenario, truth

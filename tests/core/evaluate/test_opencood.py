@@ -95,6 +95,13 @@ def test_known_box_in_a_known_ego_pose(tmp_path):
                                                      "rls": {"sensor_moves": True}}))
     read_opencood_npy(npy, tmp_path / "test", notices=notices)
     assert len(notices) == 1 and "moved during 1 of its sweeps" in notices[0]
+    # RLS now writes a moving LiDAR's points in the frame of its lidar_pose: exact
+    (ego / "000007.yaml").write_text(yaml.safe_dump({
+        "lidar_pose": [10, -5, 2, 0, 90, 0],
+        "rls": {"sensor_moves": True, "settings": {"points_frame": "lidar_pose"}}}))
+    notices = []
+    read_opencood_npy(npy, tmp_path / "test", notices=notices)
+    assert not notices
 
 
 def test_sample_order_spans_scenarios(tmp_path):

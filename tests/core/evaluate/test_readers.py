@@ -40,7 +40,7 @@ def test_each_format_is_found_and_read(tmp_path):
     opv2v_dataset(opv2v, EGO, RSU, frames=(3,))
     write_predictions(tmp_path / "npy", opv2v_samples(opv2v))
     assert detect_format(tmp_path / "npy") == "opencood"
-    assert len(read_detections(tmp_path / "npy", dataset=opv2v)) == 4
+    assert len(read_detections(tmp_path / "npy", dataset=opv2v)) == 2  # its vehicles
 
 
 def test_missing_or_unknown_things_give_one_clear_error(tmp_path):

@@ -15,11 +15,14 @@ pcd_to_np``: ``colors[:, 0]``). So each .pcd holds x y z and a packed ``rgb`` wh
 three channels carry round(255 * intensity).
 
 Everything is in CARLA's left-handed frame (``carla``: y mirrored): the points in the
-LiDAR's own frame, poses as ``[x, y, z, roll, yaw, pitch]`` in metres and degrees,
+LiDAR's own frame (at the sweep start, the time of ``lidar_pose``, for a LiDAR that
+moves: ``points_at_sweep_start``), poses as ``[x, y, z, roll, yaw, pitch]`` in metres and degrees,
 turned into matrices by OpenCOOD's ``x_to_world``. A vehicle is ``location`` (its
 origin), ``center`` (from the origin to its box centre, world axes, as OpenCOOD adds
 them), ``extent`` (half length, width, height), ``angle`` ([roll, yaw, pitch]) and
-``speed`` (km/h, as OpenCDA logs it).
+``speed`` (km/h, as OpenCDA logs it). ``vehicles`` holds vehicles only: OpenCOOD
+(``base_postprocessor.generate_object_center``) takes every entry as a vehicle, so
+other road users go under ``rls: other_objects``.
 
 Agents: a LiDAR on a vehicle (its parent object) is that vehicle, with the vehicle's
 instance id; a LiDAR on infrastructure is a road-side unit with a negative id derived
@@ -43,6 +46,7 @@ from .common import (
     check_root,
     ensure_dir,
     frame_id,
+    points_world,
     scan_settings,
     seam_notice,
     settings_differences,
@@ -50,6 +54,10 @@ from .common import (
 )
 
 KMH = 3.6
+# Where a frame's points are: the LiDAR's frame at the sweep start, the frame of its
+# lidar_pose (recorded with the settings: frames of older runs are scanned again)
+POINTS_FRAME = "lidar_pose"
+VEHICLE = "vehicle"  # the one class OPV2V's 'vehicles' holds
 
 
 def rsu_id(sensor):
@@ -68,6 +76,23 @@ def opv2v_points(points):
     c = c.astype(np.uint32)
     rec["rgb"] = ((c << 16) | (c << 8) | c).view(np.float32)
     return rec
+
+
+def points_at_sweep_start(points, info):
+    """``points`` (sensor frame, each at its own firing time) in the LiDAR's frame at the
+    sweep start, the one pose OPV2V gives a point file (``lidar_pose``): OpenCOOD maps
+    every point of a file by it (``basedataset.reform_param``: ``x1_to_x2(lidar_pose,
+    ego lidar_pose)``), as CARLA's LiDAR, which has no motion within a tick, makes them.
+    A LiDAR that moved during its sweep (its sidecar's ``sensor_poses``) has its points
+    taken through the world with its pose at their own times; a still one's are as
+    they are."""
+    if not info.get("sensor_poses"):
+        return points
+    inv = np.linalg.inv(np.asarray(info["sensor_pose_start"], np.float64))
+    local = points_world(points, info) @ inv[:3, :3].T + inv[:3, 3]
+    out = points.copy()
+    out["x"], out["y"], out["z"] = local[:, 0], local[:, 1], local[:, 2]
+    return out
 
 
 def vehicle_entry(box):
@@ -142,7 +167,8 @@ class Opv2vWriter:
             return None
         if n != body.get("rls", {}).get("points"):
             return None
-        if settings is not None and settings_differences(body["rls"].get("settings"), settings):
+        if settings is not None and settings_differences(body["rls"].get("settings"), settings,
+                                                         points_frame=POINTS_FRAME):
             return None
         self._pending.setdefault(frame, {})[sensor] = body  # its pose, for the others
         self._flush(frame, written=set())
@@ -156,7 +182,7 @@ class Opv2vWriter:
         except Exception:  # noqa: BLE001 - no readable frame: nothing to report
             return []
         rls = body.get("rls") if isinstance(body, dict) else None
-        return settings_differences(rls.get("settings"), settings) \
+        return settings_differences(rls.get("settings"), settings, points_frame=POINTS_FRAME) \
             if isinstance(rls, dict) else []
 
     def write(self, sensor, output, frame, points, info):
@@ -165,10 +191,12 @@ class Opv2vWriter:
         ensure_dir(self._dir(sensor))
         path = self.path(sensor, output, frame)
         ow = self.overwrite or self.resume
-        atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"), overwrite=ow)
         start = np.asarray(info["sensor_pose_start"], np.float64)
+        points = points_at_sweep_start(points, info)
+        atomic_write_bytes(path, pcd.encode(opv2v_points(points), "binary"), overwrite=ow)
         boxes = info.get("objects", [])
         seam_notice(self.notices, sensor, boxes)
+        _others_notice(self.notices, boxes)
         carrier = self.carriers.get(sensor)
         ego = next((b for b in boxes if b["object"] == carrier), None)
         lidar_pose = carla_pose(start)
@@ -180,14 +208,19 @@ class Opv2vWriter:
             "true_ego_pos": ego_pose,
             "predicted_ego_pos": ego_pose,
             "ego_speed": float(np.linalg.norm(ego["world"]["velocity_mps"]) * KMH) if ego else 0.0,
+            # OpenCOOD takes every entry of 'vehicles' as a vehicle (OPV2V has no other
+            # class): the other road users are kept under 'rls'
             "vehicles": {int(b["instance"]): vehicle_entry(b) for b in boxes
-                         if b["object"] != carrier},
+                         if b["object"] != carrier and b["category"] == VEHICLE},
             "rls": {"scene": self.scene_name, "sensor": sensor, "frame": frame,
+                    "other_objects": {int(b["instance"]): vehicle_entry(b) for b in boxes
+                                      if b["object"] != carrier
+                                      and b["category"] != VEHICLE},
                     "points": int(len(points)), "timestamp_s": info.get("timestamp_s"),
                     "agent": self.agents[sensor], "carrier": carrier,
                     "device": info.get("device", {}).get("id"),
                     "sensor_moves": bool(info.get("sensor_moves")),
-                    "settings": scan_settings(info)},
+                    "settings": scan_settings(info, points_frame=POINTS_FRAME)},
         }
         self._pending.setdefault(frame, {})[sensor] = body
         self._flush(frame, written={sensor})
@@ -288,6 +321,15 @@ def agents_for(sensors, carriers):
         raise RLSError("two LiDARs ride on the same vehicle; OPV2V has one LiDAR per agent: "
                        "scan them into separate datasets")
     return out
+
+
+def _others_notice(notices, boxes):
+    """Add (once) the notice that road users other than vehicles are not OPV2V's."""
+    kinds = sorted({b["category"] for b in boxes if b["category"] != VEHICLE})
+    if kinds and not any(n.startswith("OPV2V lists vehicles only") for n in notices):
+        notices.append("OPV2V lists vehicles only (OpenCOOD takes every entry of a YAML's "
+                       f"'vehicles' as a vehicle): the {', '.join(kinds)} boxes are under "
+                       "'rls: other_objects', which OpenCOOD does not read")
 
 
 def _box_origin_pose(where):
