@@ -13,7 +13,8 @@ from .source import BlenderScene
 
 def carrier_of(obj, classes):
     """The object a LiDAR rides on, when it is an object of ``classes`` (its parent, or
-    a parent's parent): that vehicle is the LiDAR's OPV2V agent."""
+    a parent's parent): that vehicle is the LiDAR's OPV2V agent, and is left out of its
+    KITTI labels."""
     o = obj.parent
     while o is not None:
         if object_label(o) in classes:
@@ -48,8 +49,8 @@ def dataset_run(scene, settings, progress=None, cancelled=None, edited=True,
     classes = label_ids(settings.classes)
     changes = settings.scan_changes(label_name(c) for c in classes)
     jobs = [sensor_job(o, read_settings(o).override(**changes)) for o in sensors]
-    carriers = ({o.name: carrier_of(o, set(classes)) for o in sensors}
-                if settings.layout == "opv2v" else {})
+    # the vehicle each LiDAR rides on: OPV2V's agent, and what KITTI leaves unlabelled
+    carriers = {o.name: carrier_of(o, set(classes)) for o in sensors}
     writer = settings.writer(scene.name, [o.name for o in sensors], carriers,
                              background=write_behind)
     writer.class_types = scene_class_types(scene)

@@ -72,3 +72,27 @@ def test_a_moving_lidars_points_are_where_its_lidar_pose_puts_them(tmp_path):
     got = pcd.decode((agent / "000001.pcd").read_bytes())
     np.testing.assert_array_equal(got["x"], pts["x"].astype(np.float32))
     np.testing.assert_array_equal(got["y"], -pts["y"].astype(np.float32))
+
+
+def test_a_kitti_lidar_on_a_car_does_not_label_its_car(tmp_path):
+    """A dataset audit found a roof LiDAR's KITTI labels holding a box around the car
+    that carries it in every frame (KITTI-style datasets never label their ego: a free
+    target at the sensor). The carrier stays in meta/, named there; a road-side
+    LiDAR's labels keep every vehicle."""
+    import json
+
+    from rls_addon.core.output.datasets.kitti import KittiWriter
+
+    writer = KittiWriter(tmp_path, "scene", carriers={"roof": "car"})
+    for sensor, p in (("roof", EGO), ("pole", RSU)):
+        writer.write(sensor, None, 3, points(), info(p, object_boxes(p)))
+    writer.flush()
+    counts = {}
+    for sensor in ("roof", "pole"):
+        meta = json.loads((tmp_path / sensor / "meta" / "000003.json").read_text())
+        seen = [b for b in meta["objects"] if b["points"] >= 1]
+        lines = (tmp_path / sensor / "labels" / "000003.txt").read_text().splitlines()
+        counts[sensor] = (len(seen), len(lines), meta.get("carrier"))
+        assert "car" in [b["object"] for b in meta["objects"]]
+    assert counts["roof"] == (counts["pole"][0], counts["pole"][0] - 1, "car")
+    assert counts["pole"][1:] == (counts["pole"][0], None)

@@ -63,13 +63,18 @@ class KittiWriter:
     level            points and boxes in the gravity-aligned frame at the sensor
     min_points       boxes with fewer points are kept out of the label files (they stay
                      in meta/ with their visibility)
-    background       each frame's files written behind the scan (``io.behind``)"""
+    background       each frame's files written behind the scan (``io.behind``)
+    carriers         {sensor: the vehicle it rides on}: that vehicle is kept out of its
+                     LiDAR's label files (a KITTI-style dataset never labels its ego: a
+                     box around the sensor in every frame would be a free target), and
+                     stays in meta/, named there as the carrier"""
 
     shardable = True
     works_out_later = True  # every write goes through ``WritesBehind.run`` (``behind.Later``)
 
     def __init__(self, root, scene_name, intensity_scale=1.0, points_format="npy", level=False,
-                 min_points=1, split=None, overwrite=False, resume=False, background=False):
+                 min_points=1, split=None, overwrite=False, resume=False, background=False,
+                 carriers=None):
         if points_format not in POINT_FORMATS:
             raise RLSError(f"points format must be one of {', '.join(POINT_FORMATS)}")
         self.root, self.scene_name = Path(root), scene_name
@@ -79,6 +84,7 @@ class KittiWriter:
         self.overwrite, self.resume = bool(overwrite), bool(resume)
         self.notices = []
         self.class_types = None  # {class: [{size, objects}]}: the scene's road users
+        self.carriers = dict(carriers or {})
         self._behind = WritesBehind(background)
 
     def sensor_root(self, sensor):
@@ -198,10 +204,11 @@ class KittiWriter:
         arr, frame_to_world = self._points(sensor, points, info)
         lines, boxes = [], []
         seam_notice(self.notices, sensor, info.get("objects", []))
+        carrier = self.carriers.get(sensor)
         for b in info.get("objects", []):
             box = self._box(b, frame_to_world)
             boxes.append(dict(b, frame_box=box))
-            if b["points"] >= self.min_points:
+            if b["points"] >= self.min_points and b["object"] != carrier:
                 lines.append(" ".join(f"{v:.6f}" for v in box["xyz"] + box["lwh"]
                                       + [box["heading"]]) + f" {class_name(b['category'])}")
         ow = self.overwrite or self.resume
@@ -217,7 +224,8 @@ class KittiWriter:
             "intensity_scale": self.scale, "objects": boxes,
             "sensor_pose_start": info["sensor_pose_start"],
             "sensor_poses": info.get("sensor_poses"), "device": info.get("device"),
-            "settings": scan_settings(info, **self._layout())}, ow)
+            "settings": scan_settings(info, **self._layout()),
+            **({"carrier": carrier} if carrier else {})}, ow)
         return path
 
     def background_writer(self, sweep, hidden):

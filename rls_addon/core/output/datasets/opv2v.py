@@ -8,8 +8,9 @@
                                               the scene with every road user hidden
 
 OpenCOOD (``opencood/data_utils/datasets/basedataset.py``) lists the agent folders of
-a scenario sorted, takes agents with negative ids (road-side units) as never ego, and
-per frame reads ``NNNNNN.yaml`` and ``NNNNNN.pcd``: the points with Open3D's legacy
+a scenario sorted as text, moves the first to the end when its id is negative (a
+road-side unit) and takes the first as ego (so with two road-side units or more, one
+of them is ego), and per frame reads ``NNNNNN.yaml`` and ``NNNNNN.pcd``: the points with Open3D's legacy
 reader and the intensity from the colour channel (``opencood/utils/pcd_utils.py:
 pcd_to_np``: ``colors[:, 0]``). So each .pcd holds x y z and a packed ``rgb`` whose
 three channels carry round(255 * intensity).

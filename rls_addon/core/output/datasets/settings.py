@@ -70,7 +70,8 @@ class DatasetSettings:
 
     def writer(self, scene_name, sensors, carriers, background=False):
         """The layout's writer for LiDARs ``sensors`` (names) of scene ``scene_name``;
-        ``carriers`` {sensor: the vehicle it rides on, or None} makes OPV2V's agents;
+        ``carriers`` {sensor: the vehicle it rides on, or None} makes OPV2V's agents
+        and the vehicles KITTI's labels leave out;
         ``background``: KITTI's frames written behind the scan (``io.behind``)."""
         from .common import Split
         from .kitti import KittiWriter
@@ -83,7 +84,8 @@ class DatasetSettings:
                                min_points=self.min_points,
                                split=Split(self.val_share, self.split_seed, self.val_frames),
                                overwrite=self.overwrite, resume=self.resume,
-                               background=background)
+                               background=background,
+                               carriers={k: v for k, v in carriers.items() if v})
         return Opv2vWriter(self.out, scene_name, agents_for(list(sensors), carriers),
                            {k: v for k, v in carriers.items() if v}, overwrite=self.overwrite,
                            resume=self.resume)
