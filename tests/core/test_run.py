@@ -395,3 +395,34 @@ def test_a_steps_wall_time_and_its_parts(tmp_path):
         assert s.parts["frame"] >= 0.05 and s.parts["scan"] == s.seconds
         assert sum(s.parts.values()) == pytest.approx(s.wall_s, abs=1e-9)
         assert s.wall_s >= s.seconds + 0.05
+
+
+def test_world_frame_points_far_from_the_origin_are_warned_of(tmp_path):
+    """A study audit found world-frame clouds at a map's UTM coordinates (5e5, 4.2e6 m)
+    rounded to 0.5 m by the files' float32 x, y, z (rls metrics then counted 3820
+    points in a region that holds 3799), with no word. The run says so, in the
+    sidecar too; the same street near the origin, the sensor frame and LAS say
+    nothing."""
+    from rls_addon.core.output.io.fields import float32_warning
+
+    from .fakes import FakeScene, translation
+
+    far = np.array([5e5, 4.2e6, 0.0])
+    boxes = {"ground": (tuple(far + (-40, -40, -1.2)), tuple(far + (40, 40, -1.0)), 1),
+             "wall": (tuple(far + (10, -15, -1.0)), tuple(far + (11, 15, 4.0)), 4)}
+    scene = FakeScene(boxes, {"pole": lambda s: translation(tuple(far + (0.0, 0.0, 0.5)))}, {})
+    run = run_of(scene, [job("pole", tmp_path, frame_space="world")], [1], tmp_path).run()
+    (warning,) = [w for w in run.warnings if "world-frame points reach" in w]
+    assert "step by 500 mm" in warning and "as LAS" in warning
+    side = read_sidecar(tmp_path / "fake_pole_000001.pcd")
+    assert any("world-frame points reach 4,200" in w for w in side["warnings"])
+    near = run_of(street(), [job("pole", tmp_path / "near", frame_space="world")], [1],
+                  tmp_path / "near").run()
+    assert not [w for w in near.warnings if "world-frame" in w]
+    sensor = run_of(scene, [job("pole", tmp_path / "s")], [1], tmp_path / "s").run()
+    assert not [w for w in sensor.warnings if "world-frame" in w]
+    pts = np.zeros(3, dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
+    pts["y"] = 4.2e6
+    assert float32_warning(pts, "las") is None and float32_warning(pts, "ply_binary")
+    pts["y"] = 16000.0
+    assert float32_warning(pts, "pcd_binary") is None

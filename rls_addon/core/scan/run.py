@@ -22,6 +22,7 @@ from ..errors import SceneError
 from ..scene.instances import check_ids
 from ..scene.traffic_keys import check_keyed, source_span
 from ..labels import label_id, label_name
+from ..output.io.fields import float32_warning
 from . import run_files
 from .device_values import device_values
 from .session import ScanSession, settings_record
@@ -227,6 +228,10 @@ class ScanRun:
         result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
                                     object_classes=classes, values=self._values[job.name],
                                     boxes_later=later)
+        if job.settings.scan.frame_space == "world":
+            far = float32_warning(result.points, out.format)
+            if far is not None:
+                result.warnings.append(far)  # the sidecar's warnings too (the same list)
         info["frame_rate_hz"] = self.source.fps
         info["timestamp_s"] = out.start_time_s + (frame - self.source.frame_start) / self.source.fps
         self._add_labels(info["labels"])

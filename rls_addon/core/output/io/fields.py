@@ -107,3 +107,25 @@ def unpack(records):
                 col = col[:, 0]
             out[f] = col
     return out
+
+
+# Coordinates this far from the origin (m) step by 2 mm or more in float32 (2**14 m):
+# world-frame points there lose the precision a LiDAR's range noise keeps
+FAR_FROM_ORIGIN_M = 2.0 ** 14
+
+
+def float32_warning(points, fmt):
+    """What a run says of world-frame ``points`` written as format ``fmt`` when they lie
+    so far from the origin that the file's float32 x, y, z round them (a map's UTM
+    coordinates: 0.5 m steps at 4.2e6 m), or None. LAS keeps them in integers about an
+    offset, so it is spared."""
+    if fmt == "las" or not len(points):
+        return None
+    reach = max(float(np.abs(points[c]).max()) for c in REQUIRED_FIELDS)
+    if not reach >= FAR_FROM_ORIGIN_M:  # (NaN coordinates: not this warning's matter)
+        return None
+    step = float(np.spacing(np.float32(reach)))
+    return (f"world-frame points reach {reach:,.0f} m from the origin, where the file's 32-bit "
+            f"x, y, z step by {step * 1000:.0f} mm: write them in the sensor frame (the "
+            "sidecar's pose maps them to the world in full precision) or as LAS, whose "
+            "offset keeps millimetres")
