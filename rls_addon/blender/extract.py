@@ -33,10 +33,11 @@ from ..core.errors import SceneError
 from ..core.scene.geometry import MaterialInfo
 from ..core.scene.instances import Instance, object_table, world_geometry
 from .labels import object_label
+from .materials import material_info
 from .read_rules import (GEOMETRY_TYPES, Named, hidden_in_viewport, in_metres, is_rls_helper,
                          one_per_name, render_differs, shown_itself_in_render)
-from .materials import material_info
 from .still_reads import StillEntry
+
 
 def _corners(bound_box):
     """(8, 3) float64 corners of an object's local bounds (Blender's floats in one call
