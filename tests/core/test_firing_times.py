@@ -327,3 +327,26 @@ def test_return_modes_as_the_device_offers_them():
     assert with_modes(p64, return_mode="strongest") is p64
     assert with_modes(p128, return_mode="dual") is p128
     assert with_modes(get_preset("velodyne_hdl64e"), return_mode="last") is not None
+
+
+# HDL-64E S2 and S2.1 User's Manual (firmware 4.07), Appendix G "Ethernet Transmit Timing
+# Table", data block 1 (Upper) and 2 (Lower), lasers "0,32" .. "15,47": the delay (us)
+# from a laser's capture to the packet's output, typed here from the manual. Laser k of
+# the upper block and laser k + 32 of the lower block have the same delay (they fire in
+# unison); a laser fires (419.30 - delay) us after laser 0.
+HDL64E_S2_DELAY_US = [419.30, 418.57, 417.84, 417.12, 416.39, 415.66, 414.93, 414.20,
+                      413.48, 412.75, 412.02, 411.29, 410.56, 409.84, 409.11, 408.38]
+
+
+def test_hdl64e_firing_times_match_the_s2_manual_timing_table():
+    p = get_preset("velodyne_hdl64e")
+    k = 5
+    t, ids, az, cycle = _block(p, k)
+    start = t[ids == 0][0]
+    for laser, delay in enumerate(HDL64E_S2_DELAY_US):
+        for cid in (laser, laser + 32):  # upper block laser and its lower-block partner
+            got_us = (t[ids == cid][0] - start) * 1e6
+            assert got_us == pytest.approx(419.30 - delay, abs=0.01), cid
+    # every one of the 32 pairs fires within the cycle, in laser-id order
+    upper = np.array([t[ids == c][0] for c in range(32)])
+    assert np.all(np.diff(upper) > 0) and upper[-1] - start < cycle
