@@ -204,6 +204,24 @@ def test_vtypes_sizes_defaults_and_errors(files, tmp_path):
     assert VCLASS_DEFAULTS["passenger"] == (5.0, 1.8, 1.5)
 
 
+def test_vclass_defaults_are_sumo_1_28s(tmp_path):
+    """The sizes SUMO 1.28.0 gives a vType that names only its vClass (read back from
+    the running simulation with TraCI's vehicletype.getLength/getWidth/getHeight): a
+    scooter and a wheelchair were 5 m long (SUMO: 1.2 m; the wheelchair 0.8 x 1.5, SUMO
+    0.72 x 1.2), and SUMO's "evehicle" was refused as unknown ("e_vehicle", which SUMO
+    refuses)."""
+    sumo_1_28 = {"scooter": (1.2, 0.5, 1.7), "wheelchair": (1.2, 0.72, 1.2),
+                 "evehicle": (5.0, 1.8, 1.5), "moped": (2.1, 0.78, 1.7),
+                 "motorcycle": (2.2, 0.9, 1.5), "delivery": (6.5, 2.16, 2.86),
+                 "bicycle": (1.6, 0.65, 1.7), "pedestrian": (0.215, 0.478, 1.719)}
+    f = tmp_path / "classes.add.xml"
+    f.write_text("<additional>" + "".join(f'<vType id="t_{c}" vClass="{c}"/>'
+                                          for c in sumo_1_28) + "</additional>")
+    types = read_vtypes(str(f))
+    assert {c: types[f"t_{c}"].size for c in sumo_1_28} == sumo_1_28
+    assert "e_vehicle" not in VCLASS_DEFAULTS
+
+
 def test_load_finds_vtypes_beside_the_fcd(tmp_path):
     fcd = tmp_path / "busy.xml"
     fcd.write_text(FCD.replace('type="car"', 'type="rls_car"'))
