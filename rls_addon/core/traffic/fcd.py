@@ -395,6 +395,26 @@ def check_positions(fcd, types, origin):
         check_span(tr.z, f"{fcd.path}: <{tr.kind} id={tr.id!r}>'s z")
 
 
+def check_flat(fcd, tolerance, why):
+    """``InputError`` naming the first object and time whose FCD ``z`` is more than
+    ``tolerance`` from 0 (a network with elevation), when the scene's roads are flat
+    (``why`` says so): its boxes would float above the roads or sink under them."""
+    worst = None
+    for tr in fcd.tracks.values():
+        z = np.abs(tr.z)
+        if len(z) and z.max() > tolerance and (worst is None or z.max() > worst[0]):
+            i = int(np.argmax(z))
+            worst = (float(z[i]), tr, i)
+    if worst is not None:
+        z, tr, i = worst
+        raise InputError(
+            f"{fcd.path}: <{tr.kind} id={tr.id!r}> at time {tr.times[i]:g} has z "
+            f"{tr.z[i]:g} m: the FCD comes from a network with elevation, but {why}; "
+            f"its road users would be keyed up to {z:.2f} m off the roads. Run SUMO on the "
+            f"flattened network the scene was built from (netconvert --sumo-net-file NET "
+            f"--flatten -o FLAT.net.xml; rls traffic generate FLAT.net.xml ...)")
+
+
 def load(fcd_path, vtypes_paths=(), begin=None, end=None, progress=None):
     """(Fcd, {type id: VType}) of an FCD file with the vTypes of ``vtypes_paths`` (or
     of ``OUT.vtypes.xml`` beside it when none is given); every error an InputError.
