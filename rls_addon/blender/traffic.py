@@ -24,6 +24,7 @@ import numpy as np
 
 from ..core.errors import SceneError
 from ..core.traffic.fcd import (
+    check_flat,
     check_origin,
     check_positions,
     frame_times,
@@ -187,6 +188,11 @@ def import_traffic(scene, fcd, types, origin=(0.0, 0.0), begin=None, end=None,
     begin, end, n = keyed_frames(fcd, fps, scene.frame_start, begin, end)
     check_origin(origin)
     check_positions(fcd, types, origin)  # all before anything is added to the scene
+    if scene.get("rls_sumo_net_offset") is not None:  # roads from rls scene from-net
+        from ..core.roads.network import FLAT_TOLERANCE_M
+
+        check_flat(fcd, FLAT_TOLERANCE_M, "the scene's roads (rls scene from-net) are "
+                   "flat at z = 0")
     times = frame_times(n, fps, begin)
     frames = scene.frame_start + np.arange(n)
     coll = bpy.data.collections.new(COLLECTION)

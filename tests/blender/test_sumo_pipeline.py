@@ -104,6 +104,30 @@ def test_import_says_how_frames_map_to_sumo_steps(scene, tmp_path):
     assert info["notices"] == [] and info["frames"] == 2
 
 
+def test_elevated_traffic_is_refused_on_flat_roads_from_a_network(scene, tmp_path):
+    """rls scene from-net builds flat roads (an elevated network is refused, with the
+    advice to flatten it), but rls traffic generate ran on the elevated network and its
+    FCD's z was keyed: on a network with one arm 6 m up, cars floated up to 5.8 m above
+    the flattened scene's roads. A scene from rls scene from-net (it records
+    rls_sumo_net_offset) refuses FCD with z before anything is added; another scene
+    keys FCD's z as before."""
+    from rls_addon.core.errors import InputError
+
+    fcd_path = tmp_path / "bus.xml"
+    fcd_path.write_text(FCD_ONE_BUS.replace('y="0.00" angle', 'y="0.00" z="2.45" angle', 1))
+    (tmp_path / "bus.vtypes.xml").write_text(VTYPES_BUS)
+    fcd, types = load(str(fcd_path))
+    scene.render.fps = 10
+    scene["rls_sumo_net_offset"] = [0.0, 0.0]
+    with pytest.raises(InputError, match=r"bus0.*time 0 has z 2.45 m.*elevation.*flatten"):
+        import_traffic(scene, fcd, types)
+    assert "SUMO Traffic" not in bpy.data.collections
+    del scene["rls_sumo_net_offset"]
+    import_traffic(scene, fcd, types)
+    scene.frame_set(scene.frame_start)
+    assert bpy.data.objects["vehicle bus0"].location.z == pytest.approx(2.45)
+
+
 FCD_WALK = """<?xml version="1.0" encoding="UTF-8"?>
 <fcd-export>
     <timestep time="0.00">

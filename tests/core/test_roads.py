@@ -19,7 +19,7 @@ from rls_addon.core.roads.layout import (
 from rls_addon.core.roads.network import read_network
 from rls_addon.core.roads.pieces import lane_pieces, outline_piece
 from tests.core.external_tools import require_module
-from tests.sumo_nets import grid_net, osm_net
+from tests.sumo_nets import grid_net, osm_net, run_sumo_binary
 
 try:  # the oracle: required by the fixture below (a skip, or a failure under make test)
     import shapely
@@ -250,6 +250,27 @@ def test_poles_stand_at_the_chosen_junction_only(tmp_path):
     assert len(lay1.mounts) >= 4  # the four real corners keep their poles
     assert all(m.on_sidewalk for m in lay1.mounts)
     assert told >= 2
+
+
+def test_a_junction_with_no_area_is_read(tmp_path):
+    """Two edges meeting end to end at a priority node: netconvert writes the internal
+    lane between them as two equal points (``length="0.10"``), as it does wherever a
+    way is split without a junction area (OpenStreetMap networks). The whole network was
+    refused ("lane :C_0_0 has a shape of 2 point(s) but no length"); such a lane covers
+    no ground and is left out."""
+    (tmp_path / "n.nod.xml").write_text(
+        '<nodes><node id="A" x="0" y="0" type="priority"/><node id="C" x="100" y="0" '
+        'type="priority"/><node id="D" x="200" y="0" type="priority"/></nodes>')
+    (tmp_path / "n.edg.xml").write_text(
+        '<edges><edge id="AC" from="A" to="C" numLanes="1"/>'
+        '<edge id="CD" from="C" to="D" numLanes="1"/></edges>')
+    out = tmp_path / "n.net.xml"
+    run_sumo_binary("netconvert", "--node-files", tmp_path / "n.nod.xml", "--edge-files",
+                    tmp_path / "n.edg.xml", "-o", out)
+    assert 'id=":C_0_0"' in out.read_text()
+    net = read_network(out)
+    assert sorted(lane.id for lane in net.lanes) == ["AC_0", "CD_0"]
+    assert build_layout(net, "C").junction.id == "C"
 
 
 def test_the_default_junction_is_the_signalised_one(tmp_path):

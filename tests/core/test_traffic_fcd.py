@@ -115,6 +115,58 @@ def test_gap_in_a_track_is_absent(tmp_path):
     assert m.xyz[1] == pytest.approx(m.xyz[0])   # held in the gap, never extrapolated
 
 
+# SUMO 1.28's output of a person riding car "c" (a <ride> stage), then walking off:
+# the rider is written right after its vehicle at the vehicle's own position (its front
+# bumper; MSFCDExport::write), as a sibling <person>, not a child.
+FCD_RIDE = """<fcd-export>
+    <timestep time="0.00">
+        <vehicle id="c" x="4.70" y="95.20" angle="90.00" type="car" speed="13.90" pos="4.70" lane="WC_1" slope="0.00"/>
+        <person id="r" x="4.70" y="95.20" angle="90.00" type="ped" speed="13.90" pos="4.70" edge="WC" slope="0.00"/>
+        <person id="w" x="108.00" y="0.00" angle="0.00" type="ped" speed="0.00" pos="0.00" edge="SC" slope="0.00"/>
+    </timestep>
+    <timestep time="1.00">
+        <vehicle id="c" x="18.52" y="95.20" angle="90.00" type="car" speed="13.82" pos="18.52" lane="WC_1" slope="0.00"/>
+        <person id="r" x="18.52" y="95.20" angle="90.00" type="ped" speed="13.82" pos="18.52" edge="WC" slope="0.00" vehicle="c"/>
+        <person id="w" x="108.00" y="1.29" angle="0.00" type="ped" speed="1.29" pos="1.29" edge="SC" slope="0.00" vehicle=""/>
+    </timestep>
+    <timestep time="2.00">
+        <vehicle id="c" x="30.00" y="95.20" angle="90.00" type="car" speed="0.00" pos="30.00" lane="WC_1" slope="0.00"/>
+        <person id="r" x="29.00" y="97.00" angle="0.00" type="ped" speed="1.00" pos="29.00" edge="WC" slope="0.00"/>
+    </timestep>
+</fcd-export>
+"""
+
+
+def test_a_person_riding_a_vehicle_is_not_a_pedestrian(tmp_path):
+    """A riding person's samples (at its vehicle's x, y, or naming a vehicle) are left
+    out: it was keyed as a pedestrian standing in the car's front bumper. Walking, it
+    is read as before."""
+    f = tmp_path / "ride.xml"
+    f.write_text(FCD_RIDE)
+    fcd = read_fcd(str(f))
+    r, w = fcd.tracks["person:r"], fcd.tracks["person:w"]
+    assert list(r.times) == [2.0] and (r.x[0], r.y[0]) == (29.0, 97.0)
+    assert list(w.times) == [0.0, 1.0] and list(w.y) == [0.0, 1.29]
+    assert list(fcd.tracks["c"].times) == [0.0, 1.0, 2.0]
+
+
+def test_fcd_in_utm_coordinates_is_refused(tmp_path):
+    """``--fcd-output.utm`` writes vehicles in unshifted coordinates (network - its
+    netOffset; SUMO 1.28 leaves persons in the network's): keyed, they missed the roads
+    by the netOffset (900, 1900 m on a plain network). SUMO's header names the option."""
+    f = tmp_path / "utm.xml"
+    f.write_text('<?xml version="1.0" encoding="UTF-8"?>\n\n<!-- generated on 2026 by '
+                 'Eclipse SUMO sumo 1.28.0\n<sumoConfiguration>\n    <output>\n        '
+                 '<fcd-output value="utm.xml"/>\n        <fcd-output.utm value="true"/>\n'
+                 '    </output>\n</sumoConfiguration>\n-->\n\n<fcd-export>\n'
+                 '<timestep time="0.00"><vehicle id="a" x="1001.60" y="1904.70" '
+                 'angle="0.00" type="car"/></timestep></fcd-export>\n')
+    with pytest.raises(InputError, match="--fcd-output.utm"):
+        read_fcd(str(f))
+    f.write_text(f.read_text().replace('utm value="true"', 'utm value="false"'))
+    assert set(read_fcd(str(f)).tracks) == {"a"}
+
+
 def test_not_xml_and_truncated_name_the_line(tmp_path, files):
     bad = tmp_path / "bad.xml"
     bad.write_bytes(b"\x00\x01 not xml at all")
@@ -150,6 +202,24 @@ def test_vtypes_sizes_defaults_and_errors(files, tmp_path):
     with pytest.raises(InputError, match="'flat' has length '0'"):
         read_vtypes(str(zero))
     assert VCLASS_DEFAULTS["passenger"] == (5.0, 1.8, 1.5)
+
+
+def test_vclass_defaults_are_sumo_1_28s(tmp_path):
+    """The sizes SUMO 1.28.0 gives a vType that names only its vClass (read back from
+    the running simulation with TraCI's vehicletype.getLength/getWidth/getHeight): a
+    scooter and a wheelchair were 5 m long (SUMO: 1.2 m; the wheelchair 0.8 x 1.5, SUMO
+    0.72 x 1.2), and SUMO's "evehicle" was refused as unknown ("e_vehicle", which SUMO
+    refuses)."""
+    sumo_1_28 = {"scooter": (1.2, 0.5, 1.7), "wheelchair": (1.2, 0.72, 1.2),
+                 "evehicle": (5.0, 1.8, 1.5), "moped": (2.1, 0.78, 1.7),
+                 "motorcycle": (2.2, 0.9, 1.5), "delivery": (6.5, 2.16, 2.86),
+                 "bicycle": (1.6, 0.65, 1.7), "pedestrian": (0.215, 0.478, 1.719)}
+    f = tmp_path / "classes.add.xml"
+    f.write_text("<additional>" + "".join(f'<vType id="t_{c}" vClass="{c}"/>'
+                                          for c in sumo_1_28) + "</additional>")
+    types = read_vtypes(str(f))
+    assert {c: types[f"t_{c}"].size for c in sumo_1_28} == sumo_1_28
+    assert "e_vehicle" not in VCLASS_DEFAULTS
 
 
 def test_load_finds_vtypes_beside_the_fcd(tmp_path):

@@ -203,6 +203,10 @@ def read_network(path):
         for lane in edge.getLanes():
             _check_flat(lane.getShape3D(), f"lane {lane.getID()}", path)
             kind = lane_kind(function, lane.getPermissions())
+            if function == "internal" and _no_length(lane):
+                # netconvert writes these where two edges meet end to end (a node with
+                # no junction area: length 0.10, both points the same): no ground
+                continue
             lanes.append(_lane(lane, edge, kind, function, path))
     junctions = []
     for node in net.getNodes():
@@ -227,10 +231,16 @@ def read_network(path):
                        by_id={j.id: j for j in junctions})
 
 
+def _no_length(lane):
+    shape = np.asarray(lane.getShape(), dtype=np.float64).reshape(-1, 2)
+    return not np.any(np.linalg.norm(np.diff(shape, axis=0), axis=1) > 0)
+
+
 def _lane(lane, edge, kind, function, path):
     """A ``Lane``; ``InputError`` for a width that is not a positive number or a centre
     line of fewer than two distinct points (a walking area's outline excepted): such a
-    lane would be left out of the scene, and SUMO writes none."""
+    lane would be left out of the scene, and SUMO writes none but internal lanes (those
+    are skipped by ``read_network``)."""
     lid = lane.getID()
     shape = _xy(lane.getShape(), f"{path}: lane {lid}")
     width = float(lane.getWidth())

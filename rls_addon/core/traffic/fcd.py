@@ -10,8 +10,15 @@ are the centre of the object's *front bumper*; ``angle`` is in degrees "in navig
 standard (0-360 degrees, going clockwise with 0 at the 12'o clock position)", 12
 o'clock being the network's +y. Persons follow the same rule: SUMO's pedestrian model
 places a person by the front of its walking extent (MSPModel_Striping, ``getPosition``
-at ``myRelX``, with the body reaching ``length`` behind it). Output written with
-``--fcd-output.geo`` (longitude, latitude) is not in metres and is refused.
+at ``myRelX``, with the body reaching ``length`` behind it). A person riding a vehicle
+is written right after it, at the vehicle's position (``MSFCDExport::write`` writes
+``veh->getPersons()`` with ``p->getPosition()``, the vehicle's front bumper; the
+``vehicle`` attribute naming it is off by default): such a sample, a ``<person>`` at a
+``<vehicle>``'s x, y in its timestep or with a ``vehicle``, is left out, so the person
+is absent while it rides (it was a pedestrian standing in the car's bonnet). Output
+written with ``--fcd-output.geo`` (longitude, latitude) is not in metres and is
+refused, and so is ``--fcd-output.utm`` (named in SUMO's header comment): it writes
+vehicles in unshifted coordinates (SUMO 1.28 leaves persons in the network's).
 
 Conversion to Blender (world +x east, +y north, +z up; heading counter-clockwise from
 +x): ``yaw = radians(90 - angle)``; the box's centre is the front minus half the
@@ -75,15 +82,23 @@ class Fcd:
 
 
 _ROOT_TAG = re.compile(rb"<([A-Za-z_][\w.:-]*)")
+# SUMO's header comment lists the options it ran with
+_UTM = re.compile(rb'<fcd-output\.utm\s+value="(?:true|on|yes|1|x)"', re.I)
 
 
 def _root_tag(path):
     """The first element's name in the file's head (declarations and comments skipped),
-    or None."""
+    or None; ``InputError`` when SUMO's header comment says ``--fcd-output.utm``."""
     with open(path, "rb") as fh:
         head = fh.read(1 << 16)
+    comments = b"".join(re.findall(rb"<!--.*?-->", head, flags=re.S))
     head = re.sub(rb"<\?.*?\?>|<!--.*?-->", b"", head, flags=re.S)
     m = _ROOT_TAG.search(head)
+    if _UTM.search(comments):
+        raise InputError(f"{path} was written with --fcd-output.utm (SUMO's header says "
+                         f"so): its vehicles are in unshifted (UTM) coordinates, not the "
+                         f"network's, and would miss the roads by the net's netOffset; "
+                         f"write the FCD without --fcd-output.utm")
     return m.group(1).decode("ascii", "replace") if m else None
 
 
@@ -164,7 +179,14 @@ def _timesteps(fh, path, rows, steps, lo, hi):
                 "from several runs?")
         steps.append(t)
         if lo <= t <= hi:
+            # a person riding a vehicle is written beside it at the vehicle's own
+            # position (its front bumper): it is inside the vehicle, not walking
+            carried = {(o.get("x"), o.get("y")) for o in el if o.tag == "vehicle"}
             for obj in el:
+                if obj.tag == "person" and (obj.get("vehicle") or (
+                        obj.get("x") is not None
+                        and (obj.get("x"), obj.get("y")) in carried)):
+                    continue
                 _add(rows, obj, t, path)
         el.clear()
         yield t
@@ -371,6 +393,26 @@ def check_positions(fcd, types, origin):
                        f"{fcd.path}: <{tr.kind} id={tr.id!r}> at time {tr.times[i]:g}",
                        "; --origin X Y names the network point at the scene's origin")
         check_span(tr.z, f"{fcd.path}: <{tr.kind} id={tr.id!r}>'s z")
+
+
+def check_flat(fcd, tolerance, why):
+    """``InputError`` naming the first object and time whose FCD ``z`` is more than
+    ``tolerance`` from 0 (a network with elevation), when the scene's roads are flat
+    (``why`` says so): its boxes would float above the roads or sink under them."""
+    worst = None
+    for tr in fcd.tracks.values():
+        z = np.abs(tr.z)
+        if len(z) and z.max() > tolerance and (worst is None or z.max() > worst[0]):
+            i = int(np.argmax(z))
+            worst = (float(z[i]), tr, i)
+    if worst is not None:
+        z, tr, i = worst
+        raise InputError(
+            f"{fcd.path}: <{tr.kind} id={tr.id!r}> at time {tr.times[i]:g} has z "
+            f"{tr.z[i]:g} m: the FCD comes from a network with elevation, but {why}; "
+            f"its road users would be keyed up to {z:.2f} m off the roads. Run SUMO on the "
+            f"flattened network the scene was built from (netconvert --sumo-net-file NET "
+            f"--flatten -o FLAT.net.xml; rls traffic generate FLAT.net.xml ...)")
 
 
 def load(fcd_path, vtypes_paths=(), begin=None, end=None, progress=None):

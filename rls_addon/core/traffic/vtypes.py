@@ -23,15 +23,19 @@ from ..errors import InputError
 from ..roads.network import refuse_internal_dtd
 from .xml_errors import parse_reason
 
-# vClass -> (length, width, height) in metres (SUMO 1.28 source, see the module doc).
+# vClass -> (length, width, height) in metres (SUMO 1.28 source, see the module doc;
+# each checked against SUMO 1.28.0's own types, read back with TraCI's
+# vehicletype.getLength/getWidth/getHeight: wheelchair 1.2 x 0.72 x 1.2 and scooter
+# 1.2 x 0.5 x 1.7, not getDefaultVehicleLength's 5 m of older SUMO; the class SUMO
+# calls "evehicle", which it refuses as "e_vehicle").
 VCLASS_DEFAULTS = {
     "passenger": (5.0, 1.8, 1.5), "private": (5.0, 1.8, 1.5), "vip": (5.0, 1.8, 1.5),
-    "hov": (5.0, 1.8, 1.5), "taxi": (5.0, 1.8, 1.5), "e_vehicle": (5.0, 1.8, 1.5),
+    "hov": (5.0, 1.8, 1.5), "taxi": (5.0, 1.8, 1.5), "evehicle": (5.0, 1.8, 1.5),
     "custom1": (5.0, 1.8, 1.5), "custom2": (5.0, 1.8, 1.5),
     "pedestrian": (0.215, 0.478, 1.719),
-    "wheelchair": (5.0, 0.8, 1.5),
+    "wheelchair": (1.2, 0.72, 1.2),
     "bicycle": (1.6, 0.65, 1.7),
-    "scooter": (5.0, 0.5, 1.7),
+    "scooter": (1.2, 0.5, 1.7),
     "moped": (2.1, 0.78, 1.7),
     "motorcycle": (2.2, 0.9, 1.5),
     "truck": (7.1, 2.4, 2.4),
