@@ -274,3 +274,27 @@ def test_validation_does_not_generate_huge_patterns(tmp_path, monkeypatch):
     f = write(tmp_path, edit(GOOD, "points_per_second = 14400", "points_per_second = 1.00000004e8"))
     with pytest.raises(PresetError, match="exceeds the limit of 10000000"):
         load_preset(f)
+
+
+def test_a_broken_or_doubled_user_preset_hides_no_other(tmp_path):
+    """A command-line audit found one stray file in the user folder (two files of id
+    'mine') blocking 'presets show' and 'export' of every preset, built-ins included.
+    A lookup now finds every preset that loads; the doubled id itself is refused (which
+    of the two is meant cannot be told), and a name found nowhere lists the files that
+    did not load."""
+    import dataclasses
+
+    user = tmp_path / "user"
+    mine = dataclasses.replace(get_preset("hesai_pandar64"), id="mine", name="Mine")
+    other = dataclasses.replace(get_preset("velodyne_vlp16"), id="other", name="Other")
+    save_user_preset(mine, user)
+    save_user_preset(other, user)
+    export_preset(mine, user / "copy of mine.toml")  # the same id again
+    (user / "broken.toml").write_text("schema = 1\nid = 'broken'\n")
+    assert get_preset("velodyne_vlp32c", user_dir=user).id == "velodyne_vlp32c"
+    assert get_preset("Other", user_dir=user).id == "other"
+    with pytest.raises(PresetError, match="id 'mine' already used by"):
+        get_preset("mine", user_dir=user)
+    with pytest.raises(PresetError, match="unknown device preset 'nothing'.*did not load: "
+                                          ".*broken.toml"):
+        get_preset("nothing", user_dir=user)

@@ -261,18 +261,35 @@ def get_preset(name, user_dir=None):
     if name.endswith(".toml") and Path(name).is_file():
         return load_preset(name)
     presets = dict(builtin_presets())
+    problems = []  # the user folder's files that did not load: they hide no other preset
     if user_dir is not None and Path(user_dir).is_dir():
-        for pid, p in presets_in(user_dir).items():
+        users, problems = readable_presets_in(user_dir)
+        for pid, p in users.items():
             presets.setdefault(pid, p)
+    found = _lookup(presets, name)
+    if found is not None:
+        # a user preset whose id another file of the folder uses too: which one is
+        # meant cannot be told, so neither is taken
+        clash = [m for m in problems if f"id '{found.id}' already used by" in m]
+        if clash:
+            raise PresetError(clash[0])
+        return found
+    broken = f"; user presets that did not load: {'; '.join(problems)}" if problems else ""
+    raise PresetError(f"unknown device preset '{name}'; known: {', '.join(presets)}{broken}")
+
+
+def _lookup(presets, name):
+    """The preset of ``presets`` named ``name`` by id or display name (case-insensitive,
+    then ignoring all but letters and digits: 'vlp-16', 'VLP16', 'pandar 64'), or None."""
     key = name.strip().lower()
     for p in presets.values():
         if key in (p.id.lower(), p.name.lower()):
             return p
-    norm = _alnum(key)  # lenient: 'vlp-16', 'VLP16', 'pandar 64'
+    norm = _alnum(key)
     for p in presets.values():
         if norm and norm in (_alnum(p.id), _alnum(p.name), _alnum(p.name.partition(" ")[2])):
             return p
-    raise PresetError(f"unknown device preset '{name}'; known: {', '.join(presets)}")
+    return None
 
 
 def _alnum(text):
