@@ -336,15 +336,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
                 entry.kind = "empty"
             continue
         slots = [s.material for s in ob.material_slots] or [None]
-        local_to_global = np.zeros(len(slots), dtype=np.int32)
-        for i, mt in enumerate(slots):
-            if mt is None:
-                continue
-            one_per_name(material_names, mt, "materials")
-            if mt.name not in mat_index:
-                mat_index[mt.name] = len(materials)
-                materials.append(material_info(mt))
-            local_to_global[i] = mat_index[mt.name]
+        local_to_global = _slot_map(slots, material_info, materials, mat_index, material_names)
         parent = inst.parent.original if inst.is_instance and inst.parent else None
         if _realizes_itself(inst):
             parent = None
@@ -356,7 +348,7 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
         stats["objects"] += 1
         if entry is not None:
             entry.kind, entry.instance, entry.slots = "read", item, mat
-            entry.slot_materials = [None if mt is None else (mt.name, mt.name_full)
+            entry.slot_materials = [None if mt is None else Named(mt.name, mt.name_full)
                                     for mt in slots]
             entry.infos = {mt.name: materials[mat_index[mt.name]] for mt in slots
                            if mt is not None}
@@ -365,19 +357,29 @@ def read_instances(depsgraph, centre=None, max_range=None, exclude=(), reader=No
     return out, materials, stats
 
 
+def _slot_map(slots, info_of, materials, mat_index, material_names):
+    """An object's material slots (materials, or their ``Named`` names; None: empty) as
+    indices into the read's shared table: each material noted once per name
+    (``one_per_name``) and added at its first use, its ``info_of(material)``."""
+    local_to_global = np.zeros(len(slots), dtype=np.int32)
+    for i, mt in enumerate(slots):
+        if mt is None:
+            continue
+        one_per_name(material_names, mt, "materials")
+        if mt.name not in mat_index:
+            mat_index[mt.name] = len(materials)
+            materials.append(info_of(mt))
+        local_to_global[i] = mat_index[mt.name]
+    return local_to_global
+
+
 def _kept_instance(entry, materials, mat_index, material_names):
     """A still object's instance from an earlier read (``StillEntry``), its materials
-    noted and added to this read's table as reading it again would; the same record
-    when they land where they did then, else one with its slots mapped anew."""
-    local_to_global = np.zeros(len(entry.slot_materials), dtype=np.int32)
-    for i, named in enumerate(entry.slot_materials):
-        if named is None:
-            continue
-        one_per_name(material_names, Named(*named), "materials")
-        if named[0] not in mat_index:
-            mat_index[named[0]] = len(materials)
-            materials.append(entry.infos[named[0]])
-        local_to_global[i] = mat_index[named[0]]
+    noted and added to this read's table as reading it again would (``_slot_map``);
+    the same record when they land where they did then, else one with its slots mapped
+    anew."""
+    local_to_global = _slot_map(entry.slot_materials, lambda named: entry.infos[named.name],
+                                materials, mat_index, material_names)
     inst = entry.instance
     if np.array_equal(local_to_global, inst.slot_map):
         return inst

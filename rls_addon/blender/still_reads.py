@@ -7,10 +7,9 @@ time keeps it). But most of a street stands still (buildings, poles, parked cars
 reading an object costs 50-150 us a frame (its matrix, bounds, materials, label and
 record): 100 parked cars cost 10-25 ms of a 60-110 ms frame. An object that cannot
 change (``motion.object_is_still``) reads the same at every frame, so what one read made
-of it is
-given back at the next read with the same centre, range and left-out objects: the
-instance record itself, with its materials, or that it was hidden, left out or beyond
-the range. The objects that may change are read as always, and the read is the one a
+of it is given back at the next read with the same centre, range and left-out objects:
+the instance record itself, with its materials, or that it was hidden, left out or
+beyond the range. The objects that may change are read as always, and the read is the one a
 full read gives, object for object and in the same order (tested).
 
 Exactness is ``motion.object_is_still``'s: a mesh object with no modifier or shape key,
@@ -30,7 +29,7 @@ KEEP_READS = 4  # reads (centre, range, left out) kept: a driving lidar's cells,
 class StillEntry:
     """What a read made of one still object: ``kind`` "left" (a helper, or left out),
     "hidden" (from render), "far" (beyond the range), "empty" (no triangle) or "read"
-    (then its ``instance``, its ``slot_materials``' [(name, full name)] and their
+    (then its ``instance``, its ``slot_materials``' names (``read_rules.Named``) and their
     ``infos`` ({name: MaterialInfo}), and its triangles' material slots ``slots``)."""
 
     full_name: str
