@@ -83,6 +83,12 @@ def timeless(data, exclude=()):
             continue
         if may_move(obj) or any(m.type in _CHANGE_BY_THEMSELVES for m in obj.modifiers):
             return False
+    return _blocks_still(data)
+
+
+def _blocks_still(data):
+    """True when no data-block of ``data`` but its objects (a mesh, material, node group,
+    texture, world, scene ...) is animated or driven."""
     return not any(_animated(block) or _animated(getattr(block, "node_tree", None))
                    for block in _data_blocks(data, skip={"objects"}))
 
@@ -118,10 +124,7 @@ def still_objects(data):
     when a data-block other than an object (a mesh, material, node group, texture,
     world, scene...) is animated or driven, or the file has history
     (``motion.history_free``)."""
-    if not history_free(data):
-        return frozenset()
-    if any(_animated(block) or _animated(getattr(block, "node_tree", None))
-           for block in _data_blocks(data, skip={"objects"})):
+    if not (history_free(data) and _blocks_still(data)):
         return frozenset()
     return frozenset(o.name for o in data.objects if object_is_still(o))
 
