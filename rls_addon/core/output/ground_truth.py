@@ -374,7 +374,6 @@ def _times_facing(cells, tset, boxes, centres_local, rounds=2):
         best = box_counts.facing_rays(cells, centres[moved])
         for q in np.nonzero(best < 0)[0]:
             best[q] = box_counts.facing(rays, centres[moved[q]], slice(None))[0]
-        t = t.copy()
         t[moved] = np.asarray(rays.times, np.float64)[best]
     return t
 
