@@ -77,6 +77,7 @@ class DatasetSettings:
         from .kitti import KittiWriter
         from .opv2v import Opv2vWriter, agents_for
 
+        riding = {k: v for k, v in carriers.items() if v}  # the LiDARs on a vehicle
         if self.layout == "kitti":
             return KittiWriter(self.out, scene_name,
                                intensity_scale=INTENSITY_SCALES[self.intensity],
@@ -84,8 +85,6 @@ class DatasetSettings:
                                min_points=self.min_points,
                                split=Split(self.val_share, self.split_seed, self.val_frames),
                                overwrite=self.overwrite, resume=self.resume,
-                               background=background,
-                               carriers={k: v for k, v in carriers.items() if v})
-        return Opv2vWriter(self.out, scene_name, agents_for(list(sensors), carriers),
-                           {k: v for k, v in carriers.items() if v}, overwrite=self.overwrite,
-                           resume=self.resume)
+                               background=background, carriers=riding)
+        return Opv2vWriter(self.out, scene_name, agents_for(list(sensors), carriers), riding,
+                           overwrite=self.overwrite, resume=self.resume)
