@@ -53,7 +53,8 @@ $(BUILD_STAMP): $(RUNTIME_STAMP) requirements-build.txt
 # Debian packages the tests use, as command:package. PCL's command-line tools judge our
 # PCD files (pcl-tools); g++, pkg-config and PCL's headers (libpcl-dev: about 1 GB and a
 # minute to install) build a reader of each LiDAR driver's typed point
-# (tests/core/native); CloudCompare reads our PLY files headless (cloudcompare).
+# (tests/core/native); CloudCompare reads our PLY files headless (cloudcompare); open3d,
+# the reference caster of tests and benchmarks, loads libusb-1.0 (libusb-1.0-0).
 SYSTEM_PACKAGES := pcl_pcd2ply:pcl-tools g++:g++ pkg-config:pkgconf CloudCompare:cloudcompare
 system-deps:
 	@missing=""; \
@@ -61,6 +62,7 @@ system-deps:
 	  command -v $${pair%%:*} >/dev/null 2>&1 || missing="$$missing $${pair#*:}"; \
 	done; \
 	ls /usr/include/pcl-*/pcl/io/pcd_io.h >/dev/null 2>&1 || missing="$$missing libpcl-dev"; \
+	ldconfig -p | grep -q 'libusb-1.0.so.0 ' || missing="$$missing libusb-1.0-0"; \
 	[ -z "$$missing" ] || { \
 	  if [ "$$(id -u)" = 0 ]; then \
 	    echo "make: installing Debian packages:$$missing"; \
@@ -110,8 +112,9 @@ test-fast: $(TEST_STAMP) build-linux
 	$(PY) -m pytest tests/core -p tests.no_blender -m "not slow" -q -n auto --dist loadfile
 	$(PY) -m pytest tests/blender -m "not slow" -q -n auto --dist loadfile
 
-# The benchmark needs what the tests need (open3d as the reference caster).
-bench: $(TEST_STAMP) native
+# The benchmark needs what the tests need (open3d as the reference caster: its module
+# loads libusb-1.0, which a bare Debian lacks).
+bench: system-deps $(TEST_STAMP) native
 	$(PY) bench/run.py --out docs
 
 clean:
