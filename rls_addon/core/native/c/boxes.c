@@ -10,7 +10,12 @@
  * with 1 / d, a 0 * inf (NaN) slab bound taken as -inf / +inf, and the same
  * comparisons; the library is built without fused multiply-add, so both make the same
  * decisions and the counts are the reference's, one for one. Segments are split into
- * shares on a few threads, each with counts of its own, summed at the end. */
+ * shares on a few threads, each with counts of its own, summed at the end. A segment's
+ * rays lie scattered over the frame's arrays (a direction cell holds a few rays of
+ * each of many firings), so each share asks for a ray's data AHEAD rays before it
+ * tests it: every test waited on memory otherwise (a traffic frame's counts, 157k
+ * box-ray pairs, 4.2 -> 3.6 ms on their own and 14 -> 10 ms beside the next frame's
+ * scan; bench/drive_costs.py's traffic drive). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -60,6 +65,9 @@ static void in_axes(const double *v, const double *r, double *out) {
     for (int j = 0; j < 3; j++) out[j] = v[0] * r[j] + v[1] * r[3 + j] + v[2] * r[6 + j];
 }
 
+/* How many rays ahead a share asks for their data. */
+#define AHEAD 16
+
 static double min2(double a, double b) { return b < a ? b : a; }
 static double max2(double a, double b) { return b > a ? b : a; }
 
@@ -70,7 +78,29 @@ static void run_share(void *arg) {
         const int64_t b = a->seg_box[g];
         const double *c = a->centre + 3 * b, *r = a->rot + 9 * b;
         const double *half = a->half + 3 * b, *grown = a->grown + 3 * b;
-        for (int64_t p = a->seg_lo[g]; p < a->seg_hi[g]; p++) {
+        const int64_t seg_hi = a->seg_hi[g];
+        for (int64_t p = a->seg_lo[g]; p < seg_hi; p++) {
+            if (p + AHEAD < seg_hi) {  /* the rays are scattered: ask for them early */
+                const int64_t next = a->order[p + AHEAD];
+                __builtin_prefetch(a->dirs + 3 * next);
+                __builtin_prefetch(a->dirs + 3 * next + 2);
+                if (!a->one_origin) {
+                    __builtin_prefetch(a->origins + 3 * next);
+                    __builtin_prefetch(a->origins + 3 * next + 2);
+                }
+                __builtin_prefetch(a->hit + next);
+                __builtin_prefetch(a->dist + next);
+                __builtin_prefetch(a->pstart + next);
+            }
+            if (p + AHEAD / 2 < seg_hi) {  /* and, nearer, for their points */
+                const int64_t next = a->order[p + AHEAD / 2];
+                const int64_t q = a->pstart[next];
+                if (q < a->pstart[next + 1]) {
+                    const int64_t pt = a->point_order[q];
+                    __builtin_prefetch(a->range + pt);
+                    __builtin_prefetch(a->real + pt);
+                }
+            }
             const int64_t ray = a->order[p];
             const double *o = a->one_origin ? a->origins : a->origins + 3 * ray;
             const double *d = a->dirs + 3 * ray;
