@@ -50,7 +50,7 @@ def hidden_in_viewport(depsgraph, present=None):
     """Sorted full names of the geometry objects a render of the depsgraph's view layer
     shows that the depsgraph (the viewport's) leaves out, so they are not scanned: an
     object hidden with its eye or its monitor icon, or in a collection disabled in
-    viewports. A render shows an object not hidden from render in a collection that
+    viewports; an object instancing a collection (an empty, say) counts as geometry. A render shows an object not hidden from render in a collection that
     is neither excluded from the view layer nor hidden from render (nor any above it).
     ``present``: the full names of the objects the depsgraph lists (found here when
     not given). LiDARs and what RLS draws are never scanned, hidden or not.
@@ -77,10 +77,16 @@ def hidden_in_viewport(depsgraph, present=None):
                 continue
             objects = [objects[n] for n in sorted(missing)]
         for ob in objects:
-            if (ob.type in GEOMETRY_TYPES and not ob.hide_render
+            if ((ob.type in GEOMETRY_TYPES or _instances_collection(ob)) and not ob.hide_render
                     and ob.name_full not in present and not is_rls_helper(ob)):
                 found.add(ob.name_full)
     return sorted(found)
+
+
+def _instances_collection(ob):
+    """Whether ``ob`` (an empty, say) shows a collection's objects where it stands
+    (*Instancing > Collection*): hidden, it hides all of them."""
+    return ob.instance_type == "COLLECTION" and ob.instance_collection is not None
 
 
 def hidden_in_viewport_warning(names, shown=5):

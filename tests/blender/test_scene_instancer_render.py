@@ -10,7 +10,7 @@ word, points on surfaces a render of the scene does not have."""
 import bpy
 import numpy as np
 
-from .conftest import add_lidar, mesh_object, scan
+from .conftest import add_lidar, ground, mesh_object, scan
 
 
 def instance_names(lidar):
@@ -57,3 +57,38 @@ def test_particle_emitter_hidden_in_render_is_not_scanned(scene):
     p, names = instance_names(add_lidar(location=(0, 0, 2)))
     assert "Emitter" not in names
     assert any(n.startswith("Emitter/Proto#") for n in names)
+
+
+def test_collection_instancer_hidden_in_the_viewport_only_is_named(scene):
+    """An empty instancing a collection, with its monitor icon off and its camera on: a
+    render shows the collection's objects, the viewport's depsgraph has none of them.
+    The scan said nothing of it (an audit's finding); it is named now, as a hidden
+    mesh is."""
+    from rls_addon.blender.read_rules import (
+        hidden_in_viewport,
+        hidden_in_viewport_warning,
+    )
+
+    kit = bpy.data.collections.new("Kit")  # not linked to the scene: instanced only
+    post = mesh_object("KitPost", [(0, -0.3, 0), (0, 0.3, 0), (0, 0.3, 2), (0, -0.3, 2)],
+                       [(0, 1, 2, 3)])
+    scene.collection.objects.unlink(post)
+    kit.objects.link(post)
+    spot = bpy.data.objects.new("Spot", None)
+    spot.instance_type, spot.instance_collection = "COLLECTION", kit
+    spot.location = (5, 0, 0)
+    scene.collection.objects.link(spot)
+    ground()
+    lidar = add_lidar(location=(0, 0, 1))
+    _, names = instance_names(lidar)
+    assert sum(n.startswith("Spot/KitPost") for n in names) > 50
+    spot.hide_viewport = True  # the monitor icon: a render still shows the post
+    assert hidden_in_viewport(bpy.context.evaluated_depsgraph_get()) == ["Spot"]
+    result = scan(lidar)[0]
+    assert not any(n.startswith("Spot") for n in instance_names(lidar)[1])
+    assert result.warnings[0] == hidden_in_viewport_warning(["Spot"])
+    spot.hide_render = True  # out of renders too: nothing to say
+    assert scan(lidar)[0].warnings == []
+    # an empty that instances nothing is no geometry, hidden or not
+    spot.hide_render, spot.instance_type = False, "NONE"
+    assert hidden_in_viewport(bpy.context.evaluated_depsgraph_get()) == []
