@@ -222,6 +222,25 @@ def test_vclass_defaults_are_sumo_1_28s(tmp_path):
     assert "e_vehicle" not in VCLASS_DEFAULTS
 
 
+def test_a_person_of_a_vehicle_class_is_refused(tmp_path):
+    """SUMO 1.28 gives a person whose vType names no vClass the passenger class and a
+    5 m body (read back with TraCI's vehicletype.getVehicleClass/getLength; SUMO warns
+    'Person ... receives type ... which implicitly uses unsuitable vClass'). RLS keyed
+    it as a car-sized vehicle walking the sidewalk; it is refused, naming the fix."""
+    fcd = tmp_path / "walk.xml"
+    fcd.write_text(FCD.replace('type="DEFAULT_PEDTYPE"', 'type="walker"'))
+    types = tmp_path / "walk.rou.xml"
+    types.write_text('<routes><vType id="car" vClass="passenger"/><vType id="walker"/>'
+                     '</routes>')
+    with pytest.raises(InputError, match=r"persons walk with vType 'walker', whose vClass "
+                       r"is 'passenger'.*5 m body.*vClass=\"pedestrian\" and run SUMO"):
+        load(str(fcd), [str(types)])
+    for ok in ("pedestrian", "wheelchair"):
+        types.write_text(f'<routes><vType id="car" vClass="passenger"/><vType id="walker" '
+                         f'vClass="{ok}"/></routes>')
+        assert load(str(fcd), [str(types)])[1]["walker"].label == "pedestrian"
+
+
 def test_load_finds_vtypes_beside_the_fcd(tmp_path):
     fcd = tmp_path / "busy.xml"
     fcd.write_text(FCD.replace('type="car"', 'type="rls_car"'))

@@ -435,4 +435,26 @@ def load(fcd_path, vtypes_paths=(), begin=None, end=None, progress=None):
         if not os.path.isfile(p):
             raise InputError(f"vType file not found: {p}")
         known.update(read_vtypes(p))
-    return fcd, resolve(fcd.types, known, fcd_path)
+    types = resolve(fcd.types, known, fcd_path)
+    check_person_types(fcd, types)
+    return fcd, types
+
+
+def check_person_types(fcd, types):
+    """Refuse a person whose vType is not a pedestrian's (``VType.label``). SUMO 1.28
+    gives a vType without a vClass the passenger class and its sizes, persons' too (it
+    warns that the person 'receives type ... which implicitly uses unsuitable vClass
+    'passenger''), and walks them with a 5 m body behind the FCD's point: RLS would key
+    a car-sized 'vehicle' on the sidewalk. The fix is SUMO's own."""
+    bad = sorted({tr.type for tr in fcd.tracks.values()
+                  if tr.kind == "person" and types[tr.type].label != "pedestrian"})
+    if bad:
+        tid = bad[0]
+        vt = types[tid]
+        more = f" (and {len(bad) - 1} more: {', '.join(map(repr, bad[1:4]))})" \
+            if len(bad) > 1 else ""
+        raise InputError(
+            f"{fcd.path}: persons walk with vType {tid!r}{more}, whose vClass is "
+            f"{vt.vclass!r}: SUMO gave them that class's {vt.length:g} m body (it warns "
+            f"'unsuitable vClass'), not a pedestrian's. Give the vType "
+            f"vClass=\"pedestrian\" and run SUMO again")
