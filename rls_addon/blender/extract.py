@@ -60,7 +60,7 @@ def _bounds_distance(matrix, bound_box, centre):
         return 0.0
     w = corners @ m[:3, :3].T + m[:3, 3]
     gap = np.maximum(np.maximum(w.min(0) - centre, centre - w.max(0)), 0.0)
-    return float(np.sqrt(gap @ gap))
+    return float(np.sqrt(gap[0] * gap[0] + gap[1] * gap[1] + gap[2] * gap[2]))
 
 
 def _bounds_distances(matrices, corners, centre):
@@ -71,7 +71,9 @@ def _bounds_distances(matrices, corners, centre):
     m = matrices[ok]
     w = corners[ok] @ np.swapaxes(m[:, :3, :3], 1, 2) + m[:, None, :3, 3]
     gap = np.maximum(np.maximum(w.min(axis=1) - centre, centre - w.max(axis=1)), 0.0)
-    out[ok] = np.sqrt(np.einsum("ij,ij->i", gap, gap))
+    # the squares summed in order, as one object's are: a dot product or einsum may
+    # fuse or reorder them (1 ulp apart on some machines' OpenBLAS and numpy builds)
+    out[ok] = np.sqrt(gap[:, 0] * gap[:, 0] + gap[:, 1] * gap[:, 1] + gap[:, 2] * gap[:, 2])
     return out
 
 
