@@ -118,7 +118,8 @@ STAGES = [
     ("rls_addon.blender.source", "BlenderScene.read", "Blender: scene read"),
     ("rls_addon.core.scan.session", "classify", "sweep sampled and classified"),
     ("rls_addon.core.scan.session", "ScanSession._bodies_of", "moving bodies"),
-    ("rls_addon.core.scan.session", "scan_frame", "scan_frame"),
+    ("rls_addon.core.scan.session", "scan_frame_started", "scan_frame: rays aimed, cast started"),
+    ("rls_addon.core.scan.session", "finished", "scan_frame: cast collected, points made"),
     ("rls_addon.core.scan.session", "object_boxes", "ground-truth boxes (writer's thread)"),
     ("rls_addon.core.scan.session", "sensor_pose_record", "sidecar: sensor poses"),
 ]
@@ -361,10 +362,12 @@ def section(r):
     lines += ["",
               "Where a frame goes: the same frames in one process through the command's own "
               "`ScanRun`, each stage timed where the core calls it (medians per frame; the "
-              "session's scan holds the sweep, the bodies and `scan_frame`; the boxes are "
-              "worked out on the writer's thread behind the scan, overlapping the next "
-              "frame, so their wall time there (stretched by waiting for Python's lock) "
-              "is not part of the step; "
+              "session's scan holds the sweep, the bodies and `scan_frame`; a driving "
+              "sensor's step starts its frame's cast and then ends the previous frame "
+              "(its cast collected, its points made, its files handed to the writer) "
+              "while that cast runs; the boxes are worked out on the writer's thread "
+              "behind the scan, overlapping the next frame, so their wall time there "
+              "(stretched by waiting for Python's lock) is not part of the step; "
               "*step* is the whole step of the run, what the stages leave of it is the "
               "session's and the run's own work).\n",
               "| stage | " + " | ".join(names[n].split(",")[0] if n != "traffic_scan"

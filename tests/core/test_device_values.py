@@ -73,8 +73,9 @@ def test_a_run_resolves_each_sensors_device_once_and_passes_it_down(monkeypatch)
     resolve = DeviceValues.resolve.__func__
     monkeypatch.setattr(DeviceValues, "resolve", classmethod(
         lambda cls, p, s: resolved.append(p.id) or resolve(cls, p, s)))
-    frame = session.scan_frame
-    monkeypatch.setattr(session, "scan_frame", lambda scene, pattern, pose, device, *a, **k:
+    frame = session.scan_frame_started
+    monkeypatch.setattr(session, "scan_frame_started",
+                        lambda scene, pattern, pose, device, *a, **k:
                         given.append(device) or frame(scene, pattern, pose, device, *a, **k))
     jobs = [SensorJob(name, LidarSettings(preset=p.id, scan=ScanSettings(
         motion="substeps", substeps=0, max_range_m=rmax)), p)

@@ -203,16 +203,42 @@ def scan_frame(scene, pattern, sensor_to_world, device, settings, caster_factory
     Returns a ScanResult whose points follow ``POINT_DTYPE``; sensor-frame points are
     as the device reports them (each in the sensor frame at its own firing time).
     """
+    return finished(scan_frame_started(scene, pattern, sensor_to_world, device, settings,
+                                       caster_factory, frame, sensor, sensor_track, moving,
+                                       keep_rays, fields, rays))
+
+
+def scan_frame_started(scene, pattern, sensor_to_world, device, settings,
+                       caster_factory=None, frame=0, sensor="sensor", sensor_track=None,
+                       moving=(), keep_rays=False, fields=None, rays=None):
+    """``scan_frame`` up to its cast, started: a generator whose one step is taken
+    here (the rays aimed and cast on the compiled loop's threads, the random draws
+    taken) and whose next (``finished``) waits for the cast and makes the points:
+    the caller's work may go on meanwhile. The same ScanResult as ``scan_frame``."""
     freed_pages.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
+    dv = device if isinstance(device, DeviceValues) else device_values(device, settings)
+    steps = _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory,
+                        frame, sensor, sensor_track, moving, keep_rays, fields, rays)
     with blas_threads.single_threaded():  # OpenBLAS' spinning threads would slow the caster
-        dv = device if isinstance(device, DeviceValues) else device_values(device, settings)
-        return _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory,
-                           frame, sensor, sensor_track, moving, keep_rays, fields, rays)
+        next(steps)
+    return steps
+
+
+def finished(steps):
+    """What a started generator of steps (``scan_frame_started``) returns, its steps
+    left taken."""
+    with blas_threads.single_threaded():
+        try:
+            while True:
+                next(steps)
+        except StopIteration as done:
+            return done.value
 
 
 def _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory, frame,
                 sensor, sensor_track, moving, keep_rays=False, fields=None, ray_rows=None):
-    """``scan_frame``'s steps, in the order their random draws are taken."""
+    """``scan_frame``'s steps, in the order their random draws are taken: a
+    generator that pauses once, its cast under way."""
     t0 = time.perf_counter()
     s = settings
     rmin, rmax = dv.range_m
@@ -244,6 +270,9 @@ def _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory, f
                           reuse=pick.rows is None and still)
     rng, ghost_rng = effects.scan_rng(s.seed, sensor, frame)
     draws, glossy, glossy_u = _draws(rng, ghost_rng, n, pick, s, dv, world)
+    before = time.perf_counter() - t0  # the frame's own time: not the caller's meanwhile
+    yield  # the cast under way: the caller's own work goes on
+    t0 = time.perf_counter() - before
 
     dist, body, tri, normals = pending()
     reused = scene.reused > reused

@@ -25,6 +25,7 @@ from ..labels import label_id, label_name
 from ..output.io.fields import float32_warning
 from . import run_files
 from .device_values import device_values
+from .frame import finished
 from .session import ScanSession, settings_record
 
 
@@ -165,6 +166,8 @@ class ScanRun:
         self.last = None
         self.id_map = {}  # instance id -> {object name: label id}, over the whole run
         self._frame_set = None
+        self._next = 0          # the plan's next step to start (index: steps ended)
+        self._pending = None    # a started step whose scan is under way (step)
         self._scan_time = 0.0
         self._budget = run_files.disk_budget(self.plan, writer) \
             if writer is not None and not piece else None
@@ -193,12 +196,24 @@ class ScanRun:
         return (f"LiDAR scan: frame {frame} ({job.name}), {self.index}/{self.total} done, "
                 f"about {self.eta():.0f} s left (Esc to cancel)")
 
+    # A driving sensor's scan left under way while the next step starts (``step``). A
+    # still sensor's never is: its next frame reuses this frame's static cast, which
+    # is kept only once the cast is collected.
+    overlap = True
+
     def step(self):
         """Do the next (frame, sensor); False when nothing is left or a cancel was
-        asked for before this step's scan began."""
-        if self.finished:
+        asked for before this step's scan began. A driving sensor's step may leave its
+        scan under way (``_pending``: its cast running) and finish it in the next
+        step, after that step's scan has started: the casts overlap the steps' own
+        work. Steps end in the plan's order either way."""
+        if self.cancelled:
             return False
-        frame, job = self.plan[self.index]
+        if self._next >= len(self.plan):
+            if self._pending is not None:
+                self._finish(self._take_pending())
+            return not self.finished
+        frame, job = self.plan[self._next]
         out = job.settings.output
         kept, told = None, []
         if self.writer is not None:
@@ -206,6 +221,9 @@ class ScanRun:
             if kept is None:
                 told = self._stale_notice(job, frame)
         if kept is not None:
+            if self._pending is not None:
+                self._finish(self._take_pending())
+            self._next += 1
             if hasattr(self.writer, "kept_labels"):
                 self._add_labels(self.writer.kept_labels(job.name, out, frame))
             self._done(frame, job, Step(frame, job.name, self.index + 1, self.total, kept, 0.0,
@@ -213,21 +231,55 @@ class ScanRun:
             self.resumed += 1
             return not self.finished
         t_step = time.perf_counter()
-        if self._frame_set != frame or self.source.current_frame() != frame:
-            self.source.set_frame(frame)
-            self._frame_set = frame
-        if self._cancelled():
-            self.cancelled = True
+        try:
+            if self._frame_set != frame or self.source.current_frame() != frame:
+                self.source.set_frame(frame)
+                self._frame_set = frame
+            if self._cancelled():
+                self.cancelled = True
+            else:
+                t = time.perf_counter()
+                session = self.sessions[job.settings.backend]
+                classes = [label_id(c) for c in out.object_classes] if out.ground_truth \
+                    else None
+                # a writer behind the scan works the boxes out there, while the next
+                # frames scan
+                later = self.on_result is None and getattr(self.writer, "works_out_later",
+                                                           False)
+                steps = session.scan_started(self.source, job.name, job.preset,
+                                             job.settings.scan, frame, object_classes=classes,
+                                             values=self._values[job.name],
+                                             boxes_later=later)
+        except BaseException:
+            # a failure or Ctrl+C here loses nothing done: the step under way ends first
+            if self._pending is not None:
+                self._finish(self._take_pending())
+            raise
+        if self.cancelled:
+            if self._pending is not None:
+                self._finish(self._take_pending())
             return False
-        t = time.perf_counter()
-        session = self.sessions[job.settings.backend]
+        self._next += 1
+        started = (frame, job, told, steps, t_step, t, time.perf_counter())
+        if self._pending is not None:
+            self._finish(self._take_pending())
+        if self.overlap and self.on_result is None and self._next < len(self.plan) \
+                and self.source.sensor_may_move(job.name):
+            self._pending = started
+            return True
+        self._finish(started)
+        return not self.finished
+
+    def _take_pending(self):
+        pending, self._pending = self._pending, None
+        return pending
+
+    def _finish(self, started):
+        """The rest of a step whose scan ``started`` (``step``): its result, its files."""
+        frame, job, told, steps, t_step, t, t_started = started
         out = job.settings.output
-        classes = [label_id(c) for c in out.object_classes] if out.ground_truth else None
-        # a writer behind the scan works the boxes out there, while the next frames scan
-        later = self.on_result is None and getattr(self.writer, "works_out_later", False)
-        result, info = session.scan(self.source, job.name, job.preset, job.settings.scan, frame,
-                                    object_classes=classes, values=self._values[job.name],
-                                    boxes_later=later)
+        t_resume = time.perf_counter()
+        result, info = finished(steps)
         if job.settings.scan.frame_space == "world":
             far = float32_warning(result.points, out.format)
             if far is not None:
@@ -246,16 +298,18 @@ class ScanRun:
             self.on_result(job, frame, result, info)
         self.scanned += 1
         t_end = time.perf_counter()
-        self._scan_time += t_end - t_step
+        # the step's own time: its start and its finish (not the other steps' between)
+        wall = (t_started - t_step) + (t_end - t_resume)
+        self._scan_time += wall
         warnings = told + [f"{job.name} frame {frame}: {w}" for w in result.warnings]
         self.warnings += warnings
         self.last = (result, info)
-        parts = dict(zip(STEP_PARTS, (t - t_step, max(0.0, t_scanned - t - result.seconds),
+        own = (t_started - t) + (t_scanned - t_resume)  # the session's, scan_frame's among it
+        parts = dict(zip(STEP_PARTS, (t - t_step, max(0.0, own - result.seconds),
                                       result.seconds, t_end - t_scanned)))
         self._done(frame, job, Step(frame, job.name, self.index + 1, self.total,
                                     len(result.points), result.seconds, path, False,
-                                    warnings=warnings, wall_s=t_end - t_step, parts=parts))
-        return not self.finished
+                                    warnings=warnings, wall_s=wall, parts=parts))
 
     def _add_labels(self, labels):
         for iid, o in labels.items():
@@ -408,6 +462,8 @@ class ScanRun:
         """Put the scene back at the frame it was at when the run began; a run that
         ends before its last step (cancelled, interrupted, failed) drops what only a
         complete run may leave (a bag)."""
+        if self._pending is not None:  # failed or interrupted with a scan under way
+            self._take_pending()[3].close()  # its cast waited for, its step dropped
         if self.index < len(self.plan) and self.writer is not None and not self.piece:
             self.writer.abort()
         if self.writer is not None:  # a piece's files, complete

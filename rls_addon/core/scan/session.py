@@ -20,7 +20,7 @@ from ..native import blas_threads
 from ..world.bodies import PreparedScene, RigidBodies, TimedScene
 from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
-from .frame import scan_frame, sensor_frame
+from .frame import finished, scan_frame_started, sensor_frame
 from ..output.ground_truth import box_dicts, object_boxes
 from ..output.io.behind import Later
 from ..scene.geometry import nonfinite_warning
@@ -102,11 +102,22 @@ class ScanSession:
         the frame itself): the sweep's, the bodies' and the boxes' many small products
         and inverses cost 3x as much on OpenBLAS' threads (a 4x4 inverse 80 us
         against 25 us here, and far more when other work shares the cores)."""
+        return finished(self.scan_started(source, sensor, preset, settings, frame,
+                                          object_classes, values, boxes_later))
+
+    def scan_started(self, source, sensor, preset, settings, frame, object_classes=None,
+                     values=None, boxes_later=False):
+        """``scan``, started: the scene read from ``source`` and the frame's cast under
+        way (``frame.scan_frame_started``); returns a generator whose remaining steps
+        (``frame.finished``) give ``scan``'s (ScanResult, info). Until then the source
+        may move on (another frame's scan): nothing left reads it."""
         if values is None:
             values = device_values(preset, settings)
+        steps = self._scan(source, sensor, preset, settings, values, frame, object_classes,
+                           boxes_later)
         with blas_threads.single_threaded():
-            return self._scan(source, sensor, preset, settings, values, frame, object_classes,
-                              boxes_later)
+            next(steps)
+        return steps
 
     def _scan(self, source, sensor, preset, settings, values, frame, object_classes,
               boxes_later=False):
@@ -148,10 +159,11 @@ class ScanSession:
             reach, self._static_key(read, instances, objects, materials, static_sel))
         classes = set(object_classes or ())
         boxes = bool(classes) and any(i.label in classes for i in instances)
-        result = scan_frame(scene, scan_pattern(preset, settings, frame), pose, values,
-                            cast_settings,
-                            frame=frame, sensor=sensor, sensor_track=track, moving=moving,
-                            keep_rays=boxes)
+        started = scan_frame_started(scene, scan_pattern(preset, settings, frame), pose,
+                                     values, cast_settings, frame=frame, sensor=sensor,
+                                     sensor_track=track, moving=moving, keep_rays=boxes)
+        yield  # the cast under way
+        result = finished(started)
         if skipped:
             result.warnings.insert(0, nonfinite_warning(skipped))
         result.warnings[:0] = read.warnings
