@@ -49,6 +49,7 @@ if str(ROOT) not in sys.path:
 
 from bench import standalone  # noqa: E402 - after the path above
 
+REPEAT = 5  # rounds taking turns (3 left the medians 20-40% apart between runs)
 TARGETS = {"traffic_dataset": 3.0, "traffic_scan": 3.0, "sky_scan": 2.0}
 SPEED_MPS = 10.0
 
@@ -276,7 +277,7 @@ def _command(name, blend, frames, out):
 def measure(quick=False, repeat=None):
     from bench.frame_costs import BUILD_DRIVE
 
-    repeat = repeat or (1 if quick else 3)
+    repeat = repeat or (1 if quick else REPEAT)
     cases = {k: (b, c, (f0, f0 + 20) if quick else (f0, f1))
              for k, (b, c, (f0, f1)) in CASES.items()}
     out = {"cases": {}, "repeat": repeat, "loadavg_start": os.getloadavg()[0]}
