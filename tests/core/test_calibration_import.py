@@ -189,6 +189,9 @@ def test_stored_as_a_user_preset_with_its_table(tmp_path):
     assert get_preset("my_p64", tmp_path).table.elevations_deg[0] == 14.9
     with pytest.raises(OutputError, match="already exists"):
         import_calibration(FIX / "nebula_pandar64.csv", "hesai_pandar64", "my_p64", tmp_path)
+    with pytest.raises(OutputError, match="not a folder"):
+        import_calibration(FIX / "nebula_pandar64.csv", "hesai_pandar64", "my_p64",
+                           tmp_path / "tables" / "my_p64.csv")
     import_calibration(FIX / "hesai_sdk2_pandar64.csv", "hesai_pandar64", "my_p64", tmp_path,
                        overwrite=True)
     assert get_preset("my_p64", tmp_path).table.elevations_deg[0] == 14.708

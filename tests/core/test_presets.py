@@ -249,6 +249,11 @@ def test_custom_preset_export_carries_pattern(tmp_path):
     saved = import_preset(out, tmp_path / "user")
     assert Path(saved.path).parent == tmp_path / "user"
     assert len(saved.pattern()) == 2
+    # a --user-dir that names a file: said so, where it only said 'File exists'
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(OutputError, match="afile: not a folder; give --user-dir the folder"):
+        import_preset(out, tmp_path / "afile")
+    assert (tmp_path / "afile").read_text() == "x"
 
 
 def test_validation_does_not_generate_huge_patterns(tmp_path, monkeypatch):

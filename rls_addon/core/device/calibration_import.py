@@ -15,7 +15,7 @@ from .angle_tables import ORIGIN_COLUMNS
 from .calibration_files import FORMATS, read_calibration
 from .families.spinning import channel_count, spinning_beam_origins
 from .presets import get_preset, load_preset
-from .user_presets import dumps_preset, preset_to_dict, refuse_builtin_id
+from .user_presets import dumps_preset, preset_to_dict, refuse_builtin_id, user_folder
 from ..errors import OutputError, PresetError
 from ..output.io.atomic import atomic_write_bytes
 
@@ -67,10 +67,10 @@ def import_calibration(file, base, new_id, user_dir, name=None, overwrite=False)
         raise PresetError(f"--id must be lower-case letters, digits, '_', '-' or '.' (at most "
                           f"64, starting with a letter or digit), got '{new_id}'")
     refuse_builtin_id(new_id, action="import")
+    d = user_folder(user_dir)
     base_p = base if hasattr(base, "scan") else get_preset(base, user_dir)
     cal = read_calibration(file)
     check_base(base_p, cal, where)
-    d = Path(user_dir)
     dest, table = d / f"{new_id}.toml", d / "tables" / f"{new_id}.csv"
     for f in (dest, table):
         if f.exists() and not overwrite:

@@ -138,11 +138,21 @@ def refuse_builtin_id(preset_id, where="", action="save"):
                           f"{'imported ' if action == 'import' else ''}preset another id")
 
 
+def user_folder(user_dir):
+    """``user_dir`` as a Path, refused when it names something other than a folder
+    (made when missing): writing into a file said only 'File exists'."""
+    d = Path(user_dir)
+    if d.exists() and not d.is_dir():
+        raise OutputError(f"{d}: not a folder; give --user-dir the folder of your user "
+                          "presets (it is made when missing)")
+    return d
+
+
 def save_user_preset(preset, user_dir, overwrite=False):
     """Store ``preset`` as ``<user_dir>/<id>.toml`` (self-contained). Returns the path.
     A built-in preset's id is refused."""
     refuse_builtin_id(preset.id)
-    d = Path(user_dir)
+    d = user_folder(user_dir)
     return _write_preset(preset, d / f"{preset.id}.toml", f"patterns/{preset.id}.csv", overwrite)
 
 
