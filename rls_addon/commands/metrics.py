@@ -180,9 +180,22 @@ def printed(out, grid):
     return {**out, "density": density}
 
 
+def _distinct(paths):
+    """Refuse one file given twice (by any path to it): the metrics merge their clouds,
+    and a cloud counted twice doubles its points (InfraD, density) without a word."""
+    seen = {}
+    for p in paths:
+        key = os.path.realpath(p)
+        if key in seen:
+            raise InputError(f"{p} is the cloud {seen[key]} again: give each LiDAR's cloud "
+                             "once (the metrics merge them)")
+        seen[key] = p
+
+
 def run(args):
     _check_out(args)
     poly = polygon_from_json(args.lob_polygon) if args.lob_polygon else polygon_from_blend(args.lob)
+    _distinct(args.clouds)
     clouds = [world_points(p) for p in args.clouds]
     result = infra_lob_metrics(clouds, poly, labels=args.labels, disks=args.disks, radius=args.radius,
                                seed=args.seed, cell=args.cell, disk_placement=args.disk_placement)

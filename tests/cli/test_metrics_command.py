@@ -107,6 +107,14 @@ def test_empty_region_is_one_line_error(tmp_path, polygon_file):
     assert "holds no points" in line
 
 
+def test_one_cloud_given_twice_is_refused(tmp_path, polygon_file):
+    cloud = write_cloud(tmp_path / "c.pcd", grid(), "pcd_binary_compressed")
+    again = tmp_path / "sub" / ".." / "c.pcd"
+    (tmp_path / "sub").mkdir()
+    line = one_line_error(rls("metrics", "--lob-polygon", polygon_file, cloud, again))
+    assert "is the cloud" in line and "again: give each LiDAR's cloud once" in line
+
+
 def test_bad_inputs_are_one_line_errors(tmp_path, polygon_file):
     bad = tmp_path / "bad.pcd"
     bad.write_bytes(b"nonsense")
