@@ -13,7 +13,7 @@
 #   make build   build and validate one zip per platform with Blender's tooling:
 #                dist/rls_addon-<version>-{linux_x64,windows_x64,macos_arm64,macos_x64}.zip
 #                (docs/platforms.md); the compiled loop is cross-compiled with Zig
-#   make bench   benchmarks (about 7 minutes): docs/benchmarks.md and docs/bench_*.png
+#   make bench   benchmarks (about 10 minutes): docs/benchmarks.md and docs/bench_*.png
 
 PYTHON ?= python3.11
 VENV   := .venv
