@@ -76,9 +76,15 @@ def test_a_driving_sensors_step_ends_after_the_next_one_starts(monkeypatch):
 def test_a_cancel_or_a_failure_ends_the_step_under_way_first(tmp_path):
     scene = drive()
     asked = []
+
+    def cancel_at_the_third_step():
+        asked.append(scene.frame)
+        return len(asked) == 3  # asked before each step's scan starts
+
     run = run_of(scene, [job("mast", tmp_path)], [1, 2, 3, 4], tmp_path,
-                 cancelled=lambda: len(asked) >= 2 or asked.append(1) and False)
+                 cancelled=cancel_at_the_third_step)
     run.run()
+    assert asked == [1, 2, 3]
     assert run.cancelled and run.scanned == 2
     written = sorted(p.name for p in tmp_path.glob("*.pcd"))
     assert written == ["fake_mast_000001.pcd", "fake_mast_000002.pcd"]
