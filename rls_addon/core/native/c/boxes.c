@@ -14,8 +14,8 @@
  * rays lie scattered over the frame's arrays (a direction cell holds a few rays of
  * each of many firings), so each share asks for a ray's data AHEAD rays before it
  * tests it: every test waited on memory otherwise (a traffic frame's counts, 157k
- * box-ray pairs, 4.2 -> 3.6 ms on their own and 14 -> 10 ms beside the next frame's
- * scan; bench/drive_costs.py's traffic drive). */
+ * box-ray pairs, 4.8-6.2 -> 2.8-4.4 ms with nothing beside them and 13.6-15.0 ->
+ * 8.4-10.9 ms beside the next frame's scan; bench/drive_costs.py's traffic drive). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
