@@ -14,6 +14,7 @@ command line can ``run()`` it straight through.
 import gc
 import os
 import time
+from collections import namedtuple
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -55,6 +56,11 @@ class Step:
     # the step's wall time and its parts (``STEP_PARTS``), the scan's own among them
     wall_s: float = 0.0
     parts: dict = field(default_factory=dict)
+
+
+# A step whose scan started (``ScanRun.step``): its remaining ``steps`` (a generator,
+# ``frame.finished``) and when its parts began.
+_Started = namedtuple("_Started", "frame job told steps t_step t_scan t_started")
 
 
 # What a step's wall time is spent on, in order: Blender setting the frame (animation,
@@ -210,8 +216,7 @@ class ScanRun:
         if self.cancelled:
             return False
         if self._next >= len(self.plan):
-            if self._pending is not None:
-                self._finish(self._take_pending())
+            self._end_pending()
             return not self.finished
         frame, job = self.plan[self._next]
         out = job.settings.output
@@ -221,8 +226,7 @@ class ScanRun:
             if kept is None:
                 told = self._stale_notice(job, frame)
         if kept is not None:
-            if self._pending is not None:
-                self._finish(self._take_pending())
+            self._end_pending()
             self._next += 1
             if hasattr(self.writer, "kept_labels"):
                 self._add_labels(self.writer.kept_labels(job.name, out, frame))
@@ -252,17 +256,14 @@ class ScanRun:
                                              boxes_later=later)
         except BaseException:
             # a failure or Ctrl+C here loses nothing done: the step under way ends first
-            if self._pending is not None:
-                self._finish(self._take_pending())
+            self._end_pending()
             raise
         if self.cancelled:
-            if self._pending is not None:
-                self._finish(self._take_pending())
+            self._end_pending()
             return False
         self._next += 1
-        started = (frame, job, told, steps, t_step, t, time.perf_counter())
-        if self._pending is not None:
-            self._finish(self._take_pending())
+        started = _Started(frame, job, told, steps, t_step, t, time.perf_counter())
+        self._end_pending()
         if self.overlap and self.on_result is None and self._next < len(self.plan) \
                 and self.source.sensor_may_move(job.name):
             self._pending = started
@@ -270,12 +271,15 @@ class ScanRun:
         self._finish(started)
         return not self.finished
 
-    def _take_pending(self):
-        pending, self._pending = self._pending, None
-        return pending
+    def _end_pending(self):
+        """End the step under way, if there is one."""
+        started, self._pending = self._pending, None
+        if started is not None:
+            self._finish(started)
 
     def _finish(self, started):
-        """The rest of a step whose scan ``started`` (``step``): its result, its files."""
+        """The rest of a step whose scan ``started`` (a ``_Started``): its result, its
+        files."""
         frame, job, told, steps, t_step, t, t_started = started
         out = job.settings.output
         t_resume = time.perf_counter()
@@ -463,7 +467,8 @@ class ScanRun:
         ends before its last step (cancelled, interrupted, failed) drops what only a
         complete run may leave (a bag)."""
         if self._pending is not None:  # failed or interrupted with a scan under way
-            self._take_pending()[3].close()  # its cast waited for, its step dropped
+            self._pending.steps.close()  # its cast waited for, its step dropped
+            self._pending = None
         if self.index < len(self.plan) and self.writer is not None and not self.piece:
             self.writer.abort()
         if self.writer is not None:  # a piece's files, complete
