@@ -50,8 +50,9 @@ def hidden_in_viewport(depsgraph, present=None):
     """Sorted full names of the geometry objects a render of the depsgraph's view layer
     shows that the depsgraph (the viewport's) leaves out, so they are not scanned: an
     object hidden with its eye or its monitor icon, or in a collection disabled in
-    viewports; an object instancing a collection (an empty, say) counts as geometry. A render shows an object not hidden from render in a collection that
-    is neither excluded from the view layer nor hidden from render (nor any above it).
+    viewports; an object instancing a collection (an empty, say) counts as geometry. A
+    render shows an object not hidden from render in a collection that is neither
+    excluded from the view layer nor hidden from render (nor any above it).
     ``present``: the full names of the objects the depsgraph lists (found here when
     not given). LiDARs and what RLS draws are never scanned, hidden or not.
 
