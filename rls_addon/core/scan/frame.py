@@ -217,16 +217,21 @@ def scan_frame_started(scene, pattern, sensor_to_world, device, settings,
     the caller's work may go on meanwhile. The same ScanResult as ``scan_frame``."""
     freed_pages.keep_freed_pages()  # a frame's arrays reused, not faulted in anew
     dv = device if isinstance(device, DeviceValues) else device_values(device, settings)
-    steps = _scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory,
-                        frame, sensor, sensor_track, moving, keep_rays, fields, rays)
-    with blas_threads.single_threaded():  # OpenBLAS' spinning threads would slow the caster
+    return started(_scan_frame(scene, pattern, sensor_to_world, dv, settings, caster_factory,
+                               frame, sensor, sensor_track, moving, keep_rays, fields, rays))
+
+
+def started(steps):
+    """A generator of steps (``_scan_frame``, ``ScanSession._scan``) with its first step
+    taken; ``finished`` takes the rest. Both with numpy's BLAS on one thread: OpenBLAS'
+    spinning threads would slow the caster."""
+    with blas_threads.single_threaded():
         next(steps)
     return steps
 
 
 def finished(steps):
-    """What a started generator of steps (``scan_frame_started``) returns, its steps
-    left taken."""
+    """What a started generator of steps (``started``) returns, its steps left taken."""
     with blas_threads.single_threaded():
         try:
             while True:

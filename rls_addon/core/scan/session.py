@@ -20,7 +20,7 @@ from ..native import blas_threads
 from ..world.bodies import PreparedScene, RigidBodies, TimedScene
 from ..physics.detection import detection_info
 from ..physics.footprint import footprint_info
-from .frame import finished, scan_frame_started, sensor_frame
+from .frame import finished, scan_frame_started, sensor_frame, started
 from ..output.ground_truth import box_dicts, object_boxes
 from ..output.io.behind import Later
 from ..scene.geometry import nonfinite_warning
@@ -113,11 +113,8 @@ class ScanSession:
         may move on (another frame's scan): nothing left reads it."""
         if values is None:
             values = device_values(preset, settings)
-        steps = self._scan(source, sensor, preset, settings, values, frame, object_classes,
-                           boxes_later)
-        with blas_threads.single_threaded():
-            next(steps)
-        return steps
+        return started(self._scan(source, sensor, preset, settings, values, frame,
+                                  object_classes, boxes_later))
 
     def _scan(self, source, sensor, preset, settings, values, frame, object_classes,
               boxes_later=False):
@@ -159,11 +156,11 @@ class ScanSession:
             reach, self._static_key(read, instances, objects, materials, static_sel))
         classes = set(object_classes or ())
         boxes = bool(classes) and any(i.label in classes for i in instances)
-        started = scan_frame_started(scene, scan_pattern(preset, settings, frame), pose,
-                                     values, cast_settings, frame=frame, sensor=sensor,
-                                     sensor_track=track, moving=moving, keep_rays=boxes)
+        frame_steps = scan_frame_started(scene, scan_pattern(preset, settings, frame), pose,
+                                         values, cast_settings, frame=frame, sensor=sensor,
+                                         sensor_track=track, moving=moving, keep_rays=boxes)
         yield  # the cast under way
-        result = finished(started)
+        result = finished(frame_steps)
         if skipped:
             result.warnings.insert(0, nonfinite_warning(skipped))
         result.warnings[:0] = read.warnings
