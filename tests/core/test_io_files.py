@@ -102,6 +102,9 @@ def test_directory_under_a_regular_file_is_a_clear_error(tmp_path):
     blocker.write_text("not a directory")
     with pytest.raises(OutputError, match="cannot create directory"):
         write_cloud(blocker / "sub" / "c.pcd", sample_cloud(2))
+    # the file itself where the folder should be: said so, not "File exists"
+    with pytest.raises(OutputError, match="cannot create directory .*file: a file is in the way"):
+        write_cloud(blocker / "c.pcd", sample_cloud(2))
 
 
 def test_unwritable_location_is_a_clear_error():

@@ -67,6 +67,8 @@ def ensure_directory(directory):
     directory = pathlib.Path(directory)
     if directory.is_dir():
         return directory
+    if directory.exists():  # makedirs would say only "File exists"
+        raise OutputError(f"cannot create directory {directory}: a file is in the way")
     try:
         os.makedirs(directory, exist_ok=True)
     except OSError as exc:
