@@ -266,11 +266,17 @@ class KittiWriter:
             root = self.sensor_root(job.name)
             ids = sorted(p.stem for p in (root / "meta").glob("*.json")) \
                 if (root / "meta").is_dir() else []
+            # drawn over every frame, so a frame's side never depends on its labels
             val = set(self.split.val(ids))
+            unlabelled = [i for i in ids if not _has_labels(root / "labels" / f"{i}.txt")]
+            listed = [i for i in ids if i not in set(unlabelled)]
             ensure_dir(root / "ImageSets")
             write_text(root / "ImageSets" / "train.txt",
-                       "".join(i + "\n" for i in ids if i not in val), True)
-            write_text(root / "ImageSets" / "val.txt", "".join(i + "\n" for i in sorted(val)), True)
+                       "".join(i + "\n" for i in listed if i not in val), True)
+            write_text(root / "ImageSets" / "val.txt",
+                       "".join(i + "\n" for i in listed if i in val), True)
+            if unlabelled:
+                self.notices.append(_unlabelled_notice(job.name, unlabelled, len(ids)))
             classes = [class_name(c) for c in job.settings.output.object_classes]
             write_json(root / "dataset.json", {
                 "layout": "OpenPCDet custom dataset", "scene": self.scene_name,
@@ -280,7 +286,8 @@ class KittiWriter:
                 "frame": "level (gravity-aligned at the sensor)" if self.level
                 else "sensor (x forward, y left, z up)",
                 "min_points_per_label": self.min_points, "split": self.split.to_dict(),
-                "frames": len(ids), "val_frames": len(val),
+                "frames": len(ids), "val_frames": sum(i in val for i in listed),
+                "frames_without_labels": unlabelled,
                 "background": self._background_record(root),
                 "class_types": self.class_types}, True)
 
@@ -327,6 +334,25 @@ class KittiBackground(BackgroundSweepWriter):
             "sensor_poses": info.get("sensor_poses"), "device": info.get("device"),
             "settings": scan_settings(info, **self.dataset._layout())}, self.overwrite)
         return path
+
+
+def _has_labels(path):
+    """Whether a frame's label file holds a box (a missing file holds none)."""
+    try:
+        return bool(Path(path).read_text().strip())
+    except FileNotFoundError:
+        return False
+
+
+def _unlabelled_notice(sensor, ids, total):
+    """What a run says of the frames of ``sensor`` left out of its ImageSets."""
+    some = ", ".join(ids[:5]) + (", ..." if len(ids) > 5 else "")
+    return (f"{len(ids)} of {sensor}'s {total} frames have no box in their label file "
+            f"({some}): they are left out of ImageSets/train.txt and val.txt, because "
+            "OpenPCDet's custom dataset fails on an empty label file (create_custom_infos "
+            "indexes its empty box array) and its training skips frames without boxes; "
+            "their points, labels and meta are written, and dataset.json lists them "
+            "under frames_without_labels")
 
 
 def read_labels(path):
