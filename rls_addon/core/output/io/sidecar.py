@@ -87,8 +87,9 @@ def read_sidecar(cloud_path):
 def _check_sidecar_format(info, path, cloud):
     """``InputError`` when the sidecar describes a cloud of another format than
     ``cloud``'s: 'x.pcd' and 'x.ply' share 'x.json', so a run with --overwrite in
-    another format replaces the sidecar of the cloud it leaves behind (its frame, pose
-    and seed then describe other points)."""
+    another format replaces the sidecar of the earlier cloud (its frame, pose and seed
+    then describe other points). The writer removes that cloud (``writer``); one copied
+    back, or left by an older RLS, is refused here."""
     fmt = info.get("format") if isinstance(info, dict) else None
     if not isinstance(fmt, str):
         return

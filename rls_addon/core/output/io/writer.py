@@ -7,11 +7,12 @@ checked before the first scan, resumable. ``make_writer`` chooses it, or the run
 of a format written once per run (``bag_writer``: one ROS 2 bag).
 """
 
+import json
 import os
 
 from ....version import VERSION
 from ...choices import FRAME_SPACES
-from ...errors import RLSError, SettingsError
+from ...errors import OutputError, RLSError, SettingsError
 from ...labels import DEFAULT_LABELS
 from .atomic import atomic_write_bytes, writable_folder
 from .behind import WRITES_BEHIND, WritesBehind  # noqa: F401 - WRITES_BEHIND: the bound
@@ -19,6 +20,33 @@ from .formats import FORMATS, Cloud
 from .names import sanitize_name
 from .paths import output_path
 from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
+
+
+def _other_format_cloud(path):
+    """The cloud beside ``path`` that its sidecar describes when that is a cloud of
+    another format (an earlier run's, under the same name), else None. Only the file
+    the sidecar names: nothing else beside it is touched."""
+    try:
+        old = json.loads(sidecar_path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    fmt = old.get("format") if isinstance(old, dict) else None
+    ext = FORMATS.get(fmt).extension if isinstance(fmt, str) and fmt in FORMATS else ""
+    if not ext or ext == path.suffix.lower():
+        return None
+    other = path.with_suffix(ext)
+    return other if other.is_file() else None
+
+
+def _remove_replaced(cloud, path):
+    try:
+        os.unlink(cloud)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        raise OutputError(f"wrote {path.name}, but cannot remove {cloud}, the earlier cloud "
+                          f"of the same frame in another format, which its sidecar no "
+                          f"longer describes ({exc.strerror or exc}); remove it by hand") from None
 
 
 class CloudWriter:
@@ -200,6 +228,10 @@ class CloudWriter:
         # resuming replaces what it scans again, a sidecar left by a cloud of another
         # format included
         overwrite = self.overwrite or (self.resume and (existed or sidecar_path(path).exists()))
+        # the cloud in another format that the sidecar about to be replaced describes
+        # ('x.pcd' and 'x.ply' share 'x.json'): removed once this frame's files are in
+        # place, so no cloud is left that no sidecar describes
+        replaced = _other_format_cloud(path) if overwrite else None
         try:
             fields = FORMATS.get(output.format).write(
                 Cloud(path, sensor, points, info, output, overwrite, self.sensors))
@@ -218,6 +250,8 @@ class CloudWriter:
                 except OSError:
                     pass
             raise
+        if replaced is not None:
+            _remove_replaced(replaced, path)
         return path
 
     def abort(self):

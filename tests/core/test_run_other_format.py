@@ -1,0 +1,67 @@
+"""A frame written again in another format ('x.pcd', then 'x.ply' with --overwrite or
+--resume): both share the sidecar 'x.json', so the earlier cloud, which that sidecar no
+longer describes, is removed once the new files are in place; nothing else is."""
+
+import os
+
+import pytest
+
+from rls_addon.core.errors import OutputError
+from rls_addon.core.output.io import read_cloud, read_sidecar
+from rls_addon.core.scan.run import SensorJob
+
+from .fakes import street
+from .test_run import PRESET, job, run_of
+
+
+def _as(out, fmt):
+    j = job("pole", out)
+    return SensorJob("pole", j.settings.override(format=fmt), PRESET)
+
+
+def _names(folder):
+    return sorted(p.name for p in folder.iterdir())
+
+
+@pytest.mark.parametrize("again", [{"overwrite": True}, {"resume": True}])
+def test_the_earlier_cloud_in_another_format_is_removed(tmp_path, again):
+    scene = street()
+    run_of(scene, [_as(tmp_path, "pcd_binary")], [1, 2], tmp_path).run()
+    (tmp_path / "notes.pcd").write_text("a user's file")  # not a frame's: left alone
+    run_of(scene, [_as(tmp_path, "ply_binary")], [1, 2], tmp_path, writer_kw=again).run()
+    assert _names(tmp_path) == sorted(["fake_instances.json", "notes.pcd"] + [
+        f"fake_pole_{f:06d}.{e}" for f in (1, 2) for e in ("ply", "json")])
+    side = read_sidecar(tmp_path / "fake_pole_000001.ply")
+    assert side["format"] == "ply_binary"
+    assert len(read_cloud(tmp_path / "fake_pole_000001.ply")) == side["points"]
+
+
+def test_the_same_format_again_and_a_cloud_no_sidecar_names_are_kept(tmp_path):
+    scene = street()
+    run_of(scene, [_as(tmp_path, "pcd_binary")], [1], tmp_path).run()
+    # a .ply of the same name that the sidecar does not describe (the user's): kept
+    (tmp_path / "fake_pole_000001.ply").write_text("a user's file")
+    run_of(scene, [_as(tmp_path, "pcd_ascii")], [1], tmp_path,
+           writer_kw={"overwrite": True}).run()
+    assert (tmp_path / "fake_pole_000001.ply").read_text() == "a user's file"
+    assert read_sidecar(tmp_path / "fake_pole_000001.pcd")["format"] == "pcd_ascii"
+
+
+def test_an_earlier_cloud_that_cannot_be_removed_is_an_error_naming_it(tmp_path, monkeypatch):
+    from rls_addon.core.output.io import writer as writer_mod
+
+    scene = street()
+    run_of(scene, [_as(tmp_path, "pcd_binary")], [1], tmp_path).run()
+    unlink = os.unlink
+
+    def refused(path, *a, **k):
+        if str(path).endswith("fake_pole_000001.pcd"):
+            raise PermissionError(13, "Permission denied")
+        return unlink(path, *a, **k)
+
+    monkeypatch.setattr(writer_mod.os, "unlink", refused)
+    with pytest.raises(OutputError, match="cannot remove .*fake_pole_000001.pcd"):
+        run_of(scene, [_as(tmp_path, "ply_binary")], [1], tmp_path,
+               writer_kw={"overwrite": True}).run()
+    # the new frame is complete: its cloud and the sidecar that describes it
+    assert read_sidecar(tmp_path / "fake_pole_000001.ply")["format"] == "ply_binary"
