@@ -1,5 +1,6 @@
 """--resume keeps a frame only when its sidecar's settings are the run's; files of
-another format left beside the run's outputs are reported."""
+another format beside the run's outputs are reported (and removed where the sidecars
+the run replaces described them)."""
 
 import json
 
@@ -52,7 +53,10 @@ def test_resume_reports_files_of_another_format(demo_run, tmp_path):
     told = [ln for ln in again.stderr.splitlines() if ln.startswith("rls: notice:")
             and "another format" in ln]
     assert len(told) == 1 and "2 " in told[0] and ".pcd" in told[0], again.stderr
-    assert (out / "intersection_LiDAR_000001.pcd").exists()  # reported, not removed
+    assert "removed once its frame's new files are written" in told[0]
+    # the sidecars described them; replaced, they would describe no cloud of theirs
+    assert sorted(p.name for p in out.glob("intersection_LiDAR_*")) == [
+        f"intersection_LiDAR_{f:06d}.{e}" for f in (1, 2) for e in ("json", "ply")]
 
 
 def test_resume_over_workers_says_so_too(demo_run, tmp_path):

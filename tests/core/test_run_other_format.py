@@ -28,7 +28,11 @@ def test_the_earlier_cloud_in_another_format_is_removed(tmp_path, again):
     scene = street()
     run_of(scene, [_as(tmp_path, "pcd_binary")], [1, 2], tmp_path).run()
     (tmp_path / "notes.pcd").write_text("a user's file")  # not a frame's: left alone
-    run_of(scene, [_as(tmp_path, "ply_binary")], [1, 2], tmp_path, writer_kw=again).run()
+    run = run_of(scene, [_as(tmp_path, "ply_binary")], [1, 2], tmp_path, writer_kw=again)
+    said = [n for n in run.notices if "another format" in n]
+    assert len(said) == 1 and said[0].startswith("2 file(s) of another format (.pcd)")
+    assert "removed once its frame's new files are written" in said[0]
+    run.run()
     assert _names(tmp_path) == sorted(["fake_instances.json", "notes.pcd"] + [
         f"fake_pole_{f:06d}.{e}" for f in (1, 2) for e in ("ply", "json")])
     side = read_sidecar(tmp_path / "fake_pole_000001.ply")
@@ -41,8 +45,12 @@ def test_the_same_format_again_and_a_cloud_no_sidecar_names_are_kept(tmp_path):
     run_of(scene, [_as(tmp_path, "pcd_binary")], [1], tmp_path).run()
     # a .ply of the same name that the sidecar does not describe (the user's): kept
     (tmp_path / "fake_pole_000001.ply").write_text("a user's file")
-    run_of(scene, [_as(tmp_path, "pcd_ascii")], [1], tmp_path,
-           writer_kw={"overwrite": True}).run()
+    run = run_of(scene, [_as(tmp_path, "pcd_ascii")], [1], tmp_path,
+                 writer_kw={"overwrite": True})
+    assert [n for n in run.notices if "another format" in n] == [
+        f"1 file(s) of another format (.ply) beside this run's outputs, e.g. "
+        f"{tmp_path / 'fake_pole_000001.ply'}: left as they are (no sidecar here describes them)"]
+    run.run()
     assert (tmp_path / "fake_pole_000001.ply").read_text() == "a user's file"
     assert read_sidecar(tmp_path / "fake_pole_000001.pcd")["format"] == "pcd_ascii"
 

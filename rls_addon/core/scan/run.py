@@ -12,7 +12,6 @@ command line can ``run()`` it straight through.
 """
 
 import gc
-import os
 import time
 from collections import namedtuple
 from dataclasses import dataclass, field
@@ -152,9 +151,9 @@ class ScanRun:
                          for j in self.sensors}
         self._told_stale = set()  # sensors whose files of other settings were reported
         self.sessions, self.notices = ({} if sessions is None else sessions), []
-        if writer is not None and not piece and hasattr(writer, "orphans"):
-            self._orphans_notice(writer.orphans([(j.name, j.settings.output, f)
-                                                 for f, j in self.plan]))
+        if writer is not None and not piece and hasattr(writer, "orphan_notices"):
+            self.notices += writer.orphan_notices([(j.name, j.settings.output, f)
+                                                   for f, j in self.plan])
         self.piece = piece
         for job in self.sensors:
             backend = job.settings.backend
@@ -332,15 +331,6 @@ class ScanRun:
         self._told_stale.add(job.name)
         return [f"{job.name}: frames written with other settings ({', '.join(names)}) "
                 "are scanned again"]
-
-    def _orphans_notice(self, orphans):
-        if not orphans:
-            return
-        exts = sorted({os.path.splitext(p)[1] for p in orphans})
-        self.notices.append(
-            f"{len(orphans)} file(s) of another format ({', '.join(exts)}) beside this "
-            f"run's outputs, e.g. {orphans[0]}: an earlier run's, left as they are (their "
-            "sidecars now describe this run's files)")
 
     def _done(self, frame, job, step):
         self.index += 1

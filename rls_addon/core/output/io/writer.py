@@ -160,18 +160,20 @@ class CloudWriter:
             rec["fields"] = list(output.fields)
         return rec
 
-    def orphans(self, planned):
-        """Clouds of another format beside the outputs of ``planned`` [(sensor, output,
-        frame)] (an earlier run in another format): the same name but the extension.
-        One listing per folder."""
+    def orphan_notices(self, planned):
+        """What a run says of the clouds of another format beside the outputs of
+        ``planned`` [(sensor, output, frame)] (an earlier run in another format: the
+        same name but the extension; one listing per folder): those described by the
+        sidecars this run replaces are removed as their frames are written
+        (``_write``), others are left as they are."""
         exts = {f.extension for f in FORMATS if f.extension}
         names = {}
         for sensor, output, frame in planned:
             p = self.path(sensor, output, frame)
-            names.setdefault(os.path.dirname(os.path.abspath(p)), set()).add(os.path.basename(p))
-        found = []
+            names.setdefault(os.path.dirname(os.path.abspath(p)), {})[os.path.basename(p)] = p
+        replaced, left = [], []
         for folder, mine in names.items():
-            stems = {os.path.splitext(n)[0] for n in mine}
+            stems = {os.path.splitext(n)[0]: p for n, p in mine.items()}
             try:
                 entries = os.listdir(folder)
             except OSError:
@@ -179,8 +181,22 @@ class CloudWriter:
             for e in entries:
                 stem, ext = os.path.splitext(e)
                 if ext.lower() in exts and stem in stems and e not in mine:
-                    found.append(os.path.join(folder, e))
-        return sorted(found)
+                    other = os.path.join(folder, e)
+                    ours = stems[stem]
+                    described = _other_format_cloud(ours) == ours.with_suffix(ext)
+                    (replaced if described else left).append(other)
+        out = []
+        for files, what in ((sorted(replaced), "an earlier run's clouds of these frames, "
+                             "described by the sidecars this run replaces (the formats "
+                             "share them): each is removed once its frame's new files are "
+                             "written"),
+                            (sorted(left), "left as they are (no sidecar here describes "
+                             "them)")):
+            if files:
+                kinds = ", ".join(sorted({os.path.splitext(f)[1] for f in files}))
+                out.append(f"{len(files)} file(s) of another format ({kinds}) beside this "
+                           f"run's outputs, e.g. {files[0]}: {what}")
+        return out
 
     def flush(self):
         """Wait for every background write under way; raises what the first that failed
