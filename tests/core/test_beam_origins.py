@@ -144,7 +144,7 @@ def test_velodyne_offsets_as_rawdata_cc(tmp_path):
 
 
 def test_presets_without_origins_have_none():
-    assert get_preset("velodyne_vlp16").pattern().origins is None
+    assert get_preset("velodyne_vlp32c").pattern().origins is None
     assert get_preset("hesai_pandar64").pattern().origins is None
     pat = get_preset("ouster_os1_128").pattern()
     assert np.allclose(np.linalg.norm(pat.origins[:, :2], axis=1), 0.015806)
@@ -191,3 +191,19 @@ def test_a_still_sensor_with_beam_origins_reuses_its_static_cast():
     c = scan_frame(scene, preset.pattern(), turned, preset, settings, frame=2)
     assert not c.stats["static_cast_reused"]
     assert not np.array_equal(c.points["range"], a.points["range"])
+
+
+def test_the_vlp16_beams_leave_where_the_manual_puts_its_lasers():
+    """VLP-16 user manual, Table 9-1: each laser sits a 'vertical correction' from the
+    sensor origin (11.2 mm for laser 0 at -15 degrees down to -11.2 mm for laser 15 at
+    +15), applied as ros-drivers' rawdata.cc does: across the beam, in its vertical
+    plane; a point d along a beam is d * direction + that offset."""
+    manual_mm = [11.2, -0.7, 9.7, -2.2, 8.1, -3.7, 6.6, -5.1, 5.1, -6.6, 3.7, -8.1, 2.2,
+                 -9.7, 0.7, -11.2]
+    pat = get_preset("velodyne_vlp16").pattern()
+    v = np.array(manual_mm)[pat.channels] * 1e-3
+    w = np.arcsin(np.clip(pat.directions[:, 2], -1.0, 1.0))
+    np.testing.assert_allclose(pat.origins[:, 2], v * np.cos(w), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(pat.origins, axis=1), np.abs(v), rtol=0, atol=1e-9)
+    # across the beam: the offset never moves a point along it
+    assert np.abs(np.einsum("ij,ij->i", pat.origins, pat.directions)).max() < 1e-12

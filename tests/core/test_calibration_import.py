@@ -27,6 +27,12 @@ from rls_addon.core.errors import OutputError, PresetError
 
 FIX = Path(__file__).resolve().parents[1] / "fixtures" / "calibration"
 
+# The VLP-16 user manual's Table 9-1 "vertical correction" (mm) of laser ids 0-15: the
+# offset of each laser from the sensor origin (www.easymanua.ls/velodyne/vlp-16/manual
+# page 54 shows ids 7-15; ids 0-6 mirror them by elevation).
+VLP16_MANUAL_MM = [11.2, -0.7, 9.7, -2.2, 8.1, -3.7, 6.6, -5.1, 5.1, -6.6, 3.7, -8.1, 2.2,
+                   -9.7, 0.7, -11.2]
+
 # fixture -> (base preset, vendor convention)
 FIXTURES = {
     "hesai_sdk2_pandar64.csv": "hesai_pandar64",
@@ -38,6 +44,7 @@ FIXTURES = {
     "nebula_pandarxt32.csv": "hesai_pandarxt32",
     "nebula_pandarqt64.csv": "hesai_pandarqt",
     "velodyne_ros_vlp16db.yaml": "velodyne_vlp16",
+    "velodyne_ros_vlp16db_offsets.yaml": "velodyne_vlp16",
     "velodyne_ros_32db.yaml": "velodyne_hdl32e",
     "velodyne_ros_vlp32c.yaml": "velodyne_vlp32c",
     "velodyne_ros_64e_utexas.yaml": "velodyne_hdl64e",
@@ -137,7 +144,7 @@ def test_every_angle_of_the_fixture_comes_back(name, tmp_path):
 @pytest.mark.parametrize("name,table", [
     ("hesai_sdk2_pandar64.csv", "hesai_pandar64.csv"),
     ("hesai_sdk2_pandarqt.csv", "hesai_pandarqt.csv"),
-    ("velodyne_ros_vlp16db.yaml", "velodyne_vlp16.csv"),
+    ("velodyne_ros_vlp16db_offsets.yaml", "velodyne_vlp16.csv"),
     ("velodyne_ros_64e_utexas.yaml", "velodyne_hdl64e_s2_utexas.csv"),
     ("ouster_2_1_2_os1-991913000010-64.json", "ouster_os1_64.csv"),
     ("ouster_OS-1-128_v2.3.0_1024x10.json", "ouster_os1_128.csv"),
@@ -153,6 +160,8 @@ def test_the_shipped_tables_are_what_import_reads_from_their_sources(name, table
     np.testing.assert_allclose(cal.elevations_deg, t.elevations_deg, rtol=0, atol=tol)
     np.testing.assert_allclose(cal.azimuth_offsets_deg, t.azimuth_offsets_deg, rtol=0, atol=tol)
     assert cal.channel_ids == t.channel_ids
+    if t.origins_m is not None:  # per-beam origins, as the reader works them out
+        np.testing.assert_allclose(cal.origins_m, t.origins_m, rtol=0, atol=1e-15)
 
 
 def test_beam_origins_read_from_the_files():
@@ -169,6 +178,13 @@ def test_beam_origins_read_from_the_files():
     z = np.array(cal.origins_m)[:, 2]
     assert 0.19 < z.max() < 0.22 and z.min() < 0.15
     assert read_calibration(FIX / "velodyne_ros_vlp16db.yaml").origins_m is None
+    # ... but the VLP-16's since ros-drivers/velodyne #518 carries its lasers' offsets
+    cal = read_calibration(FIX / "velodyne_ros_vlp16db_offsets.yaml")
+    o, w = np.array(cal.origins_m), np.radians(cal.elevations_deg)
+    np.testing.assert_allclose(np.linalg.norm(o, axis=1), np.abs(VLP16_MANUAL_MM) * 1e-3,
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(o[:, 2], np.array(VLP16_MANUAL_MM) * 1e-3 * np.cos(w),
+                               rtol=0, atol=1e-15)
     xml = read_calibration(FIX / "velodyne_ros_64e_s2.1-sztaki.xml")
     assert xml.origins_m is not None and len(xml.origins_m) == 64
     # db.xml in centimetres: laser 0 of the sztaki unit: vertOffsetCorrection_ 19.548199
