@@ -25,14 +25,17 @@ def build_parser():
     return parser
 
 
-# A list or range that starts with a negative number: "-20:20:20", "-10,0,10"
-NEGATIVE_LIST = re.compile(r"^-\d[\d.]*(?:[:,]-?\d[\d.]*)+$")
+# A list or range that starts with a negative number: "-20:20:20", "-10,0,10"; or a
+# negative number with an exponent, "-1e12", "-2.5E-3" (argparse knows "-5" and "-1.5"
+# for numbers, not these)
+NEGATIVE_LIST = re.compile(r"^-\d[\d.]*(?:[:,]-?\d[\d.]*)+$"
+                           r"|^-(?:\d+\.?\d*|\.\d+)[eE][-+]?\d+$")
 
 
 def joined_negative_values(argv):
-    """``--yaw -20:20:20`` as ``--yaw=-20:20:20``: argparse takes a value that starts
-    with "-" and is not a plain number for an option and stops with "expected one
-    argument"."""
+    """``--yaw -20:20:20`` as ``--yaw=-20:20:20`` (and ``--start-time -1e12`` as
+    ``--start-time=-1e12``): argparse takes a value that starts with "-" and is not a
+    plain number for an option and stops with "expected one argument"."""
     out = []
     for arg in argv:
         if out and NEGATIVE_LIST.match(arg) and out[-1].startswith("--") and "=" not in out[-1]:
