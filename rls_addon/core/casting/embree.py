@@ -34,6 +34,7 @@ import numpy as np
 
 from ..errors import CastingError, SettingsError
 from ..native.threads import default_threads
+from ..stop_signals import held
 from . import embree_api
 from .base import CasterBase
 from .embree_api import (_GEOM, _LOCK, _INVALID_ID, _K, _PRIM, _STRIDE, _TFAR, _MotionScene, _Scene,
@@ -152,7 +153,9 @@ class EmbreeCaster(CasterBase):
             for span in spans:
                 work(span)
         else:
-            list(_pool(self.threads).map(work, spans))
+            with held():  # tasks handed over whole (see output.io.behind._background_thread)
+                done = _pool(self.threads).map(work, spans)
+            list(done)
         return dist, tri
 
     def cast_refined(self, origins, directions, max_dist, planes, order=None):

@@ -17,6 +17,8 @@ run; their errors surface as the write's. Where writing is not behind, at once.
 import threading
 from collections import deque
 
+from ...stop_signals import held
+
 WRITES_BEHIND = 4
 
 _THREAD = []
@@ -40,7 +42,8 @@ class WritesBehind:
         if not self.enabled:
             return _worked_out(fn, *args)
         self.make_room()
-        self.pending.append(_background_thread().submit(_worked_out, fn, *args))
+        with held():  # the hand-over whole: the first one starts the thread (``started``)
+            self.pending.append(_background_thread().submit(_worked_out, fn, *args))
         return None
 
     def flush(self):
@@ -116,7 +119,14 @@ def _wait(write):
 
 
 def _background_thread():
-    """The one thread background writes run on (started on first use)."""
+    """The one thread background writes run on (started on first use).
+
+    Started with stop signals held (``WritesBehind.run``): Python 3.11's
+    ``ThreadPoolExecutor.submit`` starts its thread and only then notes it among the
+    threads to stop at exit; a stop signal raised in between (a SIGTERM while the new
+    thread is scheduled, a window of milliseconds on a loaded machine) left a thread
+    nobody stops, and the process, its files complete and its message said, waited for
+    it at exit for ever (tests/core/test_writes_behind_stop.py)."""
     if not _THREAD:
         from concurrent.futures import ThreadPoolExecutor
 
