@@ -268,8 +268,9 @@ class KittiWriter:
                 if (root / "meta").is_dir() else []
             # drawn over every frame, so a frame's side never depends on its labels
             val = set(self.split.val(ids))
-            unlabelled = [i for i in ids if not _has_labels(root / "labels" / f"{i}.txt")]
-            listed = [i for i in ids if i not in set(unlabelled)]
+            labelled = {i: _has_labels(root / "labels" / f"{i}.txt") for i in ids}
+            listed = [i for i in ids if labelled[i]]
+            unlabelled = [i for i in ids if not labelled[i]]
             ensure_dir(root / "ImageSets")
             write_text(root / "ImageSets" / "train.txt",
                        "".join(i + "\n" for i in listed if i not in val), True)

@@ -42,7 +42,7 @@ class WritesBehind:
         if not self.enabled:
             return _worked_out(fn, *args)
         self.make_room()
-        with held():  # the hand-over whole: the first one starts the thread (``started``)
+        with held():  # the hand-over whole: the first starts the thread (_background_thread)
             self.pending.append(_background_thread().submit(_worked_out, fn, *args))
         return None
 

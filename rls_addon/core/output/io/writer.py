@@ -22,10 +22,19 @@ from .paths import output_path
 from .sidecar import read_sidecar, settings_differences, sidecar_path, write_sidecar
 
 
+def _cloud_extensions():
+    """The extensions of the formats written a file per scan ('.pcd', '.ply', '.las')."""
+    return {f.extension for f in FORMATS if f.extension}
+
+
 def _other_format_cloud(path):
     """The cloud beside ``path`` that its sidecar describes when that is a cloud of
     another format (an earlier run's, under the same name), else None. Only the file
-    the sidecar names: nothing else beside it is touched."""
+    the sidecar names: nothing else beside it is touched. The sidecar is read only when
+    such a file is there (a run with --overwrite asks for every frame)."""
+    if not any(path.with_suffix(e).is_file() for e in _cloud_extensions()
+               if e != path.suffix.lower()):
+        return None
     try:
         old = json.loads(sidecar_path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -166,7 +175,7 @@ class CloudWriter:
         same name but the extension; one listing per folder): those described by the
         sidecars this run replaces are removed as their frames are written
         (``_write``), others are left as they are."""
-        exts = {f.extension for f in FORMATS if f.extension}
+        exts = _cloud_extensions()
         names = {}
         for sensor, output, frame in planned:
             p = self.path(sensor, output, frame)
