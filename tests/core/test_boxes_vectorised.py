@@ -314,7 +314,8 @@ def test_every_boxs_time_from_its_points_at_once_is_split_at_seams(monkeypatch, 
 def test_the_compiled_grouping_of_points_is_numpys():
     """``box_counts.own_groups`` (one compiled pass over the scan's point records, their
     fields unaligned) gives ``_own_groups_numpy``'s groups and times, for points of a
-    moving scan's layout with ghosts and ids not among the boxes'; None for records
+    moving scan's layout with ghosts and ids not among the boxes' (some sharing a key's
+    low 16 bits); None for records
     it cannot read (ids of another type), where numpy's are used."""
     from rls_addon.core.output.ground_truth import _own_groups_numpy
     from rls_addon.core.points import POINT_DTYPE
@@ -322,7 +323,10 @@ def test_the_compiled_grouping_of_points_is_numpys():
     rng = np.random.default_rng(23)
     n = 20000
     pts = np.zeros(n, POINT_DTYPE)
-    pts["instance"] = rng.choice([0, 5, 6, 40, 2 ** 32 - 1, 77, 1000], n)
+    # 5 + 2 ** 16 and 1000 + 2 ** 17: the low 16 bits of a key (the compiled pass's
+    # filter lets them by), not a key
+    pts["instance"] = rng.choice([0, 5, 6, 40, 2 ** 32 - 1, 77, 1000, 5 + 2 ** 16,
+                                  1000 + 2 ** 17, 2 ** 32 - 2 ** 16 + 40], n)
     pts["time"] = np.sort(rng.uniform(0, 0.1, n)) + rng.normal(0, 1e-4, n)  # not all in order
     pts["ghost"] = rng.random(n) < 0.15
     keys = np.array([5, 40, 41, 1000, 2 ** 32 - 1], np.uint32)  # 41: no point

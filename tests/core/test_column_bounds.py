@@ -29,10 +29,10 @@ def test_a_read_only_arrays_bounds_are_kept_and_given_as_copies(monkeypatch):
     lo, hi = column_bounds(a)
     lo[:] = 99.0  # the caller's copy
     again = column_bounds(a)
-    assert again[0].tobytes() == a.min(axis=0).tobytes() and vectors._BOUNDS[0][0] is a
+    assert again[0].tobytes() == a.min(axis=0).tobytes() and vectors._BOUNDS[0][0]() is a
     b = np.random.default_rng(1).normal(size=(1000, 3))  # writeable: not kept
     column_bounds(b)
-    assert all(kept is not b for kept, _ in vectors._BOUNDS)
+    assert all(kept() is not b for kept, _ in vectors._BOUNDS)
 
 
 def _scene(centre, reach):
@@ -76,12 +76,12 @@ def test_a_shifted_array_is_numpys_difference_and_keeps_its_bounds(monkeypatch, 
     column_bounds(a)
     got = vectors.shifted(a, c)
     assert got.tobytes() == (a - c).tobytes() and not got.flags.writeable
-    kept = [k for k, _ in vectors._BOUNDS]
+    kept = [k() for k, _ in vectors._BOUNDS]
     assert kept[0] is got
     again = vectors.shifted(a.reshape(-1, 3), c)  # a whole view of it: its bounds found
-    assert vectors._BOUNDS[0][0] is again and again.tobytes() == got.tobytes()
+    assert vectors._BOUNDS[0][0]() is again and again.tobytes() == got.tobytes()
     lo, hi = column_bounds(got.reshape(-1, 3))
-    assert len(vectors._BOUNDS) == 2 and vectors._BOUNDS[1][0] is got  # found, not recomputed
+    assert [k() for k, _ in vectors._BOUNDS] == [again, got, a]  # found, not recomputed
     want = (a - c)
     assert np.array_equal(lo, want.min(axis=0)) and np.array_equal(hi, want.max(axis=0))
 
@@ -95,3 +95,34 @@ def test_a_view_of_part_of_a_kept_array_is_not_taken_for_it(monkeypatch):
     assert hi.tolist() == [147.0, 148.0, 149.0]
     lo, hi = column_bounds(a[::-1])
     assert lo.tolist() == [0.0, 1.0, 2.0] and hi.tolist() == [297.0, 298.0, 299.0]
+
+
+def test_kept_bounds_last_four_frames_and_keep_no_array_alive(monkeypatch):
+    """A frame's boxes are worked out behind the scan, when later frames' origins (and
+    the same centred) are kept already: the bounds of an array stay found while seven
+    other arrays are kept after it, once each however often each is kept again; the
+    cache holds no array alive (a dropped array's entry is gone with it)."""
+    import gc
+    import weakref
+
+    monkeypatch.setattr(vectors, "_BOUNDS", [])
+    frames = []
+    for k in range(4):  # per frame: the origins and the same centred, each kept twice
+        o = np.random.default_rng(k).normal(size=(100, 3))
+        o.flags.writeable = False
+        column_bounds(o)
+        c = vectors.shifted(o, np.array([1.0, 2.0, 3.0]))
+        vectors.keep_bounds(c, *column_bounds(c))
+        frames.append((o, c))
+    first = frames[0][0]
+    calls = []
+    with monkeypatch.context() as m:
+        m.setattr(np, "ascontiguousarray", lambda *a, **k: calls.append(a) or a[0])
+        lo, hi = column_bounds(first)  # found: not worked out again
+    assert calls == [] and lo.tobytes() == first.min(axis=0).tobytes()
+    assert len(vectors._BOUNDS) == vectors._KEEP == 8
+    dropped = weakref.ref(frames[-1][1])
+    frames.clear()
+    first = o = c = None
+    gc.collect()
+    assert dropped() is None and all(ref() is None for ref, _ in vectors._BOUNDS)

@@ -198,7 +198,7 @@ def test_a_frames_ray_origins_in_c_come_with_their_bounds(monkeypatch):
         monkeypatch.setattr(vectors, "_BOUNDS", [])
         t = rng.uniform(-0.02, 0.12, 70000)  # two shares on two threads
         got = track_set.positions_at(track, t)
-        assert not got.flags.writeable and vectors._BOUNDS[0][0] is got
+        assert not got.flags.writeable and vectors._BOUNDS[0][0]() is got
         lo, hi = vectors._BOUNDS[0][1]
         assert np.array_equal(lo, got.min(axis=0)) and np.array_equal(hi, got.max(axis=0))
         t[17] = np.nan
@@ -256,7 +256,7 @@ def test_origins_centred_in_the_same_pass_are_shifteds_difference(monkeypatch):
         centred = vectors.shifted(got, c)
         want = np.asarray(got) - c
         assert centred.tobytes() == want.tobytes() and not centred.flags.writeable
-        assert vectors._BOUNDS[0][0] is centred
+        assert vectors._BOUNDS[0][0]() is centred
         lo, hi = vectors.column_bounds(centred)
         assert np.array_equal(lo, want.min(axis=0)) and np.array_equal(hi, want.max(axis=0))
         other = vectors.shifted(got, c + [1e-6, 0, 0])

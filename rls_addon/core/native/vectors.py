@@ -6,6 +6,8 @@ both give the same bits. numpy's einsum sums in an order of its own build's choo
 ((x0 y0 + x2 y2) + x1 y1 on the project's machine), so the references use this.
 And the bounds of such an array's columns, fast (``column_bounds``)."""
 
+import weakref
+
 import numpy as np
 
 
@@ -15,11 +17,15 @@ def row_dot(a, b):
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
-# the last two read-only arrays whose bounds were asked for, and them: a driving
-# sensor's origins per ray (and the same centred on its prepared scene) are bounded
-# four times a frame (the prepared scene's cover, the re-check's octant table and its
-# limit, the ground-truth boxes' cones)
+# the last read-only arrays whose bounds were asked for, and them: a driving sensor's
+# origins per ray (and the same centred on its prepared scene) are bounded four times
+# a frame (the prepared scene's cover, the re-check's octant table and its limit, the
+# ground-truth boxes' cones). Four frames' worth: a frame's boxes are worked out
+# behind the scan (output/io/behind.py), when the next two frames' origins may be
+# made already (a driving sensor's steps overlap, scan/run.py). Held by weak
+# reference: the cache keeps no array alive.
 _BOUNDS = []
+_KEEP = 8
 _FOLD = 32  # rows folded side by side, so that numpy reduces along long rows
 
 
@@ -36,7 +42,9 @@ def keep_bounds(a, lo, hi):
     that owns its data (whose contents cannot change), found by whoever made it (a
     compiled kernel, in the pass that wrote it); ``a`` is returned."""
     if isinstance(a, np.ndarray) and a.base is None and not a.flags.writeable:
-        _BOUNDS[:] = [(a, (np.array(lo, np.float64), np.array(hi, np.float64)))] + _BOUNDS[:1]
+        others = [(ref, got) for ref, got in _BOUNDS if ref() is not None and ref() is not a]
+        _BOUNDS[:] = [(weakref.ref(a), (np.array(lo, np.float64), np.array(hi, np.float64)))] \
+            + others[:_KEEP - 1]
     return a
 
 
@@ -86,8 +94,9 @@ def shifted(a, c):
 
 def _kept_bounds(a):
     """The kept (lo, hi) of ``a`` (the array itself or a whole view of it), or None."""
-    for kept, got in _BOUNDS:
-        if kept is a or _whole_view(a, kept):
+    for ref, got in list(_BOUNDS):
+        kept = ref()
+        if kept is not None and (kept is a or _whole_view(a, kept)):
             return got
     return None
 

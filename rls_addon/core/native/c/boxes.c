@@ -221,8 +221,18 @@ typedef struct {
     double *times;         /* out, up to n: the groups' times */
 } own_points_t;
 
+/* Bits of a point id's low 16 bits that some key has: most points (the ground, the
+ * buildings) belong to no box, and one bit tells most of them so without a search. */
+#define OWN_FILTER_BITS 65536
+
 RLS_EXPORT void rls_own_points(const own_points_t *a) {
     memset(a->first, 0, (size_t)(a->keys + 1) * sizeof(int64_t));
+    uint64_t filter[OWN_FILTER_BITS / 64];
+    memset(filter, 0, sizeof filter);
+    for (int64_t k = 0; k < a->keys; k++) {
+        uint32_t low = a->key[k] & (OWN_FILTER_BITS - 1);
+        filter[low >> 6] |= (uint64_t)1 << (low & 63);
+    }
     for (int64_t p = 0; p < a->n; p++) {
         const char *rec = a->base + p * a->stride;
         uint32_t id;
@@ -230,7 +240,8 @@ RLS_EXPORT void rls_own_points(const own_points_t *a) {
         memcpy(&id, rec + a->off_instance, sizeof id);
         memcpy(&ghost, rec + a->off_ghost, sizeof ghost);
         int32_t g = -1;
-        if (ghost == 0) {
+        uint32_t low = id & (OWN_FILTER_BITS - 1);
+        if (ghost == 0 && (filter[low >> 6] >> (low & 63) & 1)) {
             int64_t lo = 0, hi = a->keys;  /* the first key >= id */
             while (lo < hi) {
                 int64_t mid = (lo + hi) / 2;
