@@ -29,33 +29,52 @@ def _cloud_extensions():
 
 def _other_format_cloud(path):
     """The cloud beside ``path`` that its sidecar describes when that is a cloud of
-    another format (an earlier run's, under the same name), else None. Only the file
-    the sidecar names: nothing else beside it is touched. The sidecar is read only when
-    such a file is there (a run with --overwrite asks for every frame)."""
-    if not any(path.with_suffix(e).is_file() for e in _cloud_extensions()
-               if e != path.suffix.lower()):
-        return None
+    another format (an earlier run's, under the same name), else None."""
+    got = [p for p in _described_leftovers(path, preview=True)
+           if p.suffix.lower() in _cloud_extensions()]
+    return got[0] if got else None
+
+
+def _described_leftovers(path, preview):
+    """Files of an earlier run beside ``path`` that its sidecar, about to be replaced,
+    describes and that this write does not replace: a cloud of another format ('x.pcd'
+    and 'x.ply' share 'x.json'), and the picture (``picture_path``) an earlier run
+    drew with --preview-png when this one draws none (``preview`` False). Only the
+    files the sidecar names: nothing else beside it is touched (a picture from before
+    sidecars named theirs is left). The sidecar is read only when such a file is there
+    (a run with --overwrite asks for every frame)."""
+    candidates = [path.with_suffix(e) for e in _cloud_extensions() if e != path.suffix.lower()]
+    picture = None if preview else picture_path(path)
+    if not any(p.is_file() for p in candidates + ([picture] if picture else [])):
+        return []
     try:
         old = json.loads(sidecar_path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError):
-        return None
-    fmt = old.get("format") if isinstance(old, dict) else None
+        return []
+    if not isinstance(old, dict):
+        return []
+    out = []
+    fmt = old.get("format")
     ext = FORMATS.get(fmt).extension if isinstance(fmt, str) and fmt in FORMATS else ""
-    if not ext or ext == path.suffix.lower():
-        return None
-    other = path.with_suffix(ext)
-    return other if other.is_file() else None
+    if ext and ext != path.suffix.lower() and path.with_suffix(ext).is_file():
+        out.append(path.with_suffix(ext))
+    if picture is not None and old.get("picture") == picture.name and picture.is_file():
+        out.append(picture)
+    return out
 
 
-def _remove_replaced(cloud, path):
+def _remove_replaced(leftover, path):
+    what = ("the picture of an earlier run with --preview-png"
+            if leftover.suffix.lower() not in _cloud_extensions()
+            else "the earlier cloud of the same frame in another format")
     try:
-        os.unlink(cloud)
+        os.unlink(leftover)
     except FileNotFoundError:
         pass
     except OSError as exc:
-        raise OutputError(f"wrote {path.name}, but cannot remove {cloud}, the earlier cloud "
-                          f"of the same frame in another format, which its sidecar no "
-                          f"longer describes ({exc.strerror or exc}); remove it by hand") from None
+        raise OutputError(f"wrote {path.name}, but cannot remove {leftover}, {what}, which "
+                          f"its sidecar no longer describes ({exc.strerror or exc}); remove "
+                          f"it by hand") from None
 
 
 class CloudWriter:
@@ -253,15 +272,16 @@ class CloudWriter:
         # resuming replaces what it scans again, a sidecar left by a cloud of another
         # format included
         overwrite = self.overwrite or (self.resume and (existed or sidecar_path(path).exists()))
-        # the cloud in another format that the sidecar about to be replaced describes
-        # ('x.pcd' and 'x.ply' share 'x.json'): removed once this frame's files are in
-        # place, so no cloud is left that no sidecar describes
-        replaced = _other_format_cloud(path) if overwrite else None
+        # what the sidecar about to be replaced describes and this write does not
+        # replace (a cloud in another format, a picture): removed once this frame's
+        # files are in place, so no file is left that no sidecar describes
+        replaced = _described_leftovers(path, self.preview) if overwrite else []
+        drawn = {"picture": picture_path(path).name} if self.preview else {}
         try:
             fields = FORMATS.get(output.format).write(
                 Cloud(path, sensor, points, info, output, overwrite, self.sensors))
             write_sidecar(path, dict(info, format=output.format, fields=fields,
-                                     point_type=output.point_type,
+                                     point_type=output.point_type, **drawn,
                                      software=f"rls {VERSION}"), overwrite=overwrite)
             if self.preview:
                 from ..pictures import cloud_picture
@@ -275,8 +295,8 @@ class CloudWriter:
                 except OSError:
                     pass
             raise
-        if replaced is not None:
-            _remove_replaced(replaced, path)
+        for leftover in replaced:
+            _remove_replaced(leftover, path)
         return path
 
     def abort(self):
