@@ -74,3 +74,19 @@ def test_a_picture_that_cannot_be_removed_is_an_error_naming_it(tmp_path, monkey
                writer_kw={"overwrite": True}).run()
     # the new frame is complete: its cloud and the sidecar that describes it
     assert "picture" not in read_sidecar(tmp_path / "fake_pole_000001.pcd")
+
+
+def test_a_resumed_run_with_pictures_scans_again_a_frame_without_its_picture(tmp_path):
+    scene = street()
+    run_of(scene, [job("pole", tmp_path)], [1, 2], tmp_path).run()
+    (tmp_path / "fake_pole_000002.png").write_bytes(b"a user's picture")
+    run = run_of(scene, [job("pole", tmp_path)], [1, 2], tmp_path,
+                 writer_kw={"resume": True, "preview": True}).run()
+    # frame 1 has no picture: scanned again and drawn; frame 2's picture, which its
+    # sidecar does not name, is not the run's: scanned again and drawn over it
+    assert run.resumed == 0 and run.scanned == 2
+    for f in (1, 2):
+        assert (tmp_path / f"fake_pole_{f:06d}.png").read_bytes()[:4] == b"\x89PNG"
+    again = run_of(scene, [job("pole", tmp_path)], [1, 2], tmp_path,
+                   writer_kw={"resume": True, "preview": True}).run()
+    assert again.resumed == 2 and again.scanned == 0

@@ -144,7 +144,8 @@ class CloudWriter:
         """The point count of a finished earlier output (when resuming), else None: the
         cloud must read back, and its sidecar must exist and name the same sensor,
         frame and point count, and state the same ``settings`` (the run's
-        ``session.settings_record``; with the output's format, fields and point type)."""
+        ``session.settings_record``; with the output's format, fields and point type);
+        a run with --preview-png also wants the picture that sidecar names."""
         if not self.resume:
             return None
         path = self.path(sensor, output, frame)
@@ -155,6 +156,9 @@ class CloudWriter:
             if not info or info.get("sensor") != sensor or info.get("frame") != frame:
                 return None
             if settings is not None and settings_differences(info, self._record(output, settings)):
+                return None
+            picture = picture_path(path)
+            if self.preview and not (info.get("picture") == picture.name and picture.is_file()):
                 return None
             count = FORMATS.get(output.format).count
             if count is None:  # a format that cannot count its files is scanned again
