@@ -55,19 +55,24 @@ def test_the_same_format_again_and_a_cloud_no_sidecar_names_are_kept(tmp_path):
     assert read_sidecar(tmp_path / "fake_pole_000001.pcd")["format"] == "pcd_ascii"
 
 
-def test_an_earlier_cloud_that_cannot_be_removed_is_an_error_naming_it(tmp_path, monkeypatch):
+def refuse_removal(monkeypatch, name):
+    """The writer's removal of a file named ``name`` fails (permission denied)."""
     from rls_addon.core.output.io import writer as writer_mod
 
-    scene = street()
-    run_of(scene, [_as(tmp_path, "pcd_binary")], [1], tmp_path).run()
     unlink = os.unlink
 
     def refused(path, *a, **k):
-        if str(path).endswith("fake_pole_000001.pcd"):
+        if str(path).endswith(name):
             raise PermissionError(13, "Permission denied")
         return unlink(path, *a, **k)
 
     monkeypatch.setattr(writer_mod.os, "unlink", refused)
+
+
+def test_an_earlier_cloud_that_cannot_be_removed_is_an_error_naming_it(tmp_path, monkeypatch):
+    scene = street()
+    run_of(scene, [_as(tmp_path, "pcd_binary")], [1], tmp_path).run()
+    refuse_removal(monkeypatch, "fake_pole_000001.pcd")
     with pytest.raises(OutputError, match="cannot remove .*fake_pole_000001.pcd"):
         run_of(scene, [_as(tmp_path, "ply_binary")], [1], tmp_path,
                writer_kw={"overwrite": True}).run()

@@ -4,7 +4,6 @@ so no picture is left that shows points the frame no longer holds; a picture no
 sidecar names (the user's, or one drawn before sidecars named theirs) is kept."""
 
 import json
-import os
 
 import pytest
 
@@ -13,6 +12,7 @@ from rls_addon.core.output.io import read_sidecar
 
 from .fakes import street
 from .test_run import job, run_of
+from .test_run_other_format import refuse_removal
 
 
 def _names(folder):
@@ -56,18 +56,9 @@ def test_a_picture_no_sidecar_names_is_kept_and_a_new_one_is_named(tmp_path):
 
 
 def test_a_picture_that_cannot_be_removed_is_an_error_naming_it(tmp_path, monkeypatch):
-    from rls_addon.core.output.io import writer as writer_mod
-
     scene = street()
     run_of(scene, [job("pole", tmp_path)], [1], tmp_path, writer_kw={"preview": True}).run()
-    unlink = os.unlink
-
-    def refused(path, *a, **k):
-        if str(path).endswith("fake_pole_000001.png"):
-            raise PermissionError(13, "Permission denied")
-        return unlink(path, *a, **k)
-
-    monkeypatch.setattr(writer_mod.os, "unlink", refused)
+    refuse_removal(monkeypatch, "fake_pole_000001.png")
     with pytest.raises(OutputError, match="cannot remove .*fake_pole_000001.png, the picture "
                                           "of an earlier run with --preview-png"):
         run_of(scene, [job("pole", tmp_path)], [1], tmp_path,
