@@ -124,8 +124,11 @@ def run(args):
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
+        what = ("the splits (ImageSets) and dataset.json are" if args.layout == "kitti"
+                else "the scenario's description (<scene>.rls.json) is")
         say(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-            "partial was left; rerun with --resume to continue")
+            f"partial was left; rerun with --resume to continue ({what} written once every "
+            "scan is done)")
         return interrupt_exit_code(exc)
     for notice in writer.notices:
         say(f"rls: notice: {notice}")

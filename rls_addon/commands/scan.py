@@ -259,7 +259,8 @@ def interrupted_message(job):
         return (f"rls: interrupted{interrupted_at(job)}; a ROS 2 bag is written whole when "
                 "its run ends, so none was left (a bag cannot be resumed): run it again")
     return (f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-            "partial was left; rerun with --resume to continue")
+            "partial was left; rerun with --resume to continue (the run's table of "
+            "objects, <scene>_instances.json, is written once every scan is done)")
 
 
 def run(args):

@@ -91,3 +91,42 @@ def test_resume_removes_what_a_sigkill_left(demo_run, tmp_path):
     assert over.returncode == 0, over.stderr
     assert not stale.exists()
     assert digests(out) == digests(whole)
+
+
+def test_a_stopped_dataset_says_what_its_resume_writes(demo_run, tmp_path):
+    """A kitti dataset stopped mid-run has its frames' files but not its splits and
+    description (written once every scan is done): the one line says so, and a
+    --resume over the frames on disk writes them."""
+    demo_out, _, _ = demo_run
+    blend = demo_out / "intersection.blend"
+    out = tmp_path / "dataset"
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([sys.executable, "-m", "rls_addon", "dataset", str(blend),
+                             "--layout", "kitti", "--frames", "1-60", "--out", str(out),
+                             "--workers", "1"], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        scans = 0
+        while scans < 2:  # the background sweeps first, then two of the frames
+            line = proc.stderr.readline()
+            assert line.startswith("["), line
+            scans += line.startswith("[") and not line.startswith("[background]")
+        proc.send_signal(signal.SIGTERM)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143, stderr
+    lines = [ln for ln in stderr.splitlines() if ln.strip() and not ln.startswith("[")]
+    assert len(lines) == 1 and lines[0].startswith("rls: interrupted after "), stderr
+    assert lines[0].endswith("rerun with --resume to continue (the splits (ImageSets) and "
+                             "dataset.json are written once every scan is done)")
+    root = out / "LiDAR"
+    written = sorted(p.stem for p in (root / "points").glob("*.npy"))
+    assert written and not (root / "ImageSets").exists() and not (root / "dataset.json").exists()
+    done = rls("dataset", blend, "--layout", "kitti", "--frames", f"1-{len(written)}",
+               "--out", out, "--resume")
+    assert done.returncode == 0, done.stderr
+    listed = (root / "ImageSets" / "train.txt").read_text().split() + \
+        (root / "ImageSets" / "val.txt").read_text().split()
+    assert (root / "dataset.json").is_file() and set(listed) <= set(written) and listed

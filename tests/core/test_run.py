@@ -303,7 +303,9 @@ def test_a_stopped_bag_run_does_not_promise_a_resume(tmp_path):
     assert line.startswith("rls: interrupted after 37 of 60 scans; a ROS 2 bag")
     assert "--resume to continue" not in line and "none was left" in line
     files = SimpleNamespace(writer=None, index=3, total=9)
-    assert interrupted_message(files).endswith("rerun with --resume to continue")
+    assert interrupted_message(files).endswith(
+        "rerun with --resume to continue (the run's table of objects, "
+        "<scene>_instances.json, is written once every scan is done)")
 
 
 def test_a_run_whose_files_will_not_fit_stops_after_its_first_scan(tmp_path, monkeypatch):
