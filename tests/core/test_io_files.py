@@ -158,8 +158,14 @@ def test_unknown_format_and_field_are_settings_errors_naming_the_choices(tmp_pat
 def test_reading_garbage_is_input_error(tmp_path):
     bad = tmp_path / "bad.pcd"
     bad.write_bytes(b"hello")
-    with pytest.raises(InputError, match="bad.pcd"):
+    with pytest.raises(InputError, match=r"bad.pcd is not a point cloud file RLS reads "
+                                         r"\(.pcd, .ply\): it starts with b'hello', not a PCD "
+                                         r"header or 'ply'"):
         read_cloud(bad)
+    for blob, said in ((b"", "it is empty"), (b" \n\t\n", "it holds nothing but white space")):
+        bad.write_bytes(blob)
+        with pytest.raises(InputError, match=f"bad.pcd .*: {said}$"):
+            read_cloud(bad)
     with pytest.raises(InputError, match="cannot read"):
         read_cloud(tmp_path / "missing.ply")
     truncated = tmp_path / "t.ply"

@@ -149,7 +149,10 @@ def readable_format(blob, where):
         if fmt.recognise(blob):
             return fmt
     kinds = ", ".join(dict.fromkeys(f.extension for f in readable))
-    raise InputError(f"{where} is not a point cloud file RLS reads ({kinds})")
+    first = bytes(blob[:200]).lstrip().split(b"\n")[0][:40]
+    seen = f"it starts with {first!r}, not a PCD header or 'ply'" if first else \
+        "it holds nothing but white space" if len(blob) else "it is empty"
+    raise InputError(f"{where} is not a point cloud file RLS reads ({kinds}): {seen}")
 
 
 __all__ = ["Cloud", "FORMATS", "OutputFormat", "cloud_records", "readable_format",
