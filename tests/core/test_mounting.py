@@ -2,6 +2,7 @@
 analytic directions, and every bad input refused with one ``SceneError``."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -59,6 +60,13 @@ def test_positions_parsed_or_refused():
     assert parse_position("1,-2.5,6") == (1.0, -2.5, 6.0)
     for bad in ("nan,0,1", "1,inf,2", "1,2", "1,2,3,4", "a,b,c", ""):
         with pytest.raises(SceneError, match="--at"):
+            parse_position(bad)
+    # Blender keeps a location in 32-bit floats: a value it would move by more than
+    # 1 mm is refused, one it holds within that (or exactly) is kept as given
+    assert parse_position("20000.5,-8000.0001,123456.789") == (20000.5, -8000.0001, 123456.789)
+    for bad, said in (("1,2,1e30", "would hold it as 1.0000000150474662e+30"),
+                      ("1e39,0,0", "cannot hold it"), ("16777217,0,0", "would hold it as 16777216.0, 1 m away")):
+        with pytest.raises(SceneError, match="--at: .* 32-bit floats, which " + re.escape(said)):
             parse_position(bad)
     assert check_name("é" * 127) == "é" * 127  # 254 bytes: Blender keeps it whole
     with pytest.raises(SceneError):

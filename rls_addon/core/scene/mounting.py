@@ -11,6 +11,7 @@ builds the same pose.
 
 import dataclasses
 import math
+import struct
 
 from ..errors import SceneError
 
@@ -39,7 +40,30 @@ def parse_position(text, option="--at"):
         raise SceneError(f"{option}: expected X,Y,Z in metres, got {text!r}")
     if not all(math.isfinite(v) for v in values):
         raise SceneError(f"{option}: every coordinate must be a finite number, got {text!r}")
+    for v in values:
+        kept = _as_float32(v)
+        if kept is None or abs(kept - v) > FLOAT32_TOLERANCE_M:
+            held = "cannot hold it" if kept is None else \
+                f"would hold it as {kept!r}, {abs(kept - v):.3g} m away (more than " \
+                f"{FLOAT32_TOLERANCE_M * 1e3:g} mm)"
+            raise SceneError(
+                f"{option}: {v!r} m: Blender keeps an object's location in 32-bit floats, "
+                f"which {held}; place the scene and its LiDARs nearer the world origin "
+                f"(got {text!r})")
     return values
+
+
+# how far a position may move when Blender stores it in 32-bit floats (its spacing
+# passes 1 mm at about 8 km from the origin; a value it holds exactly is always kept)
+FLOAT32_TOLERANCE_M = 1e-3
+
+
+def _as_float32(v):
+    """``v`` rounded to a 32-bit float, as Blender stores it; None beyond its range."""
+    try:
+        return struct.unpack("<f", struct.pack("<f", v))[0]
+    except OverflowError:
+        return None
 
 
 def check_name(name):
