@@ -13,7 +13,14 @@ from .common import cancelled, status_text
 LAST_RUN = {}
 
 
-def report_run(op, run, what="Scan"):
+# What a cancelled scan that wrote files has not written (``CloudWriter.finish``).
+SCAN_LATER = ("The run's table of objects (<scene>_instances.json) is written once every "
+              "frame is done")
+
+
+def report_run(op, run, what="Scan", later=SCAN_LATER):
+    """The reports of a run that ended; ``later``: what a cancelled run that wrote files
+    leaves unwritten (its run-level files), said after the cancel."""
     for w in run.warnings[:5]:
         op.report({"WARNING"}, w)
     if len(run.warnings) > 5:
@@ -27,6 +34,8 @@ def report_run(op, run, what="Scan"):
     if run.cancelled:
         op.report({"WARNING"}, f"{what} cancelled: {len(run.frames_done)} of {len(run.frames)} "
                                f"frames completed{where}")
+        if later and run.paths and getattr(run.writer, "per_scan", True):  # not a bag
+            op.report({"INFO"}, later)
         return {"CANCELLED"}
     if run.total == 1 and run.paths:
         where = f" to {run.paths[0]}"

@@ -58,6 +58,9 @@ def test_export_is_in_the_file_menu_and_runs_modal(scene, tmp_path):
     assert "1/4 done" in fake._job.status()
     assert Op.modal(fake, ctx, SimpleNamespace(type="ESC")) == {"CANCELLED"}
     assert LAST_RUN["cancelled"] and LAST_RUN["frames_done"] == [1]
-    assert ("WARNING", "Export cancelled: 1 of 4 frames completed, 1 files written") in {
-        (next(iter(k)), m) for k, m in reports}
+    said = {(next(iter(k)), m) for k, m in reports}
+    assert ("WARNING", "Export cancelled: 1 of 4 frames completed, 1 files written") in said
+    assert ("INFO", "The dataset's own files: the scenario's description (<scene>.rls.json) "
+                    "is written once every frame is done; export again with Resume ticked "
+                    "to finish") in said
     assert scene.frame_current == 1

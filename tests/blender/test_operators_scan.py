@@ -281,8 +281,11 @@ def test_modal_path_progress_and_esc(scene, tmp_path):
     assert "2/5 done" in fake._job.status()
     assert Op.modal(fake, ctx, SimpleNamespace(type="ESC")) == {"CANCELLED"}
     assert LAST_RUN["frames_done"] == [1, 2] and LAST_RUN["cancelled"]
-    assert ("WARNING", "Scan cancelled: 2 of 5 frames completed, 2 files written") in {
-        (next(iter(k)), m) for k, m in reports}
+    said = {(next(iter(k)), m) for k, m in reports}
+    assert ("WARNING", "Scan cancelled: 2 of 5 frames completed, 2 files written") in said
+    assert ("INFO", "The run's table of objects (<scene>_instances.json) is written once "
+                    "every frame is done") in said
+    assert not (tmp_path / f"{scene.name}_instances.json").exists()
     assert len(list(tmp_path.glob("*.pcd"))) == 2
     assert scene.frame_current == 1
 
