@@ -9,7 +9,7 @@ from ..core.output.datasets import LAYOUTS
 from ..core.errors import SceneError
 from ..core.scan.background_sweeps import BACKGROUND_SWEEPS
 from .distribute import add_arguments as add_cluster_arguments
-from .scan import _print_step, interrupted_at, open_scene, parse_frames
+from .scan import _print_step, interrupted_message, open_scene, parse_frames
 from .stderr import say
 
 
@@ -124,11 +124,7 @@ def run(args):
         # OPV2V's YAML files need every agent of a frame: pieces are whole frames.
         run_scan(args, job, scene_file(args), by_sensor=args.layout != "opv2v")
     except KeyboardInterrupt as exc:
-        what = ("the splits (ImageSets) and dataset.json are" if args.layout == "kitti"
-                else "the scenario's description (<scene>.rls.json) is")
-        say(f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-            f"partial was left; rerun with --resume to continue ({what} written once every "
-            "scan is done)")
+        say(interrupted_message(job))
         return interrupt_exit_code(exc)
     for notice in writer.notices:
         say(f"rls: notice: {notice}")

@@ -258,9 +258,10 @@ def interrupted_message(job):
     if job is not None and getattr(job.writer, "per_scan", True) is False:
         return (f"rls: interrupted{interrupted_at(job)}; a ROS 2 bag is written whole when "
                 "its run ends, so none was left (a bag cannot be resumed): run it again")
+    later = getattr(job.writer, "written_at_end", None) if job is not None else None
     return (f"rls: interrupted{interrupted_at(job)}; finished files are complete, nothing "
-            "partial was left; rerun with --resume to continue (the run's table of "
-            "objects, <scene>_instances.json, is written once every scan is done)")
+            f"partial was left; rerun with --resume to continue"
+            + (f" ({later} written once every scan is done)" if later else ""))
 
 
 def run(args):

@@ -119,11 +119,11 @@ class RLS_OT_export_dataset(ModalRun, bpy.types.Operator):
         return run
 
     def _report(self, run):
-        later = ("its splits (ImageSets) and dataset.json are" if self.layout == "kitti"
-                 else "the scenario's description (<scene>.rls.json) is")
+        later = getattr(self._writer, "written_at_end", None)
         result = report_run(self, run, what="Export",
-                            later=f"The dataset's own files: {later} written once every "
-                                  "frame is done; export again with Resume ticked to finish")
+                            later=later and f"The dataset's own files: {later} written once "
+                                            "every frame is done; export again with Resume "
+                                            "ticked to finish")
         for notice in getattr(self._writer, "notices", []):
             self.report({"INFO"}, notice)
         if result == {"FINISHED"}:

@@ -13,14 +13,10 @@ from .common import cancelled, status_text
 LAST_RUN = {}
 
 
-# What a cancelled scan that wrote files has not written (``CloudWriter.finish``).
-SCAN_LATER = ("The run's table of objects (<scene>_instances.json) is written once every "
-              "frame is done")
-
-
-def report_run(op, run, what="Scan", later=SCAN_LATER):
+def report_run(op, run, what="Scan", later=None):
     """The reports of a run that ended; ``later``: what a cancelled run that wrote files
-    leaves unwritten (its run-level files), said after the cancel."""
+    leaves unwritten, said after the cancel (default: its writer's run-level files,
+    ``written_at_end``)."""
     for w in run.warnings[:5]:
         op.report({"WARNING"}, w)
     if len(run.warnings) > 5:
@@ -34,8 +30,10 @@ def report_run(op, run, what="Scan", later=SCAN_LATER):
     if run.cancelled:
         op.report({"WARNING"}, f"{what} cancelled: {len(run.frames_done)} of {len(run.frames)} "
                                f"frames completed{where}")
-        if later and run.paths and getattr(run.writer, "per_scan", True):  # not a bag
-            op.report({"INFO"}, later)
+        files = getattr(run.writer, "written_at_end", None)  # none for a bag
+        if files and run.paths:
+            op.report({"INFO"}, later or f"{files[0].upper()}{files[1:]} written once every "
+                                         "frame is done")
         return {"CANCELLED"}
     if run.total == 1 and run.paths:
         where = f" to {run.paths[0]}"

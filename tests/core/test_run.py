@@ -302,10 +302,15 @@ def test_a_stopped_bag_run_does_not_promise_a_resume(tmp_path):
     line = interrupted_message(bag)
     assert line.startswith("rls: interrupted after 37 of 60 scans; a ROS 2 bag")
     assert "--resume to continue" not in line and "none was left" in line
-    files = SimpleNamespace(writer=None, index=3, total=9)
+    from rls_addon.core.output.io.writer import CloudWriter
+
+    files = SimpleNamespace(writer=CloudWriter("scene"), index=3, total=9, finished=True)
     assert interrupted_message(files).endswith(
-        "rerun with --resume to continue (the run's table of objects, "
-        "<scene>_instances.json, is written once every scan is done)")
+        "rerun with --resume to continue (the run's table of objects "
+        "(<scene>_instances.json) is written once every scan is done)")
+    # a scan that writes nothing (no writer) has no run-level files to speak of
+    nothing = SimpleNamespace(writer=None, index=3, total=9)
+    assert interrupted_message(nothing).endswith("rerun with --resume to continue")
 
 
 def test_a_run_whose_files_will_not_fit_stops_after_its_first_scan(tmp_path, monkeypatch):

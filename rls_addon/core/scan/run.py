@@ -71,6 +71,9 @@ STEP_PARTS = ("frame", "scene", "scan", "write")
 
 class Writer(Protocol):
     shardable: bool  # pieces of a run may write on several workers
+    # what ``finish`` writes, as a subject with its verb ("... is"), for the line of a
+    # run that stopped before it (optional: none said)
+    written_at_end: str
 
     def path(self, sensor: str, output, frame: int): ...
 

@@ -71,6 +71,7 @@ class KittiWriter:
 
     shardable = True
     works_out_later = True  # every write goes through ``WritesBehind.run`` (``behind.Later``)
+    written_at_end = "the splits (ImageSets) and dataset.json are"  # finish
 
     def __init__(self, root, scene_name, intensity_scale=1.0, points_format="npy", level=False,
                  min_points=1, split=None, overwrite=False, resume=False, background=False,

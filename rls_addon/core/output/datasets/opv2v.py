@@ -120,6 +120,7 @@ class Opv2vWriter:
     carriers  {sensor name: key of the vehicle it rides on} (vehicle agents only)"""
 
     shardable = True  # in pieces of whole frames
+    written_at_end = "the scenario's description (<scene>.rls.json) is"  # finish
 
     def __init__(self, root, scene_name, agents, carriers=None, overwrite=False, resume=False):
         self.root = Path(root)

@@ -87,6 +87,7 @@ class CloudWriter:
                kept (``existing``); others are replaced"""
 
     shardable = True  # a run's pieces may write on several workers
+    written_at_end = "the run's table of objects (<scene>_instances.json) is"  # finish
     # every write goes through ``WritesBehind.run``: a scan may leave values of its info
     # to be worked out there (``behind.Later``)
     works_out_later = True
