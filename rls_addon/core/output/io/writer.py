@@ -29,9 +29,9 @@ def _cloud_extensions():
 
 def _other_format_cloud(path):
     """The cloud beside ``path`` that its sidecar describes when that is a cloud of
-    another format (an earlier run's, under the same name), else None."""
-    got = [p for p in _described_leftovers(path, preview=True)
-           if p.suffix.lower() in _cloud_extensions()]
+    another format (an earlier run's, under the same name), else None (``preview``:
+    the picture is not asked about, so that cloud is all it can give)."""
+    got = _described_leftovers(path, preview=True)
     return got[0] if got else None
 
 
