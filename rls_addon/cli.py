@@ -10,7 +10,8 @@ import threading
 from .commands import load_commands
 from .commands.stderr import say
 from .core.errors import RLSError, interrupt_exit_code
-from .core.stop_signals import deliver, held, raise_noted, stop_raised, stop_signals
+from .core.stop_signals import (deliver, held, raise_dropped_stops, raise_noted, stop_raised,
+                                stop_signals)
 from .version import VERSION
 
 
@@ -51,6 +52,8 @@ def main(argv=None, prepare_blender=None):
     commands that open a scene call it (``args.prepare_blender``)."""
     _command["ended"] = False
     previous = _stop_on_signals()
+    unraisable = sys.unraisablehook
+    sys.unraisablehook = raise_dropped_stops(unraisable)
     try:
         raise_noted()  # a stop signal that came while Python loaded RLS stops it here
         with held():  # the commands' modules (numpy, ...) are imported whole
@@ -78,6 +81,7 @@ def main(argv=None, prepare_blender=None):
         _command["ended"] = True
         for signum, handler in previous.items():
             signal.signal(signum, handler)
+        sys.unraisablehook = unraisable
 
 
 STOP_SIGNALS = stop_signals()

@@ -13,10 +13,16 @@ command starts (``raise_noted``), so a stop during the imports ends like a stop 
 Only Python's own start comes before that first line (about 30 ms on this project's
 machine): there the signal's default action ends the process. Once the command has
 ended, stop signals are ignored while Python shuts down (``ignore_after_end``).
+
+Python drops an exception raised where it cannot pass one on (a weakref callback such as
+its import system's module-lock clean-up, a ``__del__``): it prints "Exception ignored
+in ..." and goes on. A stop raised there would be lost and the run would go on to its
+end; ``raise_dropped_stops`` raises it again at the main thread's next Python call.
 """
 
 import contextlib
 import signal
+import sys
 import threading
 
 from .errors import Interrupted
@@ -95,6 +101,29 @@ def deliver(signum):
 def _raise(signum):
     _state["raised"] = int(signum)
     raise Interrupted(signum)
+
+
+def raise_dropped_stops(previous):
+    """A ``sys.unraisablehook`` for while the command line takes the stop signals:
+    ``Interrupted`` dropped in the main thread is raised again at its next Python call
+    (where a step is held, at the step's end), silently; anything else goes to
+    ``previous``. A profiler set with ``sys.setprofile`` misses the events between the
+    drop and that call."""
+    def hook(unraisable):
+        signum = _state["raised"]
+        if (not isinstance(unraisable.exc_value, Interrupted) or signum is None
+                or threading.current_thread() is not threading.main_thread()):
+            previous(unraisable)
+            return
+        before = sys.getprofile()
+
+        def at_next_call(frame, event, arg):
+            if event == "call":
+                sys.setprofile(before)
+                deliver(signum)
+
+        sys.setprofile(at_next_call)
+    return hook
 
 
 def stop_raised():
