@@ -185,6 +185,7 @@ WRITE = "files written (or handed to the writer's thread)"
 writer.write = timed_write
 rows = []
 run.step()  # the first frame builds what the run keeps
+cpu0, main0 = time.process_time(), time.thread_time()
 while True:
     spent.clear()
     t = time.perf_counter()
@@ -195,8 +196,12 @@ while True:
         break
 t = time.perf_counter()
 run.finish()
+# CPU of the steps by thread (the last step's files written by finish included)
+cpu, main = time.process_time() - cpu0, time.thread_time() - main0
 print(json.dumps({"rows": rows, "finish_s": time.perf_counter() - t,
-                  "stages": found + [WRITE]}))
+                  "stages": found + [WRITE],
+                  "cpu_s": {"scan's thread": main / len(rows),
+                            "other threads": (cpu - main) / len(rows)}}))
 """
 
 CAST = r"""
@@ -321,7 +326,7 @@ def measure(quick=False, repeat=None):
                 "cpu_per_frame_s": statistics.median(cpus[name]), "cast_s": cast,
                 "casts_s": [c["cast_s"] for c in casts[name]], "rays": casts[name][0]["rays"],
                 "triangles": casts[name][0]["triangles"], "ratio": wall / cast,
-                "stage_s": stages,
+                "stage_s": stages, "thread_cpu_s": got["cpu_s"],
                 "step_s": statistics.median(r["frame"] for r in rows)}
     out["loadavg_end"] = os.getloadavg()[0]
     return out
@@ -397,14 +402,80 @@ def section(r):
             for c in r["cases"].values()) + " |")
     lines.append("| *step* | " + " | ".join(ms(c["step_s"]) for c in r["cases"].values())
                  + " |")
+    for thread in THREADS:
+        lines.append(f"| CPU of a step: {thread} | " + " | ".join(
+            ms(c["thread_cpu_s"][thread]) if "thread_cpu_s" in c else "-"
+            for c in r["cases"].values()) + " |")
     lines += ["", f"Load average at the start / end: {r['loadavg_start']:.2f} / "
-                  f"{r['loadavg_end']:.2f}.", ""]
+                  f"{r['loadavg_end']:.2f}.", "",
+              f"![moving sensors against their casts]({CHART})", "",
+              "Left: a frame against its cast and the target. Right: a frame's CPU by "
+              "thread in the breakdown's run (the scan's thread: Blender, the sweep and "
+              "the per-ray work in Python and numpy; the other threads: the cast's "
+              "workers, the compiled stages' second shares and the writer's thread with "
+              "the ground-truth boxes and files) against what the target leaves a frame "
+              "on this machine's cores used in full (the target's wall time times the "
+              "cores).", ""]
     return lines
 
 
+THREADS = ("scan's thread", "other threads")
+CHART = "bench_drive_costs.png"
+NAMES = {"traffic_dataset": "traffic, dataset", "traffic_scan": "traffic, scan",
+         "sky_scan": "open sky, scan", "parked_dataset": "72 parked cars, dataset"}
+
+
+def chart(r, path):
+    """Two panels: each drive's frame against its cast (and the target), and a frame's
+    CPU by thread against the CPU the target leaves on this machine's cores."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cases = list(r["cases"].items())
+    cores = os.cpu_count() or 1
+    y = list(range(len(cases)))[::-1]
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.4), sharey=True)
+    cast = [c["cast_s"] * 1e3 for _, c in cases]
+    frame = [c["per_frame_s"] * 1e3 for _, c in cases]
+    ax[0].barh([v + 0.2 for v in y], frame, 0.4, color="C0", label="a frame (per frame)")
+    ax[0].barh([v - 0.2 for v in y], cast, 0.4, color="0.6", label="its cast (Open3D)")
+    for v, (name, c), f in zip(y, cases, frame):
+        ax[0].text(f, v + 0.2, f" {c['ratio']:.1f}x", va="center", fontsize=8)
+        if name in TARGETS:
+            ax[0].plot([TARGETS[name] * c["cast_s"] * 1e3] * 2, [v - 0.45, v + 0.45], "r--",
+                       label="target" if v == y[0] else None)
+    ax[0].set_xlim(0, max(frame) * 1.15)  # room for the ratios
+    ax[0].set_xlabel("ms a frame")
+    ax[0].set_title("A frame against its cast")
+    left = [0.0] * len(cases)
+    for thread, colour in zip(THREADS, ("C0", "C1")):
+        got = [c.get("thread_cpu_s", {}).get(thread, 0.0) * 1e3 for _, c in cases]
+        ax[1].barh(y, got, 0.6, left=left, color=colour, label=f"CPU: {thread}")
+        left = [a + b for a, b in zip(left, got)]
+    for v, (name, c) in zip(y, cases):
+        if name in TARGETS:
+            budget = TARGETS[name] * c["cast_s"] * 1e3 * cores
+            ax[1].plot([budget] * 2, [v - 0.45, v + 0.45], "r--",
+                       label=f"the target's wall time x {cores} cores" if v == y[0] else None)
+    ax[1].set_xlabel("ms of CPU a frame")
+    ax[1].set_title("A frame's CPU against what the target leaves")
+    for a in ax:  # under the panels: the bars of the longest drive reach the right
+        a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8,
+                 frameon=False)
+    ax[0].set_yticks(y, [NAMES.get(n, n) for n, _ in cases])
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def main(argv=None):
-    return standalone.main(__doc__, measure, section, argv,
-                           quick_help="21 frames of each drive, one round")
+    numbers = standalone.main(__doc__, measure, section, argv,
+                              quick_help="21 frames of each drive, one round")
+    chart(numbers, ROOT / "docs" / CHART)
+    return numbers
 
 
 if __name__ == "__main__":

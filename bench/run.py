@@ -62,6 +62,10 @@ def main():
     charts["disks"] = "bench_infranuc_disks.png"
     engine_costs.chart_motion(res["costs"]["motion"]["embree"], out / charts["motion"])
     engine_costs.chart_disks(res["costs"]["disks"], out / charts["disks"])
+    if res["costs"].get("drive_costs"):
+        from bench import drive_costs
+
+        drive_costs.chart(res["costs"]["drive_costs"], out / drive_costs.CHART)
     if res["costs"].get("fog"):
         from bench import realism_chart
 
