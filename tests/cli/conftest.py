@@ -50,9 +50,10 @@ def build_blend(folder, name, script, *extra):
     return blend
 
 
-def rls(*args, cwd=None, timeout=600):
-    """Run ``python -m rls_addon ARGS``; return the CompletedProcess (text mode)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+def rls(*args, cwd=None, timeout=600, env=None):
+    """Run ``python -m rls_addon ARGS`` (``env``: variables set beside ours); return the
+    CompletedProcess (text mode)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT), **(env or {}))
     return subprocess.run([sys.executable, "-m", "rls_addon", *map(str, args)], cwd=cwd or ROOT,
                           env=env, capture_output=True, text=True, timeout=timeout)
 

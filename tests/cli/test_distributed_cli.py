@@ -66,10 +66,17 @@ def no_leftovers(folder):
     assert pcd == side  # every cloud has its sidecar, every sidecar its cloud
 
 
-def test_sharded_scan_writes_the_bytes_of_a_serial_run(scene, serial, tmp_path):
+def test_sharded_scan_writes_the_bytes_of_a_serial_run(scene, serial, tmp_path,
+                                                      tmp_path_factory):
     out, summary = serial
-    proc = rls("scan", scene, "--frames", "1-16", "--out", tmp_path, "--workers", "2")
+    temp = tmp_path_factory.mktemp("tmpdir")  # the run's temporary directory
+    proc = rls("scan", scene, "--frames", "1-16", "--out", tmp_path, "--workers", "2",
+               env={"TMPDIR": str(temp)})
     assert proc.returncode == 0, proc.stderr
+    # Blender's session folders, the workers' too (a nanny ends its worker without
+    # Blender's own clean-up): none left behind
+    left = [p.name for p in temp.iterdir() if p.name.startswith(("blender_", "rls-workers-"))]
+    assert not left, left
     assert "Dask worker(s) (local cluster)" in proc.stderr and "left" in proc.stderr
     got = json.loads(proc.stdout)
     want = clouds(out)
@@ -101,16 +108,20 @@ def test_sharded_study_gives_the_tables_of_a_serial_study(scene, tmp_path):
 
 
 @pytest.fixture
-def cluster(tmp_path):
-    """A LocalCluster of 2 worker processes (with nannies that restart a killed one)."""
+def cluster(tmp_path_factory):
+    """A LocalCluster of 2 worker processes (with nannies that restart a killed one),
+    their temporary directory one of the test's (Blender's session folders of workers
+    that are killed stay there)."""
     from distributed import Client, LocalCluster
 
     c = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                      dashboard_address=None, silence_logs=50,
-                     env={"PYTHONPATH": str(ROOT), "RLS_THREADS": "1"})
+                     env={"PYTHONPATH": str(ROOT), "RLS_THREADS": "1",
+                          "TMPDIR": str(tmp_path_factory.mktemp("workers-tmp"))})
     client = Client(c)
     yield c, client
     client.close()
+    c.close()
     c.close()
 
 
@@ -136,8 +147,10 @@ def test_a_killed_worker_loses_nothing(scene, serial, tmp_path, cluster):
     no_leftovers(tmp_path)
 
 
-def test_resume_finishes_a_killed_run(scene, serial, tmp_path):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+def test_resume_finishes_a_killed_run(scene, serial, tmp_path, tmp_path_factory):
+    # the run's temporary directory one of the test's: a run killed outright cannot
+    # remove its workers' (nor Blender its own session folder)
+    env = dict(os.environ, PYTHONPATH=str(ROOT), TMPDIR=str(tmp_path_factory.mktemp("tmpdir")))
     proc = subprocess.Popen([sys.executable, "-m", "rls_addon", "scan", str(scene), "--frames",
                              "1-16", "--out", str(tmp_path), "--workers", "2"],
                             cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -162,7 +175,8 @@ def test_resume_finishes_a_killed_run(scene, serial, tmp_path):
     no_leftovers(tmp_path)
 
 
-def test_a_scene_a_worker_cannot_open_ends_the_run_with_one_line(scene, tmp_path):
+def test_a_scene_a_worker_cannot_open_ends_the_run_with_one_line(scene, tmp_path,
+                                                                tmp_path_factory):
     """Workers that cannot open the scene (here: a preload makes opening fail, as a
     scene missing from a worker's file system does) end the run at once."""
     from distributed import LocalCluster
@@ -177,7 +191,8 @@ def test_a_scene_a_worker_cannot_open_ends_the_run_with_one_line(scene, tmp_path
         "    w._open = refuse\n")
     c = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                      dashboard_address=None, silence_logs=50, preload=[str(preload)],
-                     env={"PYTHONPATH": str(ROOT)})
+                     env={"PYTHONPATH": str(ROOT),
+                          "TMPDIR": str(tmp_path_factory.mktemp("workers-tmp"))})
     try:
         proc = rls("scan", scene, "--frames", "1-8", "--out", tmp_path / "o", "--scheduler",
                    c.scheduler_address, timeout=120)

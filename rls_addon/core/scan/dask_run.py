@@ -17,6 +17,8 @@ within the cores.
 import contextlib
 import math
 import os
+import shutil
+import tempfile
 
 from ..errors import RLSError, SettingsError
 
@@ -224,6 +226,12 @@ def cluster_client(workers, scheduler=None, threads=None):
 
     from ..stop_signals import held
 
+    # Blender keeps a session folder in the temporary directory (``bpy.app.tempdir``)
+    # and removes it when its process ends normally; a nanny ends its worker process
+    # without that, which left an empty ``blender_*`` folder in the system's temporary
+    # directory per worker per run. The workers' temporary directory is this cluster's
+    # own, removed once the cluster has closed (or the run is stopped).
+    env["TMPDIR"] = scratch = tempfile.mkdtemp(prefix="rls-workers-")
     cluster = client = None
     try:
         # a stop signal waits for the cluster to be up (cut mid-start, its nannies
@@ -243,6 +251,7 @@ def cluster_client(workers, scheduler=None, threads=None):
                 client.close()
             if cluster is not None:
                 cluster.close()
+            shutil.rmtree(scratch, ignore_errors=True)
 
 
 def run_tasks(client, calls, on_result, key_prefix="rls"):
