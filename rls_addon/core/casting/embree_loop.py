@@ -162,4 +162,13 @@ class _Batch:
             self._inputs = None
 
     def __del__(self):
-        self._wait()
+        try:
+            self._wait()
+        except BaseException:
+            # A stop signal taken as the wait began (a handler may raise at any call,
+            # this one included): the workers are still joined before the arrays they
+            # read and write go with this batch, then the stop goes on (Python drops
+            # an exception of __del__; the command line raises the stop again, see
+            # core.stop_signals.raise_dropped_stops)
+            self._wait()
+            raise
