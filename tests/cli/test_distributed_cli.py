@@ -122,7 +122,6 @@ def cluster(tmp_path_factory):
     yield c, client
     client.close()
     c.close()
-    c.close()
 
 
 def test_a_killed_worker_loses_nothing(scene, serial, tmp_path, cluster):
