@@ -82,6 +82,15 @@ def main(argv=None, prepare_blender=None):
         for signum, handler in previous.items():
             signal.signal(signum, handler)
         sys.unraisablehook = unraisable
+        _casts_joined()
+
+
+def _casts_joined():
+    """No cast left running on the compiled loop's threads once a command has ended
+    (``embree_loop.wait_for_casts``; nothing to do where no cast was made)."""
+    loop = sys.modules.get(f"{__package__}.core.casting.embree_loop")
+    if loop is not None:
+        loop.wait_for_casts()
 
 
 STOP_SIGNALS = stop_signals()

@@ -181,3 +181,22 @@ def test_other_dropped_exceptions_are_reported_as_before(handlers, monkeypatch):
     monkeypatch.setattr(sys, "unraisablehook", dropped.append)
     assert _command_line_running(monkeypatch, command) == 0
     assert [str(d.exc_value) for d in dropped] == ["not a stop"]
+
+
+def test_a_command_ends_with_no_cast_left_running(handlers, monkeypatch):
+    """A stopped run's cast under way goes, and waits, with the run's frames; held in a
+    reference cycle (a traceback's frames hold their own exception) it could outlive the
+    command, its threads still casting while the process tears Embree down. The command
+    line waits for every cast left when a command ends."""
+    from rls_addon.core.casting import embree_loop
+
+    finished, kept = [], []
+
+    def command(args):
+        kept.append(embree_loop._Batch(finished.append, 9, ("the rays",), ("the hits",)))
+        raise Interrupted(15)  # stopped with the cast under way
+
+    assert _command_line_running(monkeypatch, command) == 143
+    assert finished == [9]  # joined before main returned, though still referenced
+    kept[0]()  # collected later: nothing left to wait for
+    assert finished == [9]

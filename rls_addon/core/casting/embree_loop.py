@@ -5,6 +5,7 @@ its own threads without the GIL, refine hits in float64 and re-check misses
 
 import ctypes
 import os
+import weakref
 
 import numpy as np
 
@@ -142,6 +143,22 @@ def _launch(scene, triangle_count, origins, directions, max_dist, planes, order=
                   outputs)
 
 
+# The casts started and not yet collected: ``wait_for_casts`` joins what is left of
+# them when a command ends.
+_UNDER_WAY = weakref.WeakSet()
+
+
+def wait_for_casts():
+    """Wait for every cast still running on the compiled loop's threads. A stopped run
+    drops its cast under way, which waits as it goes (``_Batch.__del__``), but a batch
+    kept in a reference cycle (a traceback's frames hold their own exception) goes
+    only when the garbage collector finds it, possibly not before the process exits
+    and Embree's library is torn down under the running threads. The command line
+    calls this when a command ends."""
+    for batch in list(_UNDER_WAY):
+        batch._wait()
+
+
 class _Batch:
     """A cast running on the compiled loop's threads. Calling it waits and returns the
     results; the arrays the workers read and write stay referenced until then, and a
@@ -150,6 +167,7 @@ class _Batch:
     def __init__(self, finish, handle, inputs, outputs):
         self._finish, self._handle = finish, handle
         self._inputs, self._outputs = inputs, outputs
+        _UNDER_WAY.add(self)
 
     def __call__(self):
         self._wait()
