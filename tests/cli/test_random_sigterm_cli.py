@@ -42,8 +42,15 @@ def files(folder):
             for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
+# A run that crashes (SIGSEGV, SIGABRT) writes each thread's Python stack to its stderr,
+# whose end the assertions carry (a stopped dataset crashed once as it wound down, in CI
+# under load, and left no more than its exit code to go on). SIGTERM is not among the
+# signals the fault handler takes.
+ENV = dict(PYTHONPATH=str(ROOT), PYTHONFAULTHANDLER="1")
+
+
 def timed_run(args, timeout=600):
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ, **ENV)
     t = time.perf_counter()
     proc = subprocess.run([sys.executable, "-m", "rls_addon", *args], cwd=ROOT, env=env,
                           capture_output=True, text=True, timeout=timeout)
@@ -53,7 +60,7 @@ def timed_run(args, timeout=600):
 def stopped_run(args, delay):
     """(exit code, stderr, seconds from the start to the exit) of a run sent SIGTERM
     ``delay`` seconds after its start (none when it ended before)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ, **ENV)
     t = time.perf_counter()
     proc = subprocess.Popen([sys.executable, "-m", "rls_addon", *args], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
