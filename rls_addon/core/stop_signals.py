@@ -17,10 +17,12 @@ ended, stop signals are ignored while Python shuts down (``ignore_after_end``).
 Python drops an exception raised where it cannot pass one on (a weakref callback such as
 its import system's module-lock clean-up, a ``__del__``): it prints "Exception ignored
 in ..." and goes on. A stop raised there would be lost and the run would go on to its
-end; ``raise_dropped_stops`` raises it again at the main thread's next Python call.
+end; ``raise_dropped_stops`` raises it again as the main thread's next call of an RLS
+function that is not a finalizer begins.
 """
 
 import contextlib
+import os
 import signal
 import sys
 import threading
@@ -103,12 +105,26 @@ def _raise(signum):
     raise Interrupted(signum)
 
 
+_PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _may_take_stop(code):
+    """Whether a stop may be raised as a call of ``code`` begins: a function of RLS's
+    own (the run calls them all the time), not a finalizer. A finalizer (``__del__``,
+    a weakref callback) is called where Python drops what it raises, and what it
+    guards would go undone: a cast's ``__del__`` joins the threads that write into the
+    arrays going with it (a stopped dataset crashed with SIGSEGV when the stop was
+    raised again there)."""
+    return (code.co_name != "__del__"
+            and os.path.abspath(code.co_filename).startswith(_PACKAGE + os.sep))
+
+
 def raise_dropped_stops(previous):
     """A ``sys.unraisablehook`` for while the command line takes the stop signals:
-    ``Interrupted`` dropped in the main thread is raised again at its next Python call
-    (where a step is held, at the step's end), silently; anything else goes to
-    ``previous``. A profiler set with ``sys.setprofile`` misses the events between the
-    drop and that call."""
+    ``Interrupted`` dropped in the main thread is raised again, silently, as the next
+    call of an RLS function that is not a finalizer begins (``_may_take_stop``; where
+    a step is held, at the step's end); anything else goes to ``previous``. A profiler
+    set with ``sys.setprofile`` misses the events between the drop and that call."""
     def hook(unraisable):
         signum = _state["raised"]
         if (not isinstance(unraisable.exc_value, Interrupted) or signum is None
@@ -118,7 +134,7 @@ def raise_dropped_stops(previous):
         before = sys.getprofile()
 
         def at_next_call(frame, event, arg):
-            if event == "call":
+            if event == "call" and _may_take_stop(frame.f_code):
                 sys.setprofile(before)
                 deliver(signum)
 

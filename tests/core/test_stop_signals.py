@@ -145,26 +145,36 @@ def test_a_stop_python_drops_is_raised_again_at_the_next_call(handlers, monkeypa
     """A stop signal that lands in a weakref callback (the import system's module-lock
     clean-up, seen under load in the start-up signal test) raised ``Interrupted``
     there; Python dropped it with an "Exception ignored" traceback and the run went on
-    to its end with exit 0. It is raised again at the main thread's next Python call,
-    and nothing is printed for the drop."""
+    to its end with exit 0. It is raised again as the next call of an RLS function that
+    is not a finalizer begins, and nothing is printed for the drop. A finalizer of
+    RLS's called meanwhile runs whole: a cast dropped then still joins its threads
+    (raised at its ``__del__``, the stop left them writing into freed arrays: a
+    SIGSEGV in CI)."""
     import signal
     import sys
 
-    steps, dropped = [], []
+    from rls_addon.core.casting import embree_loop
 
-    def step():
-        steps.append("next step")
+    steps, dropped, joined = [], [], []
+
+    def step():  # not RLS's: a library's code, say
+        steps.append("a call outside RLS")
 
     def command(args):
+        batch = embree_loop._Batch(joined.append, 5, ("the rays",), ("the hits",))
         thing, ref = _dropping(signal.SIGHUP)
         del thing  # the callback takes the signal; its Interrupted is dropped
         steps.append("went on")  # no Python call yet
         step()
+        del batch  # RLS's finalizer: not where the stop is raised
+        steps.append("finalized")
+        stop_signals.stop_signals()  # the run's next step: RLS's
         steps.append("ran to the end")
 
     monkeypatch.setattr(sys, "unraisablehook", dropped.append)
     assert _command_line_running(monkeypatch, command) == 129
-    assert steps == ["went on"] and dropped == []
+    assert steps == ["went on", "a call outside RLS", "finalized"] and dropped == []
+    assert joined == [5]
     assert capsys.readouterr().err.startswith("rls: interrupted")
     assert sys.unraisablehook == dropped.append and sys.getprofile() is None
 
