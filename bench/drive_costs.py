@@ -31,7 +31,10 @@ its own, once per round.
 
 The breakdown: the same frames run in one process through the command's own
 ``ScanRun`` (``commands.dataset.dataset_run``, ``commands.scan.scan_run``), each stage
-timed where the core calls it (``STAGES``); medians per frame.
+timed where the core calls it (``STAGES``); medians per frame. Then the same frames
+twice more in that process: once keeping the result of every cast the run makes
+(``World.start``), once with each cast given back at once from what was kept (the files
+both write compared, byte for byte): the CPU a frame costs besides its casts.
 
 Targets: the traffic drive with boxes <= 3x its cast, the open-sky drive <= 2x.
 
@@ -165,15 +168,19 @@ for module, path, label in stages:
 argv = [command, blend, "--frames", frames, "--out", out, "--workers", "1", "--overwrite"]
 if command == "dataset":
     argv += ["--layout", "kitti"]
-args = build_parser().parse_args(argv)
-args.prepare_blender = rls_addon.ensure_registered
-if command == "dataset":
-    from rls_addon.commands.dataset import dataset_run
-    run, writer, _ = dataset_run(args)  # (the background sweeps: none for a moving LiDAR)
-else:
+
+def start_run():
+    args = build_parser().parse_args(argv)
+    args.prepare_blender = rls_addon.ensure_registered
+    if command == "dataset":
+        from rls_addon.commands.dataset import dataset_run
+        run, writer, _ = dataset_run(args)  # (the background sweeps: none for a moving LiDAR)
+        return run, writer
     from rls_addon.commands.scan import scan_run
     run = scan_run(args)
-    writer = run.writer
+    return run, run.writer
+
+run, writer = start_run()
 write = writer.write
 def timed_write(*a, **k):
     t = time.perf_counter()
@@ -198,10 +205,54 @@ t = time.perf_counter()
 run.finish()
 # CPU of the steps by thread (the last step's files written by finish included)
 cpu, main = time.process_time() - cpu0, time.thread_time() - main0
-print(json.dumps({"rows": rows, "finish_s": time.perf_counter() - t,
+finish_s = time.perf_counter() - t
+
+# The same frames again, twice: once keeping every cast's result (World.start, in the
+# order the run asks for them), then once with each cast given back at once from what
+# was kept: the CPU of everything a frame does but its casts.
+from rls_addon.core.world import world as world_module
+import numpy as np
+# A driving sensor's step starts its cast before it collects the previous frame's, so
+# each result is kept in the slot of its start. The files written both times are
+# compared: the run without casts must write what the run with them wrote.
+import hashlib, pathlib
+cast_start, kept = world_module.World.start, []
+def keeping(self, *a, **k):
+    finish = cast_start(self, *a, **k)
+    slot = len(kept)
+    kept.append(None)
+    def kept_finish():
+        got = finish()
+        kept[slot] = tuple(np.copy(x) for x in got)
+        return got
+    return kept_finish
+def replaying(self, *a, **k):
+    got = kept.pop(0)
+    return lambda: tuple(np.copy(x) for x in got)
+def written():
+    return {str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(pathlib.Path(out).rglob("*")) if p.is_file()}
+cpu_rest, files = None, []
+for hook in (keeping, replaying):
+    world_module.World.start = hook
+    run, _ = start_run()
+    run.step()
+    cpu0, steps = time.process_time(), 0
+    while True:
+        steps += 1
+        if not run.step():
+            break
+    run.finish()
+    cpu_rest = (time.process_time() - cpu0) / steps
+    files.append(written())
+world_module.World.start = cast_start
+same = files[0] == files[1]
+print(json.dumps({"rows": rows, "finish_s": finish_s,
                   "stages": found + [WRITE],
                   "cpu_s": {"scan's thread": main / len(rows),
-                            "other threads": (cpu - main) / len(rows)}}))
+                            "other threads": (cpu - main) / len(rows)},
+                  "cpu_without_casts_s": cpu_rest, "casts_left": len(kept),
+                  "replay_same": same}))
 """
 
 CAST = r"""
@@ -315,6 +366,9 @@ def measure(quick=False, repeat=None):
                                      tmp / f"{name}-stages",
                                      json.dumps(STAGES)).strip().splitlines()[-1])
             rows = got["rows"]
+            if got["casts_left"] or not got["replay_same"]:
+                raise RuntimeError(f"bench drive_costs: {name}'s run with its casts given "
+                                   "back did not write what the run with them wrote")
             stages = {label: statistics.median(r.get(label, 0.0) for r in rows)
                       for label in got["stages"]}
             wall = statistics.median(owns[name])
@@ -327,6 +381,7 @@ def measure(quick=False, repeat=None):
                 "casts_s": [c["cast_s"] for c in casts[name]], "rays": casts[name][0]["rays"],
                 "triangles": casts[name][0]["triangles"], "ratio": wall / cast,
                 "stage_s": stages, "thread_cpu_s": got["cpu_s"],
+                "cpu_without_casts_s": got["cpu_without_casts_s"],
                 "step_s": statistics.median(r["frame"] for r in rows)}
     out["loadavg_end"] = os.getloadavg()[0]
     return out
@@ -406,16 +461,25 @@ def section(r):
         lines.append(f"| CPU of a step: {thread} | " + " | ".join(
             ms(c["thread_cpu_s"][thread]) if "thread_cpu_s" in c else "-"
             for c in r["cases"].values()) + " |")
+    lines.append("| CPU of a step without its casts (given back at once) | " + " | ".join(
+        ms(c["cpu_without_casts_s"]) if "cpu_without_casts_s" in c else "-"
+        for c in r["cases"].values()) + " |")
     lines += ["", f"Load average at the start / end: {r['loadavg_start']:.2f} / "
                   f"{r['loadavg_end']:.2f}.", "",
               f"![moving sensors against their casts]({CHART})", "",
-              "Left: a frame against its cast and the target. Right: a frame's CPU by "
-              "thread in the breakdown's run (the scan's thread: Blender, the sweep and "
-              "the per-ray work in Python and numpy; the other threads: the cast's "
+              "*CPU of a step by thread*: the scan's thread (Blender, the sweep and the "
+              "per-ray work in Python and numpy) and the other threads (the cast's "
               "workers, the compiled stages' second shares and the writer's thread with "
-              "the ground-truth boxes and files) against what the target leaves a frame "
-              "on this machine's cores used in full (the target's wall time times the "
-              "cores).", ""]
+              "the ground-truth boxes and files). *Without its casts*: the same frames run "
+              "twice more in the same process, first keeping the result of every cast "
+              "the run makes (`World.start`: the frame's rays and its ghosts' bounces), "
+              "then with each cast given back at once from those results; the CPU of "
+              "that last run per step is what a frame costs besides its casts.", "",
+              "Left: a frame against its cast and the target. Right: a frame's CPU in the "
+              "breakdown's run, split into its casts (all threads' CPU less the run "
+              "without casts) and everything else, against what the target leaves a "
+              "frame on this machine's cores used in full (the target's wall time times "
+              "the cores).", ""]
     return lines
 
 
@@ -449,18 +513,18 @@ def chart(r, path):
     ax[0].set_xlim(0, max(frame) * 1.15)  # room for the ratios
     ax[0].set_xlabel("ms a frame")
     ax[0].set_title("A frame against its cast")
-    left = [0.0] * len(cases)
-    for thread, colour in zip(THREADS, ("C0", "C1")):
-        got = [c.get("thread_cpu_s", {}).get(thread, 0.0) * 1e3 for _, c in cases]
-        ax[1].barh(y, got, 0.6, left=left, color=colour, label=f"CPU: {thread}")
-        left = [a + b for a, b in zip(left, got)]
+    total = [sum(c.get("thread_cpu_s", {}).values()) * 1e3 for _, c in cases]
+    rest = [c.get("cpu_without_casts_s", 0.0) * 1e3 for _, c in cases]
+    ax[1].barh(y, rest, 0.6, color="C0", label="everything but the casts")
+    ax[1].barh(y, [max(t - o, 0.0) for t, o in zip(total, rest)], 0.6, left=rest,
+               color="0.6", label="the casts (ours, each ray at its own time)")
     for v, (name, c) in zip(y, cases):
         if name in TARGETS:
             budget = TARGETS[name] * c["cast_s"] * 1e3 * cores
             ax[1].plot([budget] * 2, [v - 0.45, v + 0.45], "r--",
                        label=f"the target's wall time x {cores} cores" if v == y[0] else None)
     ax[1].set_xlabel("ms of CPU a frame")
-    ax[1].set_title("A frame's CPU against what the target leaves")
+    ax[1].set_title("A frame's CPU: the casts and the rest")
     for a in ax:  # under the panels: the bars of the longest drive reach the right
         a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8,
                  frameon=False)
