@@ -34,7 +34,10 @@ The breakdown: the same frames run in one process through the command's own
 timed where the core calls it (``STAGES``); medians per frame. Then the same frames
 twice more in that process: once keeping the result of every cast the run makes
 (``World.start``), once with each cast given back at once from what was kept (the files
-both write compared, byte for byte): the CPU a frame costs besides its casts.
+both write compared, byte for byte): the CPU a frame costs besides its casts. Last, our
+own cast of the middle frame (its rays each at its own firing time, into that sweep's
+static scene and moving instances) repeated alone, median of 25, reported beside
+Open3D's.
 
 Targets: the traffic drive with boxes <= 3x its cast, the open-sky drive <= 2x.
 
@@ -217,8 +220,10 @@ import numpy as np
 # compared: the run without casts must write what the run with them wrote.
 import hashlib, pathlib
 cast_start, kept = world_module.World.start, []
+sizes = []  # the rays of every cast, in the order of their starts
 def keeping(self, *a, **k):
     finish = cast_start(self, *a, **k)
+    sizes.append(len(a[1]))
     slot = len(kept)
     kept.append(None)
     def kept_finish():
@@ -227,8 +232,8 @@ def keeping(self, *a, **k):
         return got
     return kept_finish
 def replaying(self, *a, **k):
-    got = kept.pop(0)
-    return lambda: tuple(np.copy(x) for x in got)
+    got = kept.pop(0)  # each kept result is given once: the run may change it
+    return lambda: got
 def written():
     return {str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
             for p in sorted(pathlib.Path(out).rglob("*")) if p.is_file()}
@@ -247,7 +252,34 @@ for hook in (keeping, replaying):
     files.append(written())
 world_module.World.start = cast_start
 same = files[0] == files[1]
+# Our own cast of the middle frame alone (the frame's rays, each at its own time, into
+# that sweep's world: the static scene and the moving instances), median of 25: what
+# the frame's cast costs here, beside Open3D's cast of the scene frozen at that frame.
+# The frames' casts are those with the most rays (the others are ghosts' bounces); a
+# fourth run takes the middle one's world and rays as it starts it.
+frames_cast = [j for j, n in enumerate(sizes) if n == max(sizes)]
+chosen, call, count = frames_cast[len(frames_cast) // 2], [], [0]
+def capturing(self, *a, **k):
+    if count[0] == chosen:
+        call.append((self, a, dict(k, reuse=False)))
+    count[0] += 1
+    return cast_start(self, *a, **k)
+world_module.World.start = capturing
+run, _ = start_run()
+while run.step():
+    pass
+run.finish()
+world_module.World.start = cast_start
+w, a, k = call[0]
+walls, cpus = [], []
+for _ in range(25):
+    t, c = time.perf_counter(), time.process_time()
+    cast_start(w, *a, **k)()
+    walls.append(time.perf_counter() - t)
+    cpus.append(time.process_time() - c)
 print(json.dumps({"rows": rows, "finish_s": finish_s,
+                  "own_cast_s": statistics.median(walls),
+                  "own_cast_cpu_s": statistics.median(cpus),
                   "stages": found + [WRITE],
                   "cpu_s": {"scan's thread": main / len(rows),
                             "other threads": (cpu - main) / len(rows)},
@@ -382,6 +414,7 @@ def measure(quick=False, repeat=None):
                 "triangles": casts[name][0]["triangles"], "ratio": wall / cast,
                 "stage_s": stages, "thread_cpu_s": got["cpu_s"],
                 "cpu_without_casts_s": got["cpu_without_casts_s"],
+                "own_cast_s": got["own_cast_s"], "own_cast_cpu_s": got["own_cast_cpu_s"],
                 "step_s": statistics.median(r["frame"] for r in rows)}
     out["loadavg_end"] = os.getloadavg()[0]
     return out
@@ -416,10 +449,14 @@ def section(r):
         "the file writer's), less sensitive than wall time to other work on the machine. "
         "Targets: the traffic drive with boxes <= 3x its cast, the open-sky drive <= 2x; "
         "the drive past parked cars has none (what a frame pays per object that stands "
-        "still).\n",
+        "still). *Our cast alone*: the cast a frame makes here (the middle frame's rays, "
+        "each at its own firing time, into that sweep's world: the static scene and the "
+        "moving instances, with the watertight re-check), repeated alone in the breakdown's "
+        "process, median of 25; the targets are against Open3D's cast, this column is "
+        "beside it.\n",
         "| drive | frames | rays / triangles | cast | per frame | per frame / cast | target "
-        "| whole process per frame | CPU per frame |",
-        "|---|---|---|---|---|---|---|---|---|"]
+        "| whole process per frame | CPU per frame | our cast alone | per frame / our cast |",
+        "|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, c in r["cases"].items():
         target = TARGETS.get(name)
         ok = "-" if target is None else \
@@ -432,7 +469,10 @@ def section(r):
             f"**{c['ratio']:.1f}x** | {ok} | {ms(c['process_per_frame_s'])} "
             f"({c['process_per_frame_s'] / c['cast_s']:.1f}x; runs: "
             f"{', '.join(f'{w * 1e3:.0f}' for w in c['wall_s'])} ms) | "
-            f"{ms(c['cpu_per_frame_s']) if 'cpu_per_frame_s' in c else '-'} |")
+            f"{ms(c['cpu_per_frame_s']) if 'cpu_per_frame_s' in c else '-'} | "
+            + (f"{ms(c['own_cast_s'])} ({ms(c['own_cast_cpu_s'])} of CPU) | "
+               f"{c['per_frame_s'] / c['own_cast_s']:.1f}x |" if "own_cast_s" in c
+               else "- | - |"))
     labels = []
     for c in r["cases"].values():
         labels += [k for k in c["stage_s"] if k not in labels]
@@ -475,11 +515,13 @@ def section(r):
               "the run makes (`World.start`: the frame's rays and its ghosts' bounces), "
               "then with each cast given back at once from those results; the CPU of "
               "that last run per step is what a frame costs besides its casts.", "",
-              "Left: a frame against its cast and the target. Right: a frame's CPU in the "
-              "breakdown's run, split into its casts (all threads' CPU less the run "
-              "without casts) and everything else, against what the target leaves a "
-              "frame on this machine's cores used in full (the target's wall time times "
-              "the cores).", ""]
+              "Left: a frame against Open3D's cast (the target's) and against our own cast "
+              "of it alone. Right: a frame's CPU as two parts measured apart, everything "
+              "but the casts (the run with its casts given back) and our cast of the "
+              "middle frame alone, with the whole step's CPU in the breakdown's run (the "
+              "tick: the parts plus the threads' waiting on each other and on the "
+              "machine), against what the target leaves a frame on this machine's cores "
+              "used in full (the target's wall time times the cores).", ""]
     return lines
 
 
@@ -503,10 +545,13 @@ def chart(r, path):
     fig, ax = plt.subplots(1, 2, figsize=(11, 4.4), sharey=True)
     cast = [c["cast_s"] * 1e3 for _, c in cases]
     frame = [c["per_frame_s"] * 1e3 for _, c in cases]
-    ax[0].barh([v + 0.2 for v in y], frame, 0.4, color="C0", label="a frame (per frame)")
-    ax[0].barh([v - 0.2 for v in y], cast, 0.4, color="0.6", label="its cast (Open3D)")
+    own = [c.get("own_cast_s", 0.0) * 1e3 for _, c in cases]
+    ax[0].barh([v + 0.27 for v in y], frame, 0.27, color="C0", label="a frame (per frame)")
+    ax[0].barh(y, cast, 0.27, color="0.6", label="its cast (Open3D, the target's)")
+    ax[0].barh([v - 0.27 for v in y], own, 0.27, color="0.35",
+               label="our cast of it alone (each ray at its own time)")
     for v, (name, c), f in zip(y, cases, frame):
-        ax[0].text(f, v + 0.2, f" {c['ratio']:.1f}x", va="center", fontsize=8)
+        ax[0].text(f, v + 0.27, f" {c['ratio']:.1f}x", va="center", fontsize=8)
         if name in TARGETS:
             ax[0].plot([TARGETS[name] * c["cast_s"] * 1e3] * 2, [v - 0.45, v + 0.45], "r--",
                        label="target" if v == y[0] else None)
@@ -516,15 +561,17 @@ def chart(r, path):
     total = [sum(c.get("thread_cpu_s", {}).values()) * 1e3 for _, c in cases]
     rest = [c.get("cpu_without_casts_s", 0.0) * 1e3 for _, c in cases]
     ax[1].barh(y, rest, 0.6, color="C0", label="everything but the casts")
-    ax[1].barh(y, [max(t - o, 0.0) for t, o in zip(total, rest)], 0.6, left=rest,
-               color="0.6", label="the casts (ours, each ray at its own time)")
+    ax[1].barh(y, [c.get("own_cast_cpu_s", 0.0) * 1e3 for _, c in cases], 0.6, left=rest,
+               color="0.35", label="+ our cast of the frame alone")
+    ax[1].plot(total, y, "k|", markersize=22, markeredgewidth=2,
+               label="the whole step, in the run")
     for v, (name, c) in zip(y, cases):
         if name in TARGETS:
             budget = TARGETS[name] * c["cast_s"] * 1e3 * cores
             ax[1].plot([budget] * 2, [v - 0.45, v + 0.45], "r--",
                        label=f"the target's wall time x {cores} cores" if v == y[0] else None)
     ax[1].set_xlabel("ms of CPU a frame")
-    ax[1].set_title("A frame's CPU: the casts and the rest")
+    ax[1].set_title("A frame's CPU: the rest and our cast")
     for a in ax:  # under the panels: the bars of the longest drive reach the right
         a.legend(loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, fontsize=8,
                  frameon=False)
