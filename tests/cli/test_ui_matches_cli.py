@@ -5,6 +5,7 @@ the command in another, as a user runs it, and their files are compared byte for
 
 import filecmp
 import json
+import math
 import subprocess
 import sys
 
@@ -176,6 +177,42 @@ def test_generate_traffic_writes_what_traffic_generate_writes(grid, tmp_path):
     assert sum(o["label"] == 11 for o in want["objects"].values()) >= 3  # 720 an hour for 20 s: 4
 
 
+def _differences(want, got, path="", rel=1e-12):
+    """Where two JSON values differ: every key, length, text and integer exactly, floats
+    within ``rel`` of each other. An evaluation made in another process has once given a
+    box's world heading one unit in the last place apart (1.5638150852727015 against
+    ...013, four boxes of one frame, CI under load; the detection files byte for byte the
+    same, and 30 runs of the command after it all gave ...013): numpy's products are not
+    promised to the last bit from one process to another."""
+    if isinstance(want, float) or isinstance(got, float):
+        ok = isinstance(want, (int, float)) and isinstance(got, (int, float)) \
+            and not isinstance(want, bool) and not isinstance(got, bool) \
+            and math.isclose(want, got, rel_tol=rel, abs_tol=rel)
+        return [] if ok else [f"{path}: {want!r} != {got!r}"]
+    if type(want) is not type(got):
+        return [f"{path}: {want!r} != {got!r}"]
+    if isinstance(want, dict):
+        if set(want) != set(got):
+            return [f"{path}: keys {sorted(set(want) ^ set(got))} in one only"]
+        return [d for k in want for d in _differences(want[k], got[k], f"{path}/{k}", rel)]
+    if isinstance(want, list):
+        if len(want) != len(got):
+            return [f"{path}: {len(want)} items != {len(got)}"]
+        return [d for i, (a, b) in enumerate(zip(want, got))
+                for d in _differences(a, b, f"{path}[{i}]", rel)]
+    return [] if want == got else [f"{path}: {want!r} != {got!r}"]
+
+
+def test_differences_tell_a_float_a_unit_apart_from_one_that_differs():
+    assert _differences({"a": [1.5638150852727015, 2, "x"]},
+                        {"a": [1.5638150852727013, 2, "x"]}) == []
+    assert _differences({"a": [1.5638150852727015]}, {"a": [1.5638151]}) != []
+    assert _differences({"a": 1}, {"a": 2}) != []
+    assert _differences({"a": 1.0}, {"a": None}) != []
+    assert _differences({"a": [1.0]}, {"a": [1.0, 2.0]}) != []
+    assert _differences({"a": 1}, {"b": 1}) != []
+
+
 def test_detect_and_evaluate_gives_what_detect_then_evaluate_give(junction, tmp_path):
     """The panel's button on a kitti dataset of both LiDARs: the detection files of
     'rls detect' of both sensor folders, and the result of 'rls evaluate' of them in the
@@ -201,5 +238,5 @@ def test_detect_and_evaluate_gives_what_detect_then_evaluate_give(junction, tmp_
     assert all(filecmp.cmp(cli / f, ui / f, shallow=False) for f in files)
     want, got = json.loads(result.read_text()), json.loads(ui_json.read_text())
     assert want.pop("inputs")["region"] == got.pop("inputs")["region"] == "InfraLOB in junction.blend"
-    assert got == want
+    assert not _differences(want, got), _differences(want, got)[:10]
     assert want["ground_truth"]["counted"] > 0
